@@ -1,0 +1,154 @@
+"""Shared pieces of every config model and the YAML loader.
+
+Models are strict: unknown keys are rejected, numbers must be finite. Errors
+are turned into one :class:`~roslan.errors.ConfigError` whose message lists,
+for every problem, ``file: key.path = value: what is allowed``.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Annotated, Any, TypeVar
+
+import numpy as np
+import yaml
+from pydantic import AfterValidator, BaseModel, ConfigDict, ValidationError
+
+from roslan.errors import ConfigError
+
+__all__ = [
+    "FiniteFloat",
+    "Pose",
+    "StrictModel",
+    "Vec3",
+    "format_validation_error",
+    "load_yaml",
+    "load_yaml_model",
+    "validate_model",
+]
+
+M = TypeVar("M", bound=BaseModel)
+
+
+def _finite(v: float) -> float:
+    if not math.isfinite(v):
+        msg = "must be a finite number (not NaN or inf)"
+        raise ValueError(msg)
+    return v
+
+
+FiniteFloat = Annotated[float, AfterValidator(_finite)]
+"""A float that is neither NaN nor infinite."""
+
+Vec3 = tuple[FiniteFloat, FiniteFloat, FiniteFloat]
+"""Three finite floats, e.g. a position in metres or roll/pitch/yaw in radians."""
+
+
+class StrictModel(BaseModel):
+    """Base of every config model: unknown keys are errors, models are frozen."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True, validate_default=True)
+
+
+class Pose(StrictModel):
+    """A rigid pose: position (m) and roll/pitch/yaw (rad), R = Rz(yaw) Ry(pitch) Rx(roll)."""
+
+    position: Vec3 = (0.0, 0.0, 0.0)
+    rpy: Vec3 = (0.0, 0.0, 0.0)
+
+    def matrix(self) -> np.ndarray:
+        """4x4 homogeneous transform ``T_parent_child`` (float64)."""
+        from roslan.trajectory.frames import rpy_to_matrix
+
+        T = np.eye(4)
+        T[:3, :3] = rpy_to_matrix(np.asarray(self.rpy, dtype=float))
+        T[:3, 3] = self.position
+        return T
+
+
+def _loc(loc: tuple[int | str, ...]) -> str:
+    out = ""
+    for part in loc:
+        if isinstance(part, int):
+            out += f"[{part}]"
+        else:
+            out += ("." if out else "") + str(part)
+    return out or "<root>"
+
+
+def _clean_message(err: Mapping[str, Any]) -> str:
+    msg = str(err.get("msg", ""))
+    for prefix in ("Value error, ", "Assertion failed, "):
+        if msg.startswith(prefix):
+            msg = msg[len(prefix) :]
+    if err.get("type") == "extra_forbidden":
+        msg = "unknown key (not allowed here)"
+    return msg
+
+
+def format_validation_error(
+    exc: ValidationError, source: str | Path | None, prefix: tuple[int | str, ...] = ()
+) -> str:
+    """One line per problem: ``source: key.path = value: message``."""
+    src = f"{source}: " if source is not None else ""
+    lines = []
+    for err in exc.errors(include_url=False):
+        # Tagged unions insert the tag as a location element; keep user-facing keys only.
+        loc = tuple(p for p in err["loc"] if not (isinstance(p, str) and p.startswith("function-")))
+        full = (*prefix, *loc)
+        value = err.get("input")
+        # A whole mapping (model-level check) is not worth echoing: its message names the keys.
+        shown = "" if err.get("type") == "missing" or isinstance(value, Mapping) else f" = {_short(value)}"
+        where = f"{_loc(full)}{shown}: " if full else ""
+        lines.append(f"{src}{where}{_clean_message(err)}")
+    return "\n".join(lines)
+
+
+def _short(value: Any) -> str:
+    text = repr(value)
+    return text if len(text) <= 80 else text[:77] + "..."
+
+
+def load_yaml(path: str | Path) -> Any:
+    """Parse a YAML file; a missing, unreadable or malformed file is a ConfigError."""
+    p = Path(path)
+    try:
+        text = p.read_text(encoding="utf-8")
+    except FileNotFoundError as err:
+        msg = f"{p}: file not found"
+        raise ConfigError(msg) from err
+    except (OSError, UnicodeDecodeError) as err:
+        msg = f"{p}: cannot read file: {err}"
+        raise ConfigError(msg) from err
+    try:
+        return yaml.safe_load(text)
+    except yaml.YAMLError as err:
+        mark = getattr(err, "problem_mark", None)
+        where = f" (line {mark.line + 1}, column {mark.column + 1})" if mark is not None else ""
+        problem = getattr(err, "problem", None) or str(err)
+        msg = f"{p}: malformed YAML{where}: {problem}"
+        raise ConfigError(msg) from err
+
+
+def validate_model(
+    model: type[M], data: Any, source: str | Path | None = None, context: Mapping[str, Any] | None = None
+) -> M:
+    """Validate ``data`` against ``model``, raising ConfigError with readable messages."""
+    if data is None:
+        data = {}
+    if not isinstance(data, Mapping):
+        msg = f"{source or '<config>'}: expected a mapping of keys at the top level, got {type(data).__name__}"
+        raise ConfigError(msg)
+    try:
+        return model.model_validate(data, context=dict(context or {}))
+    except ValidationError as err:
+        raise ConfigError(format_validation_error(err, source)) from None
+
+
+def load_yaml_model(model: type[M], path: str | Path) -> M:
+    """Load a YAML file and validate it; relative paths inside resolve against its folder."""
+    p = Path(path)
+    return validate_model(model, load_yaml(p), p, context={"base_dir": p.parent.resolve(), "source": p})
+

@@ -1,0 +1,94 @@
+"""The top-level simulation config (``roslan simulate CONFIG``)."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Annotated, Any, Literal
+
+from pydantic import (
+    BeforeValidator,
+    Field,
+    SerializeAsAny,
+    ValidationInfo,
+    field_validator,
+    model_validator,
+)
+
+from roslan.config.base import StrictModel
+from roslan.sensors.base import SensorConfig
+from roslan.sensors.registry import SENSOR_TYPES, config_class
+from roslan.trajectory.config import TrajectoryConfig
+
+__all__ = ["DEFAULT_START_TIME_NS", "OutputConfig", "SimConfig"]
+
+DEFAULT_START_TIME_NS = 1_700_000_000_000_000_000
+"""Default absolute stamp of trajectory time 0: 2023-11-14T22:13:20Z (ROS treats 0 as
+"no time", so stamps start at a fixed, documented, non-zero epoch)."""
+
+BagFormat = Literal["ros1", "ros2"]
+
+
+class OutputConfig(StrictModel):
+    """``output:`` block."""
+
+    start_time: Annotated[int, Field(gt=0)] = DEFAULT_START_TIME_NS
+    """Absolute stamp (ns since the Unix epoch) of trajectory time 0; a float in
+    seconds is accepted too."""
+    formats: tuple[BagFormat, ...] = ("ros1", "ros2")
+    compression: Literal["none", "lz4", "bz2"] = "lz4"
+    ground_truth_rate: Annotated[float, Field(gt=0)] = 200.0
+
+    @field_validator("start_time", mode="before")
+    @classmethod
+    def _seconds_to_ns(cls, v: Any) -> Any:
+        if isinstance(v, float):
+            return round(v * 1e9)
+        return v
+
+    @field_validator("formats")
+    @classmethod
+    def _nonempty(cls, v: tuple[str, ...]) -> tuple[str, ...]:
+        if not v:
+            msg = "give at least one of 'ros1', 'ros2'"
+            raise ValueError(msg)
+        if len(set(v)) != len(v):
+            msg = "formats must not repeat"
+            raise ValueError(msg)
+        return v
+
+
+def _sensor(value: Any, info: ValidationInfo) -> SensorConfig:
+    """Dispatch one ``sensors[i]`` mapping to its type's config model."""
+    if isinstance(value, SensorConfig):
+        return value
+    if not isinstance(value, Mapping):
+        msg = "each sensor must be a mapping with at least 'type' and 'name'"
+        raise ValueError(msg)
+    if "type" not in value:
+        msg = f"missing 'type'; allowed: {', '.join(sorted(SENSOR_TYPES))}"
+        raise ValueError(msg)
+    cls = config_class(str(value["type"]))
+    return cls.model_validate(value, context=info.context)
+
+
+class SimConfig(StrictModel):
+    """Everything a simulation needs; validated once when the YAML is read."""
+
+    trajectory: TrajectoryConfig = TrajectoryConfig()
+    scene: str | None = None
+    """A built-in scene name (``warehouse``, ``refinery``, ``empty``) or a scene YAML path."""
+    sensors: list[Annotated[SerializeAsAny[SensorConfig], BeforeValidator(_sensor)]] = []
+    seed: Annotated[int, Field(ge=0)] = 0
+    output: OutputConfig = OutputConfig()
+
+    @model_validator(mode="after")
+    def _unique(self) -> SimConfig:
+        for key in ("name", "topic"):
+            seen: set[str] = set()
+            for i, s in enumerate(self.sensors):
+                value = getattr(s, key)
+                if value in seen:
+                    msg = f"sensors[{i}].{key} = {value!r}: duplicate; every sensor {key} must be unique"
+                    raise ValueError(msg)
+                seen.add(value)
+        return self

@@ -1,0 +1,84 @@
+"""ROS message construction for both bag flavours.
+
+ROS 1 and ROS 2 share message *names* but not all definitions (ROS 1's Header has
+``seq``; time types differ), so every message is built against the typestore of
+the flavour being written. Sensors describe a message once, as a function of a
+:class:`MessageStore`; the pipeline calls it for each flavour it writes.
+
+Extra types roslan publishes that are not in the stock stores (``dvs_msgs`` of
+rpg_dvs_ros) are registered here, with definitions identical to the originals so
+their ROS 1 md5sums match and every ROS tool decodes them.
+"""
+
+from __future__ import annotations
+
+from enum import Enum
+from typing import Any
+
+from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+from rosbags.typesys.store import Typestore
+
+__all__ = ["EXTRA_MSGDEFS", "Flavor", "MessageStore"]
+
+
+class Flavor(str, Enum):
+    """Which ROS generation a bag is written for."""
+
+    ROS1 = "ros1"
+    ROS2 = "ros2"
+
+
+# rpg_dvs_ros/dvs_msgs, verbatim field lists (comments dropped).
+EXTRA_MSGDEFS: dict[str, str] = {
+    "dvs_msgs/msg/Event": "uint16 x\nuint16 y\ntime ts\nbool polarity\n",
+    "dvs_msgs/msg/EventArray": (
+        "Header header\nuint32 height\nuint32 width\ndvs_msgs/Event[] events\n"
+    ),
+}
+
+_STORES = {Flavor.ROS1: Stores.ROS1_NOETIC, Flavor.ROS2: Stores.ROS2_HUMBLE}
+
+
+class MessageStore:
+    """Typestore of one flavour plus small constructors for common pieces."""
+
+    def __init__(self, flavor: Flavor) -> None:
+        self.flavor = flavor
+        ts = get_typestore(_STORES[flavor])
+        extra: dict[str, Any] = {}
+        for name, text in EXTRA_MSGDEFS.items():
+            if flavor is Flavor.ROS2:
+                text = text.replace("Header header", "std_msgs/Header header").replace(
+                    "time ts", "builtin_interfaces/Time ts"
+                )
+            extra.update(get_types_from_msg(text, name))
+        ts.register(extra)
+        self.typestore: Typestore = ts
+        self.types = ts.types
+        self._Time = ts.types["builtin_interfaces/msg/Time"]
+        self._Header = ts.types["std_msgs/msg/Header"]
+
+    @property
+    def is_ros1(self) -> bool:
+        return self.flavor is Flavor.ROS1
+
+    def time(self, ns: int) -> Any:
+        """builtin_interfaces/Time from absolute integer nanoseconds."""
+        sec, nsec = divmod(int(ns), 1_000_000_000)
+        return self._Time(sec=sec, nanosec=nsec)
+
+    def header(self, stamp_ns: int, frame_id: str, seq: int = 0) -> Any:
+        """std_msgs/Header stamped at absolute ``stamp_ns``."""
+        if self.is_ros1:
+            return self._Header(seq=seq, stamp=self.time(stamp_ns), frame_id=frame_id)
+        return self._Header(stamp=self.time(stamp_ns), frame_id=frame_id)
+
+    def new(self, msgtype: str, **fields: Any) -> Any:
+        """Instantiate message ``msgtype`` (e.g. ``'sensor_msgs/msg/Imu'``)."""
+        return self.types[msgtype](**fields)
+
+    def serialize(self, msg: Any, msgtype: str) -> bytes:
+        """Wire bytes for this flavour (ROS 1 serialization or CDR)."""
+        if self.is_ros1:
+            return bytes(self.typestore.serialize_ros1(msg, msgtype))
+        return bytes(self.typestore.serialize_cdr(msg, msgtype))

@@ -1,0 +1,171 @@
+"""The one small interface every sensor implements.
+
+A sensor is built from its validated config, gets a :class:`SimContext` (the
+trajectory, the scene, its random stream, a place for its dataset files, the
+shared renderer / ray caster) and yields :class:`Message` objects in
+non-decreasing trajectory time. The pipeline merges all sensors' streams by
+stamp and writes them to the bags; sensors write their own dataset files
+(``imu.txt``, ``events.txt``...) through ``ctx.path(...)`` while they stream.
+
+Adding a sensor = one new module (a config model with ``type: Literal[...]`` and a
+class satisfying :class:`Sensor`) + one line in :mod:`roslan.sensors.registry`.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Callable, Iterator, Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING, Annotated, Any, NamedTuple, Protocol, runtime_checkable
+
+import numpy as np
+from numpy.typing import NDArray
+from pydantic import AfterValidator, Field
+
+from roslan.config.base import FiniteFloat, Pose, StrictModel
+
+if TYPE_CHECKING:
+    from roslan.io.messages import MessageStore
+    from roslan.scene.model import Scene
+    from roslan.trajectory.generator import Trajectory
+
+__all__ = [
+    "Message",
+    "SensorConfig",
+    "Sensor",
+    "SimContext",
+    "StaticTransform",
+    "TopicSpec",
+    "sample_times_ns",
+]
+
+_NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_]*$")
+_TOPIC = re.compile(r"^/[A-Za-z][A-Za-z0-9_/]*$")
+
+
+def _check_name(v: str) -> str:
+    if not _NAME.match(v):
+        msg = "must start with a letter and contain only letters, digits and '_'"
+        raise ValueError(msg)
+    return v
+
+
+def _check_topic(v: str) -> str:
+    if not _TOPIC.match(v) or v.endswith("/") or "//" in v:
+        msg = "must be an absolute ROS topic name like '/imu' or '/dvs/events'"
+        raise ValueError(msg)
+    return v
+
+
+SensorName = Annotated[str, AfterValidator(_check_name)]
+TopicName = Annotated[str, AfterValidator(_check_topic)]
+
+
+class SensorConfig(StrictModel):
+    """Keys every sensor has. Subclasses add ``type: Literal['...']`` and their own keys.
+
+    ``frame_id`` defaults to ``name`` (cameras publish in ``<frame_id>_optical``);
+    ``pose`` is the sensor's extrinsics ``T_base_link_sensor``.
+    """
+
+    type: str
+    name: SensorName
+    rate: Annotated[FiniteFloat, Field(gt=0)]
+    topic: TopicName
+    frame_id: SensorName | None = None
+    pose: Pose = Pose()
+
+    @property
+    def frame(self) -> str:
+        return self.frame_id or self.name
+
+
+class TopicSpec(NamedTuple):
+    """A topic a sensor publishes: name and message type (``'sensor_msgs/msg/Imu'``)."""
+
+    topic: str
+    msgtype: str
+
+
+class StaticTransform(NamedTuple):
+    """``T_parent_child`` (4x4) published once on /tf_static."""
+
+    parent: str
+    child: str
+    T: NDArray[np.float64]
+
+
+class Message(NamedTuple):
+    """One message of a sensor's stream.
+
+    ``t_ns`` is trajectory time (ns since trajectory start), the merge key. ``build``
+    returns either a message object of ``store`` (serialized by the writer) or the
+    finished wire bytes for ``store.flavor`` (for bulk messages packed with NumPy).
+    The header stamp inside must be ``ctx.stamp(t_ns)``.
+    """
+
+    t_ns: int
+    topic: str
+    msgtype: str
+    build: Callable[[MessageStore], Any]
+
+
+class SimContext(Protocol):
+    """What the pipeline hands every sensor."""
+
+    trajectory: Trajectory
+    start_time_ns: int
+    seed: int
+    sensors: Sequence[SensorConfig]
+
+    def stamp(self, t_ns: int) -> int:
+        """Absolute header stamp (ns) of trajectory time ``t_ns``."""
+        ...
+
+    def rng(self, name: str) -> np.random.Generator:
+        """The deterministic random stream of component ``name`` (independent per name)."""
+        ...
+
+    def path(self, relpath: str) -> Path:
+        """A file path inside the (temporary) output folder; parent folders exist."""
+        ...
+
+    @property
+    def scene(self) -> Scene:
+        """The scene (raises a clear ConfigError if the config has none)."""
+        ...
+
+    def renderer(self) -> Any:
+        """The process-wide OpenGL renderer of the scene (created on first use)."""
+        ...
+
+    def raycaster(self) -> Any:
+        """The process-wide Embree ray caster of the scene (created on first use)."""
+        ...
+
+
+@runtime_checkable
+class Sensor(Protocol):
+    """A simulated sensor. Construct with ``cls(config)``; the pipeline then calls
+    ``topics``, ``static_transforms``, iterates ``messages(ctx)`` and finally ``close(ctx)``."""
+
+    config: SensorConfig
+
+    def topics(self) -> list[TopicSpec]: ...
+
+    def static_transforms(self) -> list[StaticTransform]: ...
+
+    def messages(self, ctx: SimContext) -> Iterator[Message]: ...
+
+    def close(self, ctx: SimContext) -> None:
+        """Finish dataset files (flush, write calibration). Called after the stream ends."""
+        ...
+
+
+def sample_times_ns(rate_hz: float, duration_ns: int, offset_ns: int = 0) -> NDArray[np.int64]:
+    """Instants ``offset + i / rate`` (integer ns, no float drift) within [0, duration]."""
+    if duration_ns < offset_ns:
+        return np.zeros(0, dtype=np.int64)
+    n = int(np.floor((duration_ns - offset_ns) * rate_hz / 1e9 + 1e-9)) + 1
+    i = np.arange(n, dtype=np.float64)
+    return offset_ns + np.round(i * (1e9 / rate_hz)).astype(np.int64)

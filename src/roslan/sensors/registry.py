@@ -1,0 +1,42 @@
+"""Sensor types by name. Adding a sensor = one line here + its module.
+
+Each entry maps the config ``type`` to ``(module, config class, sensor class)``;
+modules are imported on first use so heavy back-ends (OpenGL, Embree) load only
+when a config uses them. Config modules themselves must stay light to import.
+"""
+
+from __future__ import annotations
+
+import importlib
+from functools import cache
+from typing import Any
+
+from roslan.sensors.base import SensorConfig
+
+__all__ = ["SENSOR_TYPES", "config_class", "sensor_class"]
+
+SENSOR_TYPES: dict[str, tuple[str, str, str]] = {
+    # type: (module, config class, sensor class)
+}
+
+
+def _entry(type_name: str) -> tuple[str, str, str]:
+    try:
+        return SENSOR_TYPES[type_name]
+    except KeyError:
+        allowed = ", ".join(sorted(SENSOR_TYPES))
+        msg = f"unknown sensor type {type_name!r}; allowed: {allowed}"
+        raise ValueError(msg) from None
+
+
+@cache
+def config_class(type_name: str) -> type[SensorConfig]:
+    module, cfg, _ = _entry(type_name)
+    cls: type[SensorConfig] = getattr(importlib.import_module(module), cfg)
+    return cls
+
+
+@cache
+def sensor_class(type_name: str) -> Any:
+    module, _, sensor = _entry(type_name)
+    return getattr(importlib.import_module(module), sensor)

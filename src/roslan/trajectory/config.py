@@ -1,0 +1,114 @@
+"""The ``trajectory:`` config block (the documented contract of DESIGN.md §1 / issue 2)."""
+
+from __future__ import annotations
+
+import math
+from typing import Annotated
+
+from pydantic import Field, model_validator
+
+from roslan.config.base import FiniteFloat, Pose, StrictModel, Vec3
+
+__all__ = ["Approach", "Flapping", "Initial", "Kappa", "TrajectoryConfig"]
+
+PositiveFloat = Annotated[FiniteFloat, Field(gt=0)]
+NonNegativeFloat = Annotated[FiniteFloat, Field(ge=0)]
+
+
+class Kappa(StrictModel):
+    """Tau-coupling ratios of the five coupled gaps (tau_g = kappa * tau_z); each > 0."""
+
+    x: PositiveFloat = 0.4
+    y: PositiveFloat = 0.6
+    roll: PositiveFloat = 0.5
+    pitch: PositiveFloat = 0.5
+    yaw: PositiveFloat = 0.5
+
+
+class Initial(StrictModel):
+    """Initial state in the goal frame F, relative to the goal."""
+
+    position: Vec3 | None = None
+    rpy: Vec3 = (0.0, 0.0, 0.0)
+    descent_rate: PositiveFloat | None = None
+
+    @model_validator(mode="after")
+    def _height_positive(self) -> Initial:
+        if self.position is not None and not self.position[2] > 0:
+            msg = f"position[2] (height above the goal) = {self.position[2]} must be > 0"
+            raise ValueError(msg)
+        return self
+
+
+class Approach(StrictModel):
+    """Landing spec of the paper's dataset: the start lies ``distance`` metres from the goal,
+    seen from it at elevation ``angle`` (rad), the robot flying towards it along ``heading``
+    (rad, measured in F from +x towards +y), with initial speed ``speed`` (m/s, full 3-D)."""
+
+    distance: PositiveFloat
+    angle: Annotated[FiniteFloat, Field(gt=0, le=math.pi / 2)]
+    heading: FiniteFloat = 0.0
+    speed: PositiveFloat
+
+
+class Flapping(StrictModel):
+    """Flapping perturbation: heave (m) on height and pitch (rad) oscillation at ``frequency``
+    (Hz), scaled by the remaining height fraction z(t)/z0 so it fades out at touchdown."""
+
+    frequency: NonNegativeFloat = 0.0
+    heave: NonNegativeFloat = 0.0
+    pitch: NonNegativeFloat = 0.0
+    phase: FiniteFloat = 0.0
+
+    @property
+    def enabled(self) -> bool:
+        return self.frequency > 0 and (self.heave > 0 or self.pitch > 0)
+
+
+class TrajectoryConfig(StrictModel):
+    """Tau-theory landing: height gap closed with constant tau-dot ``k``, five coupled gaps."""
+
+    k: Annotated[FiniteFloat, Field(gt=0, le=1)] = 0.5
+    kappa: Kappa = Kappa()
+    initial: Initial = Initial(position=(-8.0, 2.0, 4.6), rpy=(0.05, 0.15, 0.3), descent_rate=2.0)
+    approach: Approach | None = None
+    goal: Pose = Pose()
+    sample_dt: PositiveFloat = 0.1
+    hold: NonNegativeFloat = 0.0
+    flapping: Flapping = Flapping()
+
+    @model_validator(mode="after")
+    def _check(self) -> TrajectoryConfig:
+        if self.k >= 1.0:
+            msg = (
+                f"k = {self.k}: k = 1 closes the height gap at constant speed, i.e. the robot "
+                "hits the goal without braking (a crash); use 0 < k < 1 (k <= 0.5 for a soft "
+                "touchdown)"
+            )
+            raise ValueError(msg)
+        if self.approach is not None:
+            given = self.initial.model_fields_set if "initial" in self.model_fields_set else set()
+            clash = [key for key in ("position", "descent_rate") if key in given]
+            if clash:
+                keys = " and ".join(f"initial.{key}" for key in clash)
+                msg = f"give either 'approach' or {keys}, not both"
+                raise ValueError(msg)
+        else:
+            missing = [k for k in ("position", "descent_rate") if getattr(self.initial, k) is None]
+            if missing:
+                keys = " and ".join(f"initial.{key}" for key in missing)
+                msg = (
+                    f"{keys} missing: give initial.position and initial.descent_rate, "
+                    "or an 'approach' block"
+                )
+                raise ValueError(msg)
+        for name in ("x", "y", "roll", "pitch", "yaw"):
+            kk = self.k * getattr(self.kappa, name)
+            if kk > 1.0 + 1e-12:
+                msg = (
+                    f"kappa.{name} = {getattr(self.kappa, name)}: k * kappa.{name} = {kk:.4g} > 1 "
+                    f"makes the {name} gap close with unbounded rate at touchdown; use "
+                    f"kappa.{name} <= 1/k = {1 / self.k:.4g} (< 0.5/k for bounded acceleration)"
+                )
+                raise ValueError(msg)
+        return self

@@ -1,0 +1,268 @@
+"""The tau-theory landing trajectory: closed form, vectorized, sampled at any instants."""
+
+from __future__ import annotations
+
+import math
+import warnings
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from roslan.trajectory.config import TrajectoryConfig
+from roslan.trajectory.frames import (
+    euler_rates_to_body_acceleration,
+    euler_rates_to_body_rates,
+    quat_multiply,
+    rpy_to_matrix,
+    rpy_to_quat_xyzw,
+)
+from roslan.trajectory.tau import Terminal, classify, gap
+
+__all__ = ["COMPONENTS", "GAPS", "State", "Trajectory", "TrajectoryWarning"]
+
+F64 = NDArray[np.float64]
+
+GAPS = ("x", "y", "z", "roll", "pitch", "yaw")
+"""Order of the six gaps (frame F) in every (N, 6) array."""
+
+COMPONENTS = (
+    *GAPS,
+    *(f"v{g}" for g in GAPS),
+    *(f"a{g}" for g in GAPS),
+)
+"""The 18 components in trajectory.csv order: gaps, rates, accelerations."""
+
+
+class TrajectoryWarning(UserWarning):
+    """Valid parameters whose landing is physically hard (unbounded deceleration...)."""
+
+
+@dataclass(frozen=True, slots=True)
+class State:
+    """Trajectory state at N instants. Arrays are float64.
+
+    Attributes:
+        t: (N,) trajectory time, s.
+        gaps, rates, accels: (N, 6) the 18 components in frame F, order :data:`GAPS`
+            (m, rad; m/s, rad/s; m/s^2, rad/s^2).
+        position, velocity, acceleration: (N, 3) of base_link in the world frame.
+        R_world_body: (N, 3, 3) orientation of base_link in the world.
+        quat_xyzw: (N, 4) the same orientation as a unit quaternion (w >= 0).
+        omega_body, alpha_body: (N, 3) angular velocity (rad/s) and acceleration (rad/s^2)
+            of base_link, in base_link.
+    """
+
+    t: F64
+    gaps: F64
+    rates: F64
+    accels: F64
+    position: F64
+    velocity: F64
+    acceleration: F64
+    R_world_body: F64
+    quat_xyzw: F64
+    omega_body: F64
+    alpha_body: F64
+
+    def __len__(self) -> int:
+        return int(self.t.shape[0])
+
+    def components(self) -> F64:
+        """(N, 18) array in :data:`COMPONENTS` order."""
+        return np.concatenate([self.gaps, self.rates, self.accels], axis=1)
+
+
+class Trajectory:
+    """A validated tau-theory landing, evaluated in closed form.
+
+    ``Trajectory(config).state(t)`` gives the full :class:`State` at any instants
+    ``t`` (s); before 0 it is clamped to the start, after touchdown ``T`` the robot
+    rests at the goal for ``config.hold`` seconds.
+    """
+
+    def __init__(self, config: TrajectoryConfig, *, warn: bool = True) -> None:
+        self.config = config
+        c = config
+        if c.approach is not None:
+            a = c.approach
+            horiz = a.distance * math.cos(a.angle)
+            x0 = -horiz * math.cos(a.heading)
+            y0 = -horiz * math.sin(a.heading)
+            z0 = a.distance * math.sin(a.angle)
+            # |v0| = vz0 * sqrt(1 + (x0/(kx z0))^2 + (y0/(ky z0))^2)   (DESIGN.md §1)
+            denom = math.sqrt(
+                1.0 + (x0 / (c.kappa.x * z0)) ** 2 + (y0 / (c.kappa.y * z0)) ** 2
+            )
+            v0 = a.speed / denom
+        else:
+            assert c.initial.position is not None and c.initial.descent_rate is not None
+            x0, y0, z0 = c.initial.position
+            v0 = c.initial.descent_rate
+        roll0, pitch0, yaw0 = c.initial.rpy
+        self.initial_gaps: F64 = np.array([x0, y0, z0, roll0, pitch0, yaw0], dtype=np.float64)
+        self.descent_rate = float(v0)
+        self.k = float(c.k)
+        self.T = z0 / (self.k * v0)
+        """Touchdown time, s."""
+        self.tau0 = -self.T * self.k
+        """tau of the height gap at t = 0 (s, negative by the paper's convention)."""
+        self.kappas: F64 = np.array(
+            [c.kappa.x, c.kappa.y, 1.0, c.kappa.roll, c.kappa.pitch, c.kappa.yaw]
+        )
+        self.exponents: F64 = 1.0 / (self.k * self.kappas)
+        self.terminal: dict[str, Terminal] = {
+            g: classify(self.k * kap, float(g0))
+            for g, kap, g0 in zip(GAPS, self.kappas, self.initial_gaps, strict=True)
+        }
+        self.hold = float(c.hold)
+        self.duration = self.T + self.hold
+        """Touchdown time plus hold, s."""
+        self.R_world_goal: F64 = rpy_to_matrix(np.asarray(c.goal.rpy))
+        self.p_world_goal: F64 = np.asarray(c.goal.position, dtype=np.float64)
+        self._q_world_goal: F64 = rpy_to_quat_xyzw(np.asarray(c.goal.rpy))
+        flap = c.flapping
+        self._flap = flap if flap.enabled else None
+        if warn:
+            for message in self.warnings():
+                warnings.warn(message, TrajectoryWarning, stacklevel=2)
+
+    # ------------------------------------------------------------------ reports
+    def warnings(self) -> list[str]:
+        """Human-readable notes on hard terminal behaviour (empty for a soft landing)."""
+        out = []
+        for g, term in self.terminal.items():
+            kap = self.kappas[GAPS.index(g)]
+            what = "k" if g == "z" else f"k*kappa.{g}"
+            val = self.k * kap
+            if term is Terminal.UNBOUNDED_DECELERATION:
+                out.append(
+                    f"{g} gap: {what} = {val:.4g} in (0.5, 1): its rate reaches 0 but the "
+                    "required deceleration grows without bound near touchdown"
+                )
+            elif term is Terminal.NONZERO_RATE:
+                out.append(
+                    f"{g} gap: {what} = {val:.4g}: the gap closes at a non-zero rate "
+                    "(contact with speed on this axis)"
+                )
+        return out
+
+    def summary(self) -> dict[str, Any]:
+        """Touchdown time, tau0, parameters, terminal behaviour, peaks (JSON-ready)."""
+        t = np.linspace(0.0, self.T, 20001)
+        st = self.state(t)
+        speed = np.linalg.norm(st.velocity, axis=1)
+        # deceleration along the direction of motion (positive when braking)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            along = -np.einsum("ij,ij->i", st.acceleration, st.velocity) / np.where(
+                speed > 0, speed, 1.0
+            )
+        return {
+            "touchdown_time": self.T,
+            "duration": self.duration,
+            "tau0": self.tau0,
+            "k": self.k,
+            "kappa": dict(zip(("x", "y", "roll", "pitch", "yaw"), self.kappas[[0, 1, 3, 4, 5]].tolist(), strict=True)),
+            "initial_gaps": dict(zip(GAPS, self.initial_gaps.tolist(), strict=True)),
+            "descent_rate": self.descent_rate,
+            "initial_speed": float(speed[0]),
+            "terminal": {g: term.value for g, term in self.terminal.items()},
+            "peak_speed": float(speed.max()),
+            "peak_deceleration": float(along.max()),
+            "peak_acceleration_norm": float(np.linalg.norm(st.acceleration, axis=1).max()),
+            "warnings": self.warnings(),
+        }
+
+    # ------------------------------------------------------------------ sampling
+    def table_times(self) -> F64:
+        """Instants of the exported table: every ``sample_dt`` from 0, exactly T, then the hold."""
+        dt = self.config.sample_dt
+        n = int(math.floor(self.T / dt + 1e-9))
+        before = np.arange(n + 1, dtype=np.float64) * dt
+        before = before[before < self.T - 1e-9]
+        m = int(math.floor(self.hold / dt + 1e-9))
+        after = self.T + np.arange(1, m + 1, dtype=np.float64) * dt
+        return np.concatenate([before, [self.T], after])
+
+    def gaps_at(self, t: ArrayLike) -> tuple[F64, F64, F64, F64]:
+        """The 18 components in F: (t, gaps, rates, accels), each (N,) / (N, 6)."""
+        tt = np.atleast_1d(np.asarray(t, dtype=np.float64))
+        tc = np.clip(tt, 0.0, None)
+        s = np.clip(1.0 - tc / self.T, 0.0, 1.0)
+        n = tt.shape[0]
+        gaps = np.empty((n, 6))
+        rates = np.empty((n, 6))
+        accels = np.empty((n, 6))
+        for i in range(6):
+            gaps[:, i], rates[:, i], accels[:, i] = gap(
+                float(self.initial_gaps[i]), float(self.exponents[i]), self.T, s
+            )
+        if self._flap is not None:
+            f = self._flap
+            w = 2.0 * math.pi * f.frequency
+            ph = w * tc + f.phase
+            sn, cs = np.sin(ph), np.cos(ph)
+            z0 = self.initial_gaps[2]
+            # envelope e = z/z0 fades the oscillation out at touchdown
+            e, de, dde = gaps[:, 2] / z0, rates[:, 2] / z0, accels[:, 2] / z0
+            osc = e * sn
+            dosc = de * sn + e * w * cs
+            ddosc = dde * sn + 2.0 * de * w * cs - e * w * w * sn
+            for col, amp in ((2, f.heave), (4, f.pitch)):
+                if amp > 0:
+                    gaps[:, col] += amp * osc
+                    rates[:, col] += amp * dosc
+                    accels[:, col] += amp * ddosc
+        # at rest before the start (t < 0 clamps to the start) and after touchdown
+        after = tt > self.T
+        if after.any():
+            gaps[after] = 0.0
+            rates[after] = 0.0
+            accels[after] = 0.0
+        before = tt < 0.0
+        if before.any():
+            rates[before] = 0.0
+            accels[before] = 0.0
+        return tt, gaps, rates, accels
+
+    def state(self, t: ArrayLike) -> State:
+        """Full state at instants ``t`` (s), shape (N,)."""
+        tt, gaps, rates, accels = self.gaps_at(t)
+        R = self.R_world_goal
+        position = gaps[:, :3] @ R.T + self.p_world_goal
+        velocity = rates[:, :3] @ R.T
+        acceleration = accels[:, :3] @ R.T
+        rpy, drpy, ddrpy = gaps[:, 3:], rates[:, 3:], accels[:, 3:]
+        R_goal_body = rpy_to_matrix(rpy)
+        R_world_body = np.einsum("ij,njk->nik", R, R_goal_body)
+        quat = quat_multiply(self._q_world_goal, rpy_to_quat_xyzw(rpy))
+        quat = np.where(quat[:, 3:4] < 0, -quat, quat)
+        omega = euler_rates_to_body_rates(rpy, drpy)
+        alpha = euler_rates_to_body_acceleration(rpy, drpy, ddrpy)
+        return State(
+            t=tt,
+            gaps=gaps,
+            rates=rates,
+            accels=accels,
+            position=position,
+            velocity=velocity,
+            acceleration=acceleration,
+            R_world_body=R_world_body,
+            quat_xyzw=quat,
+            omega_body=omega,
+            alpha_body=alpha,
+        )
+
+    def state_ns(self, t_ns: ArrayLike) -> State:
+        """Full state at integer-nanosecond trajectory times."""
+        return self.state(np.asarray(t_ns, dtype=np.int64).astype(np.float64) * 1e-9)
+
+    @property
+    def duration_ns(self) -> int:
+        """Touchdown time plus hold, in integer nanoseconds (rounded)."""
+        return round(self.duration * 1e9)
+
+    @property
+    def touchdown_ns(self) -> int:
+        return round(self.T * 1e9)
