@@ -1,0 +1,66 @@
+"""``roslan`` command line. Holds no algorithm: each command module parses its
+arguments and calls library code. User errors (:class:`~roslan.errors.RoslanError`)
+print one clear message and exit with status 2; no traceback."""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+import warnings
+from collections.abc import Sequence
+
+from roslan import __version__
+from roslan.errors import RoslanError
+
+__all__ = ["main"]
+
+# Each module defines ``register(subparsers)``, adding its command(s) with
+# ``parser.set_defaults(func=callable(args) -> int)``.
+COMMAND_MODULES: tuple[str, ...] = (
+    "roslan.trajectory.cli",
+)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="roslan",
+        description="Multi-sensor simulation of bio-inspired ornithopter landings.",
+    )
+    parser.add_argument("--version", action="version", version=f"roslan {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    for name in COMMAND_MODULES:
+        importlib.import_module(name).register(sub)
+    return parser
+
+
+def _show_warning(
+    message: Warning | str,
+    category: type[Warning],
+    filename: str,
+    lineno: int,
+    file: object = None,
+    line: str | None = None,
+) -> None:
+    print(f"warning: {message}", file=sys.stderr)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if getattr(args, "func", None) is None:
+        parser.print_help()
+        return 2
+    warnings.showwarning = _show_warning
+    try:
+        return int(args.func(args) or 0)
+    except RoslanError as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())
