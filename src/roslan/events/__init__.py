@@ -1,0 +1,32 @@
+"""Event-camera simulation core (pure NumPy, no rendering): the ESIM pixel model with
+v2e-style non-idealities, adaptive sampling, ROS packing and streaming event files."""
+
+from __future__ import annotations
+
+from roslan.events.files import EventH5Writer, EventTextWriter, format_events_txt
+from roslan.events.model import (
+    EVENT_PRESETS,
+    EventBatch,
+    EventGenerator,
+    EventModelParams,
+    log_intensity,
+)
+from roslan.events.ros import EVENT_ARRAY, pack_event_array
+from roslan.events.sampling import AdaptiveSampler, camera_twist, motion_field, pixel_rays
+
+__all__ = [
+    "EVENT_ARRAY",
+    "EVENT_PRESETS",
+    "AdaptiveSampler",
+    "EventBatch",
+    "EventGenerator",
+    "EventH5Writer",
+    "EventModelParams",
+    "EventTextWriter",
+    "camera_twist",
+    "format_events_txt",
+    "log_intensity",
+    "motion_field",
+    "pack_event_array",
+    "pixel_rays",
+]

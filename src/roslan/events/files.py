@@ -1,0 +1,169 @@
+"""Streaming event files: ``events.txt`` (Event Camera Dataset) and ``events.h5``.
+
+Both are appended to chunk by chunk while the simulation streams, so memory stays
+bounded by one chunk however long the trajectory is.
+
+* ``events.txt``: ``t x y p`` per line, t seconds since the trajectory start with
+  nine decimals (exact, from integer ns), p in {0, 1}. Formatted with NumPy digit
+  arithmetic (no per-event Python objects).
+* ``events.h5``: ``events/t`` int64 ns, ``events/x`` and ``events/y`` uint16,
+  ``events/p`` int8 in {0, 1}; chunked, gzip+shuffle compressed; ``width``/``height``
+  attributes on the file and the group.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from roslan.events.model import EventBatch
+
+__all__ = ["EventH5Writer", "EventTextWriter", "format_events_txt"]
+
+_NS = 1_000_000_000
+
+
+def _digits(v: NDArray[np.int64], width: int) -> tuple[NDArray[np.uint8], NDArray[np.bool_]]:
+    """ASCII digits (N, width) of non-negative ints, and a mask dropping leading zeros."""
+    pw = 10 ** np.arange(width - 1, -1, -1, dtype=np.int64)
+    d = (v[:, None] // pw) % 10
+    keep = v[:, None] >= pw
+    keep[:, -1] = True
+    return (d + 48).astype(np.uint8), keep
+
+
+def format_events_txt(
+    t_ns: NDArray[np.int64], x: NDArray[Any], y: NDArray[Any], p: NDArray[Any]
+) -> bytes:
+    """Lines ``'%d.%09d %d %d %d\\n'`` of (N,) events as bytes (t non-negative ns)."""
+    n = int(t_ns.shape[0])
+    if n == 0:
+        return b""
+    t = np.asarray(t_ns, dtype=np.int64)
+    sec, frac = t // _NS, t % _NS
+    ws = max(1, len(str(int(sec.max()))))
+    xs = np.asarray(x, dtype=np.int64)
+    ys = np.asarray(y, dtype=np.int64)
+    wx = max(1, len(str(int(xs.max()))))
+    wy = max(1, len(str(int(ys.max()))))
+    cols: list[NDArray[np.uint8]] = []
+    masks: list[NDArray[np.bool_]] = []
+
+    def const(ch: str) -> None:
+        cols.append(np.full((n, 1), ord(ch), np.uint8))
+        masks.append(np.ones((n, 1), bool))
+
+    d, m = _digits(sec, ws)
+    cols.append(d)
+    masks.append(m)
+    const(".")
+    d, _ = _digits(frac, 9)
+    cols.append(d)
+    masks.append(np.ones((n, 9), bool))
+    const(" ")
+    for v, w in ((xs, wx), (ys, wy)):
+        d, m = _digits(v, w)
+        cols.append(d)
+        masks.append(m)
+        const(" ")
+    cols.append((np.asarray(p, dtype=np.int64) > 0).astype(np.uint8)[:, None] + 48)
+    masks.append(np.ones((n, 1), bool))
+    const("\n")
+    buf = np.concatenate(cols, axis=1)
+    mask = np.concatenate(masks, axis=1)
+    return buf[mask].tobytes()
+
+
+class EventTextWriter:
+    """Appends events to ``events.txt``."""
+
+    def __init__(self, path: Path) -> None:
+        self.path = path
+        self._fh = path.open("wb")
+        self.count = 0
+
+    def write(self, batch: EventBatch) -> None:
+        step = 1 << 18  # bounds the temporary character matrix
+        for a in range(0, batch.size, step):
+            b = batch.slice(a, a + step)
+            self._fh.write(format_events_txt(b.t, b.x, b.y, b.p))
+        self.count += batch.size
+
+    def close(self) -> None:
+        if not self._fh.closed:
+            self._fh.close()
+
+
+class EventH5Writer:
+    """Appends events to ``events.h5`` in whole chunks (bounded memory).
+
+    Args:
+        path: the file to create.
+        width, height: sensor resolution (stored as attributes).
+        chunk: events per HDF5 chunk.
+    """
+
+    FIELDS = (("t", np.int64), ("x", np.uint16), ("y", np.uint16), ("p", np.int8))
+
+    def __init__(self, path: Path, width: int, height: int, chunk: int = 1 << 16) -> None:
+        import h5py
+
+        self.path = path
+        self.chunk = int(chunk)
+        self._f = h5py.File(path, "w", libver="earliest", track_order=False)
+        g = self._f.create_group("events")
+        self._ds: dict[str, Any] = {}
+        for name, dt in self.FIELDS:
+            self._ds[name] = g.create_dataset(
+                name,
+                shape=(0,),
+                maxshape=(None,),
+                dtype=dt,
+                chunks=(self.chunk,),
+                compression="gzip",
+                compression_opts=1,
+                shuffle=True,
+                track_times=False,
+            )
+        for holder in (self._f.attrs, g.attrs):
+            holder["width"] = int(width)
+            holder["height"] = int(height)
+        g.attrs["t_unit"] = "ns since trajectory start"
+        g.attrs["p_values"] = "1 ON (brighter), 0 OFF"
+        self._pending: list[EventBatch] = []
+        self._n_pending = 0
+        self.count = 0
+
+    def write(self, batch: EventBatch) -> None:
+        if batch.size == 0:
+            return
+        self._pending.append(batch)
+        self._n_pending += batch.size
+        if self._n_pending >= self.chunk:
+            self._flush(final=False)
+
+    def _flush(self, *, final: bool) -> None:
+        if self._n_pending == 0:
+            return
+        allb = EventBatch.concatenate(self._pending)
+        m = allb.size if final else (allb.size // self.chunk) * self.chunk
+        if m == 0:
+            return
+        n0 = self.count
+        for i, (name, dt) in enumerate(self.FIELDS):
+            ds = self._ds[name]
+            ds.resize((n0 + m,))
+            ds[n0 : n0 + m] = np.asarray(allb[i][:m], dtype=dt)
+        self.count += m
+        rest = allb.slice(m, allb.size)
+        self._pending = [rest] if rest.size else []
+        self._n_pending = rest.size
+
+    def close(self) -> None:
+        if self._f.id.valid:
+            self._flush(final=True)
+            self._f.attrs["count"] = self.count
+            self._f.close()

@@ -1,0 +1,318 @@
+"""ESIM-class per-pixel event generation with v2e-style non-idealities (pure NumPy).
+
+The model, per pixel, between two samples ``(t0, S0)`` and ``(t1, S1)`` of the signal
+
+    S(t) = LP[log(eps + I)](t) + leak_rate * C+ * t
+
+(``LP`` the optional photoreceptor low-pass, the leak a slow drift of the memorised
+reference expressed as a drift of the signal) which is linear in between:
+
+* the memorised reference ``ref`` emits ``n+ = max k: ref + k*C+ <= S1`` ON events at the
+  levels ``ref + k*C+`` (k = 1..n+) or ``n- = max k: ref - k*C- >= S1`` OFF events; each at
+  the instant the linear signal crosses its level: ``t0 + (level - S0) / (S1 - S0) * (t1 - t0)``
+  (rounded to integer ns, clipped to ``[t0, t1]``), and ``ref`` moves to the last level;
+* the refractory period drops an event closer than ``refractory`` to the pixel's last
+  *emitted* event, but the reference still advances (ESIM);
+* thresholds ``C+``/``C-`` carry a per-pixel mismatch fixed at construction;
+* shot noise: Poisson events (rate Hz per pixel, half ON, half OFF) at uniform random
+  instants, which reset the reference by one threshold like a real event (v2e).
+
+Nothing here loops over pixels or events: multi-crossings are expanded with
+``np.repeat``/``cumsum``; refractory filtering iterates over the crossing index
+(at most the largest number of crossings of one pixel in one interval).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+from typing import NamedTuple
+
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = [
+    "EVENT_PRESETS",
+    "EventBatch",
+    "EventGenerator",
+    "EventModelParams",
+    "log_intensity",
+]
+
+F64 = NDArray[np.float64]
+I64 = NDArray[np.int64]
+
+MIN_THRESHOLD = 0.01
+"""Smallest contrast threshold a mismatched pixel may get (log units)."""
+
+
+@dataclass(frozen=True, slots=True)
+class EventModelParams:
+    """Parameters of the pixel model.
+
+    Attributes:
+        threshold_pos, threshold_neg: nominal contrast thresholds C+ / C- (log intensity).
+        threshold_sigma: std of the fixed per-pixel threshold mismatch (log intensity).
+        refractory: refractory period, s (0: none).
+        cutoff_hz: photoreceptor low-pass 3 dB cutoff, Hz (0: no filter).
+        intensity_dependent: scale the low-pass bandwidth with pixel intensity (v2e).
+        leak_rate: leak events per pixel, Hz (ON events of a static scene).
+        leak_jitter: relative per-pixel std of the leak rate.
+        shot_noise_rate: shot-noise events per pixel, Hz (both polarities together).
+        log_eps: eps of ``L = log(eps + I)``, I linear luminance in [0, 1].
+    """
+
+    threshold_pos: float = 0.2
+    threshold_neg: float = 0.2
+    threshold_sigma: float = 0.0
+    refractory: float = 0.0
+    cutoff_hz: float = 0.0
+    intensity_dependent: bool = False
+    leak_rate: float = 0.0
+    leak_jitter: float = 0.1
+    shot_noise_rate: float = 0.0
+    log_eps: float = 1e-3
+
+    def with_overrides(self, **kw: float | bool | None) -> EventModelParams:
+        """A copy with every non-None keyword replaced."""
+        return replace(self, **{k: v for k, v in kw.items() if v is not None})  # type: ignore[arg-type]
+
+
+EVENT_PRESETS: dict[str, EventModelParams] = {
+    # the ideal ESIM pixel
+    "clean": EventModelParams(),
+    # v2e-like defaults: mismatch, 0.5 ms refractory, 300 Hz photoreceptor, some noise
+    "realistic": EventModelParams(
+        threshold_pos=0.2,
+        threshold_neg=0.2,
+        threshold_sigma=0.03,
+        refractory=5e-4,
+        cutoff_hz=300.0,
+        intensity_dependent=True,
+        leak_rate=0.1,
+        leak_jitter=0.1,
+        shot_noise_rate=0.2,
+    ),
+}
+
+
+class EventBatch(NamedTuple):
+    """Events sorted by time: ``t`` (N,) int64 ns, ``x``, ``y`` (N,) uint16 pixel column/row
+    (row 0 = top), ``p`` (N,) int8 polarity (1 ON, 0 OFF)."""
+
+    t: I64
+    x: NDArray[np.uint16]
+    y: NDArray[np.uint16]
+    p: NDArray[np.int8]
+
+    @property
+    def size(self) -> int:
+        """Number of events."""
+        return int(self.t.shape[0])
+
+    @staticmethod
+    def empty() -> EventBatch:
+        return EventBatch(
+            np.zeros(0, np.int64),
+            np.zeros(0, np.uint16),
+            np.zeros(0, np.uint16),
+            np.zeros(0, np.int8),
+        )
+
+    @staticmethod
+    def concatenate(batches: list[EventBatch]) -> EventBatch:
+        if not batches:
+            return EventBatch.empty()
+        if len(batches) == 1:
+            return batches[0]
+        return EventBatch(*(np.concatenate([b[i] for b in batches]) for i in range(4)))
+
+    def slice(self, a: int, b: int) -> EventBatch:
+        return EventBatch(self.t[a:b], self.x[a:b], self.y[a:b], self.p[a:b])
+
+
+def log_intensity(intensity: NDArray[np.floating], eps: float) -> F64:
+    """``log(eps + I)`` as float64, I (H, W) linear luminance (negative values clipped to 0)."""
+    return np.log(eps + np.maximum(np.asarray(intensity, dtype=np.float64), 0.0))
+
+
+class EventGenerator:
+    """Stateful per-pixel event generator for an ``height x width`` sensor.
+
+    Feed it linear-luminance frames in increasing time with :meth:`update`; the first
+    call initialises the pixels and returns no events.
+
+    Args:
+        width, height: sensor size, px.
+        params: the pixel model.
+        rng: random stream (threshold mismatch, leak rates and phases, shot noise).
+    """
+
+    def __init__(
+        self, width: int, height: int, params: EventModelParams, rng: np.random.Generator
+    ) -> None:
+        self.width = int(width)
+        self.height = int(height)
+        self.params = params
+        n = self.width * self.height
+        self.n_pixels = n
+        p = params
+        # Draw every per-pixel quantity once, in a fixed order (determinism).
+        noise = rng.standard_normal((2, n))
+        self.c_pos: F64 = np.maximum(p.threshold_pos + p.threshold_sigma * noise[0], MIN_THRESHOLD)
+        self.c_neg: F64 = np.maximum(p.threshold_neg + p.threshold_sigma * noise[1], MIN_THRESHOLD)
+        jitter = rng.standard_normal(n)
+        phase = rng.random(n)
+        if p.leak_rate > 0:
+            rate = np.maximum(p.leak_rate * (1.0 + p.leak_jitter * jitter), 0.0)
+            self.leak_slope: F64 | None = rate * self.c_pos  # log units per second
+            self._leak_phase: F64 = phase * self.c_pos  # desynchronises the pixels' leak
+        else:
+            self.leak_slope = None
+            self._leak_phase = np.zeros(n)
+        self._rng = rng
+        self._refractory_ns = round(p.refractory * 1e9)
+        self.ref: F64 = np.zeros(n)
+        self.signal: F64 = np.zeros(n)  # S at the last sample
+        self.lp: F64 = np.zeros(n)  # low-passed log intensity at the last sample
+        self.last_event_ns: I64 = np.full(n, np.iinfo(np.int64).min // 2, dtype=np.int64)
+        self.t_ns: int | None = None
+        self.n_dropped = 0
+
+    # ------------------------------------------------------------------ API
+    def update(self, intensity: NDArray[np.floating], t_ns: int) -> EventBatch:
+        """Advance to the frame ``intensity`` (H, W) linear luminance at ``t_ns``.
+
+        Returns the events of the interval (times in ``[t_prev, t_ns]``), sorted by time,
+        ties by pixel index (then real events before shot noise).
+        """
+        img = np.asarray(intensity)
+        if img.shape != (self.height, self.width):
+            msg = f"frame shape {img.shape} != sensor ({self.height}, {self.width})"
+            raise ValueError(msg)
+        L = log_intensity(img, self.params.log_eps).ravel()
+        return self.update_log(L, t_ns, intensity=img.ravel())
+
+    def update_log(
+        self, L: F64, t_ns: int, *, intensity: NDArray[np.floating] | None = None
+    ) -> EventBatch:
+        """As :meth:`update` with the log intensity ``L`` (H*W,) float64 given directly.
+
+        ``intensity`` (H*W,) is only needed by the intensity-dependent low-pass.
+        """
+        p = self.params
+        t_ns = int(t_ns)
+        if self.t_ns is None:
+            self.lp = L.astype(np.float64, copy=True)
+            self.signal = self._signal(self.lp, t_ns)
+            self.ref = self.signal - self._leak_phase
+            self.t_ns = t_ns
+            return EventBatch.empty()
+        t0 = self.t_ns
+        if t_ns <= t0:
+            msg = f"frame time {t_ns} ns must be after the previous frame ({t0} ns)"
+            raise ValueError(msg)
+        dt_ns = t_ns - t0
+        if p.cutoff_hz > 0:
+            tau = 1.0 / (2.0 * math.pi * p.cutoff_hz)
+            a = 1.0 - math.exp(-dt_ns * 1e-9 / tau)  # exact first-order step
+            if p.intensity_dependent and intensity is not None:
+                # v2e: dim pixels have a slower photoreceptor (bandwidth ~ photocurrent)
+                inten = np.clip(np.asarray(intensity, dtype=np.float64), 0.0, 1.0)
+                a_pix = 1.0 - np.exp(-dt_ns * 1e-9 / tau * (inten + 0.08) / 1.08)
+                self.lp = self.lp + a_pix * (L - self.lp)
+            else:
+                self.lp = self.lp + a * (L - self.lp)
+        else:
+            self.lp = L
+        S1 = self._signal(self.lp, t_ns)
+        batch = self._crossings(self.signal, S1, t0, dt_ns)
+        if p.shot_noise_rate > 0:
+            batch = self._shot_noise(batch, t0, dt_ns)
+        self.signal = S1
+        self.t_ns = t_ns
+        return batch
+
+    # ------------------------------------------------------------------ internals
+    def _signal(self, lp: F64, t_ns: int) -> F64:
+        if self.leak_slope is None:
+            return lp.copy() if lp.dtype == np.float64 else lp.astype(np.float64)
+        return lp + self.leak_slope * (t_ns * 1e-9)
+
+    def _crossings(self, S0: F64, S1: F64, t0: int, dt_ns: int) -> EventBatch:
+        ref = self.ref
+        up = S1 > ref
+        C = np.where(up, self.c_pos, self.c_neg)
+        d = np.abs(S1 - ref)
+        n = np.floor(d / C).astype(np.int64)
+        # make n agree exactly with the definition (level ref +- n*C reached, n+1 not)
+        sgn = np.where(up, 1.0, -1.0)
+        lvl = ref + sgn * (n * C)
+        n -= (n > 0) & ((lvl - S1) * sgn > 0)
+        lvl = ref + sgn * ((n + 1) * C)
+        n += (lvl - S1) * sgn <= 0
+        total = int(n.sum())
+        if total == 0:
+            return EventBatch.empty()
+        pix = np.flatnonzero(n)
+        cnt = n[pix]
+        idx = np.repeat(pix, cnt)
+        starts = np.cumsum(cnt) - cnt
+        k = np.arange(total, dtype=np.int64) - np.repeat(starts, cnt) + 1
+        level = ref[idx] + sgn[idx] * (k * C[idx])
+        # the reference moves to the last level crossed (dropped events included)
+        ref[pix] = ref[pix] + sgn[pix] * (cnt * C[pix])
+        s0 = S0[idx]
+        ds = S1[idx] - s0
+        with np.errstate(divide="ignore", invalid="ignore"):
+            frac = np.where(ds != 0, (level - s0) / ds, 1.0)
+        frac = np.clip(frac, 0.0, 1.0)
+        t = t0 + np.rint(frac * dt_ns).astype(np.int64)
+        pol = up[idx].astype(np.int8)
+        if self._refractory_ns > 0:
+            keep = self._refractory(pix, cnt, starts, t)
+            idx, t, pol = idx[keep], t[keep], pol[keep]
+        else:
+            # last event of each pixel (they are in time order within a pixel)
+            self.last_event_ns[pix] = t[starts + cnt - 1]
+        order = np.argsort(t, kind="stable")
+        idx, t, pol = idx[order], t[order], pol[order]
+        return EventBatch(
+            t, (idx % self.width).astype(np.uint16), (idx // self.width).astype(np.uint16), pol
+        )
+
+    def _refractory(self, pix: I64, cnt: I64, starts: I64, t: I64) -> NDArray[np.bool_]:
+        """Keep mask over the pixel-major crossings; iterates over the crossing index only."""
+        keep = np.zeros(t.shape[0], dtype=bool)
+        R = self._refractory_ns
+        last = self.last_event_ns[pix]
+        for k in range(int(cnt.max())):
+            active = np.flatnonzero(cnt > k)
+            j = starts[active] + k
+            tk = t[j]
+            ok = tk - last[active] >= R
+            keep[j[ok]] = True
+            last[active[ok]] = tk[ok]
+        self.last_event_ns[pix] = last
+        self.n_dropped += int(keep.size - keep.sum())
+        return keep
+
+    def _shot_noise(self, batch: EventBatch, t0: int, dt_ns: int) -> EventBatch:
+        rng = self._rng
+        lam = self.params.shot_noise_rate * self.n_pixels * dt_ns * 1e-9
+        m = int(rng.poisson(lam))
+        if m == 0:
+            return batch
+        idx = np.sort(rng.integers(0, self.n_pixels, m))
+        t = t0 + 1 + rng.integers(0, dt_ns, m)  # in (t0, t1]
+        pol = (rng.random(m) < 0.5).astype(np.int8)
+        # a noise event resets the pixel like a real one (v2e)
+        step = np.where(pol == 1, self.c_pos[idx], -self.c_neg[idx])
+        np.add.at(self.ref, idx, step)
+        np.maximum.at(self.last_event_ns, idx, t)
+        noise = EventBatch(
+            t, (idx % self.width).astype(np.uint16), (idx // self.width).astype(np.uint16), pol
+        )
+        merged = EventBatch.concatenate([batch, noise])
+        order = np.argsort(merged.t, kind="stable")
+        return EventBatch(*(a[order] for a in merged))

@@ -1,0 +1,148 @@
+"""Adaptive sampling of the rendered signal (ESIM) and the exact motion field.
+
+ESIM chooses the next render instant so that no pixel changes too much in between:
+
+* ``brightness``: ``dt = lambda / max|dL/dt|`` (log intensity per second, estimated from
+  the last two samples);
+* ``optical_flow``: ``dt = lambda / max|flow|`` (px/s), with the flow computed exactly
+  from the rendered depth and the camera twist of the closed-form trajectory.
+
+``dt`` is clamped to ``[1/max_rate, 1/min_rate]`` and never steps over a forced instant
+(APS frames, ground-truth flow/depth) or the end of the trajectory.
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+import numpy as np
+from numpy.typing import NDArray
+
+from roslan.trajectory.generator import Trajectory
+
+__all__ = ["AdaptiveSampler", "camera_twist", "motion_field", "pixel_rays"]
+
+F64 = NDArray[np.float64]
+Strategy = Literal["brightness", "optical_flow", "fixed"]
+
+
+def pixel_rays(K: NDArray[np.floating], width: int, height: int) -> tuple[F64, F64]:
+    """Normalised image coordinates ``x = (u - cx)/fx``, ``y = (v - cy)/fy`` of every pixel
+    centre of a pinhole image, each (H, W) float64 (OpenCV convention, row 0 on top)."""
+    K = np.asarray(K, dtype=np.float64)
+    u = (np.arange(width, dtype=np.float64) - K[0, 2]) / K[0, 0]
+    v = (np.arange(height, dtype=np.float64) - K[1, 2]) / K[1, 1]
+    x, y = np.meshgrid(u, v)
+    return x, y
+
+
+def motion_field(
+    depth: NDArray[np.floating],
+    K: NDArray[np.floating],
+    v_cam: NDArray[np.floating],
+    w_cam: NDArray[np.floating],
+    rays: tuple[F64, F64] | None = None,
+) -> NDArray[np.float32]:
+    """Exact image motion of a static scene (Longuet-Higgins & Prazdny).
+
+    Args:
+        depth: (H, W) z-depth along the optical axis, m (``inf``: infinitely far).
+        K: (3, 3) pinhole intrinsics.
+        v_cam: (3,) linear velocity of the camera, m/s, in its optical frame.
+        w_cam: (3,) angular velocity of the camera, rad/s, in its optical frame.
+        rays: optional cached :func:`pixel_rays`.
+    Returns:
+        (H, W, 2) float32 flow (du/dt, dv/dt) in px/s.
+    """
+    d = np.asarray(depth, dtype=np.float64)
+    H, W = d.shape
+    x, y = rays if rays is not None else pixel_rays(K, W, H)
+    vx, vy, vz = (float(a) for a in v_cam)
+    wx, wy, wz = (float(a) for a in w_cam)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        inv_z = np.where(np.isfinite(d) & (d > 0), 1.0 / d, 0.0)
+    # a static point moves in the camera frame as dP/dt = -v - w x P
+    dx = (-vx + x * vz) * inv_z + x * y * wx - (1.0 + x * x) * wy + y * wz
+    dy = (-vy + y * vz) * inv_z + (1.0 + y * y) * wx - x * y * wy - x * wz
+    out = np.empty((H, W, 2), dtype=np.float32)
+    out[..., 0] = K[0, 0] * dx
+    out[..., 1] = K[1, 1] * dy
+    return out
+
+
+def camera_twist(
+    trajectory: Trajectory, t_ns: int, T_body_cam: NDArray[np.floating]
+) -> tuple[F64, F64, F64]:
+    """Pose and twist of a camera rigidly mounted on base_link.
+
+    Args:
+        trajectory: the closed-form landing.
+        t_ns: trajectory time, ns.
+        T_body_cam: (4, 4) pose of the camera *optical* frame in base_link.
+    Returns:
+        ``T_world_cam`` (4, 4), ``v_cam`` (3,) m/s and ``w_cam`` (3,) rad/s, both in the
+        optical frame (velocity of the optical centre relative to the world).
+    """
+    st = trajectory.state_ns(np.array([t_ns], dtype=np.int64))
+    R_wb = st.R_world_body[0]
+    Tbc = np.asarray(T_body_cam, dtype=np.float64)
+    R_bc, p_bc = Tbc[:3, :3], Tbc[:3, 3]
+    w_b = st.omega_body[0]
+    T_wb = np.eye(4)
+    T_wb[:3, :3] = R_wb
+    T_wb[:3, 3] = st.position[0]
+    T_wc = T_wb @ Tbc
+    v_w = st.velocity[0] + R_wb @ np.cross(w_b, p_bc)
+    R_wc = T_wc[:3, :3]
+    return T_wc, R_wc.T @ v_w, R_bc.T @ w_b
+
+
+class AdaptiveSampler:
+    """Chooses the render instants (integer ns).
+
+    Args:
+        strategy: ``brightness``, ``optical_flow`` or ``fixed`` (always ``1/max_rate``).
+        lam: ESIM's lambda (log units for brightness, px for optical flow).
+        min_rate, max_rate: bounds on the sampling rate, Hz.
+        end_ns: last instant (the trajectory's end, always sampled).
+        forced_ns: sorted instants that must be sampled exactly.
+    """
+
+    def __init__(
+        self,
+        strategy: Strategy,
+        lam: float,
+        min_rate: float,
+        max_rate: float,
+        end_ns: int,
+        forced_ns: NDArray[np.int64] | None = None,
+    ) -> None:
+        self.strategy = strategy
+        self.lam = float(lam)
+        self.min_dt_ns = max(1, round(1e9 / max_rate))
+        self.max_dt_ns = max(self.min_dt_ns, round(1e9 / min_rate))
+        self.end_ns = int(end_ns)
+        f = np.zeros(0, np.int64) if forced_ns is None else np.asarray(forced_ns, np.int64)
+        self.forced = np.unique(f[(f > 0) & (f <= self.end_ns)])
+
+    def step_ns(self, max_rate_of_change: float) -> int:
+        """``lambda / max_rate_of_change`` clamped to the rate bounds (ns)."""
+        if self.strategy == "fixed":
+            return self.min_dt_ns
+        r = float(max_rate_of_change)
+        if not np.isfinite(r):
+            return self.min_dt_ns
+        if r <= 0.0:
+            return self.max_dt_ns
+        dt = round(self.lam / r * 1e9)
+        return int(min(max(dt, self.min_dt_ns), self.max_dt_ns))
+
+    def next_ns(self, t_ns: int, max_rate_of_change: float) -> int | None:
+        """The instant after ``t_ns`` (None when ``t_ns`` is the end)."""
+        if t_ns >= self.end_ns:
+            return None
+        nxt = t_ns + self.step_ns(max_rate_of_change)
+        i = int(np.searchsorted(self.forced, t_ns, side="right"))
+        if i < self.forced.shape[0]:
+            nxt = min(nxt, int(self.forced[i]))
+        return min(nxt, self.end_ns)

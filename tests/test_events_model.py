@@ -1,0 +1,240 @@
+"""The ESIM pixel model against plain-loop references and analytic cases."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from roslan.events import EventBatch, EventGenerator, EventModelParams
+from roslan.events.sampling import AdaptiveSampler, motion_field, pixel_rays
+
+
+def reference_esim(
+    frames: np.ndarray, times: list[int], c_pos: np.ndarray, c_neg: np.ndarray, refractory_ns: int
+) -> list[tuple[int, int, int, int]]:
+    """Per-pixel ESIM update written plainly: loops over pixels and crossings."""
+    T, H, W = frames.shape
+    n = H * W
+    ref = [float(v) for v in frames[0].ravel()]
+    last = [None] * n
+    out: list[tuple[int, int, int, int]] = []
+    for k in range(1, T):
+        prev = frames[k - 1].ravel()
+        cur = frames[k].ravel()
+        t0, dt = times[k - 1], times[k] - times[k - 1]
+        interval = []
+        for i in range(n):
+            s0, s1, r = float(prev[i]), float(cur[i]), ref[i]
+            if s1 > r:
+                sgn, C = 1.0, float(c_pos[i])
+            else:
+                sgn, C = -1.0, float(c_neg[i])
+            j = 1
+            while (r + sgn * (j * C) - s1) * sgn <= 0:
+                level = r + sgn * (j * C)
+                frac = (level - s0) / (s1 - s0) if s1 != s0 else 1.0
+                frac = min(max(frac, 0.0), 1.0)
+                t = t0 + round(frac * dt)
+                if last[i] is None or t - last[i] >= refractory_ns:
+                    interval.append((t, i % W, i // W, 1 if sgn > 0 else 0))
+                    last[i] = t
+                j += 1
+            ref[i] = r + sgn * ((j - 1) * C)
+        interval.sort(key=lambda e: e[0])  # stable: pixel order within equal times
+        out.extend(interval)
+    return out
+
+
+def run_generator(gen: EventGenerator, frames: np.ndarray, times: list[int]) -> EventBatch:
+    batches = [
+        gen.update_log(f.ravel().astype(np.float64), t) for f, t in zip(frames, times, strict=True)
+    ]
+    return EventBatch.concatenate(batches)
+
+
+def as_tuples(b: EventBatch) -> list[tuple[int, int, int, int]]:
+    return list(zip(b.t.tolist(), b.x.tolist(), b.y.tolist(), b.p.tolist(), strict=True))
+
+
+@pytest.mark.parametrize(
+    ("sigma", "refractory"), [(0.0, 0.0), (0.05, 0.0), (0.05, 2e-3), (0.0, 5e-4)]
+)
+def test_vectorized_equals_plain_reference(sigma: float, refractory: float) -> None:
+    rng = np.random.default_rng(42)
+    H, W, T = 5, 7, 30
+    # random walk in log intensity with occasional big jumps (multi-crossings)
+    steps = rng.normal(0, 0.15, (T, H, W)) + (rng.random((T, H, W)) < 0.1) * rng.normal(
+        0, 1.0, (T, H, W)
+    )
+    frames = np.cumsum(steps, axis=0)
+    times = np.cumsum(rng.integers(100_000, 3_000_000, T)).tolist()
+    params = EventModelParams(
+        threshold_pos=0.2, threshold_neg=0.25, threshold_sigma=sigma, refractory=refractory
+    )
+    gen = EventGenerator(W, H, params, np.random.default_rng(1))
+    got = run_generator(gen, frames, times)
+    want = reference_esim(frames, times, gen.c_pos, gen.c_neg, round(refractory * 1e9))
+    assert len(want) > 100
+    assert as_tuples(got) == want
+    assert np.all(np.diff(got.t) >= 0)
+    if refractory > 0:
+        assert gen.n_dropped > 0
+
+
+def test_uniform_ramp_counts_and_times() -> None:
+    H, W, C, a = 3, 4, 0.15, 2.5  # L(t) = L0 + a t, a in log units per second
+    eps = 1e-3
+    L0 = np.log(eps + np.linspace(0.05, 0.5, H * W)).reshape(H, W)
+    rng = np.random.default_rng(3)
+    times = np.concatenate([[0], np.cumsum(rng.integers(1_000_000, 20_000_000, 40))]).astype(
+        np.int64
+    )
+    gen = EventGenerator(W, H, EventModelParams(threshold_pos=C, threshold_neg=C, log_eps=eps), rng)
+    batches = []
+    for t in times:
+        L = L0 + a * (t * 1e-9)
+        batches.append(gen.update(np.exp(L) - eps, int(t)))
+    ev = EventBatch.concatenate(batches)
+    dL = a * times[-1] * 1e-9
+    n_expected = math.floor(dL / C)
+    counts = np.bincount(ev.y.astype(int) * W + ev.x, minlength=H * W)
+    assert np.all(counts == n_expected)
+    assert np.all(ev.p == 1)
+    # the k-th event of every pixel at t = k C / a
+    for pix in range(H * W):
+        sel = (ev.y.astype(int) * W + ev.x) == pix
+        tk = ev.t[sel]
+        want = np.arange(1, n_expected + 1) * C / a * 1e9
+        assert np.max(np.abs(tk - want)) <= 1  # ns: rounding
+
+
+def test_descending_ramp_negative_events() -> None:
+    gen = EventGenerator(
+        2, 2, EventModelParams(threshold_pos=0.1, threshold_neg=0.3), np.random.default_rng(0)
+    )
+    gen.update_log(np.zeros(4), 0)
+    ev = gen.update_log(np.full(4, -1.0), 1_000_000)
+    assert ev.size == 4 * 3 and np.all(ev.p == 0)
+    # levels -0.3, -0.6, -0.9 crossed at 0.3, 0.6, 0.9 ms
+    assert sorted(set(ev.t.tolist())) == [300_000, 600_000, 900_000]
+
+
+def test_refractory_period_limits_rate() -> None:
+    # a fast ramp: 1 crossing every 0.1 ms; refractory 1 ms keeps ~1 in 10, reference still advances
+    R = 1e-3
+    gen = EventGenerator(
+        1,
+        1,
+        EventModelParams(threshold_pos=0.1, threshold_neg=0.1, refractory=R),
+        np.random.default_rng(0),
+    )
+    gen.update_log(np.zeros(1), 0)
+    times = np.arange(1, 101) * 100_000  # 10 ms in 0.1 ms steps
+    batches = [
+        gen.update_log(np.array([0.1 * k + 0.05]), int(t)) for k, t in enumerate(times, start=1)
+    ]
+    ev = EventBatch.concatenate(batches)
+    assert np.all(np.diff(ev.t) >= R * 1e9)
+    assert 9 <= ev.size <= 11
+    # the reference advanced through the dropped events: stop the ramp, no burst follows
+    after = gen.update_log(np.array([0.1 * 100 + 0.05]), int(times[-1] + 5_000_000))
+    assert after.size == 0
+    assert gen.n_dropped == 100 - ev.size
+
+
+def test_threshold_mismatch_statistics() -> None:
+    sigma = 0.04
+    gen = EventGenerator(
+        200,
+        150,
+        EventModelParams(threshold_pos=0.3, threshold_neg=0.2, threshold_sigma=sigma),
+        np.random.default_rng(7),
+    )
+    assert abs(gen.c_pos.mean() - 0.3) < 3 * sigma / math.sqrt(gen.n_pixels) * 3
+    assert abs(gen.c_pos.std() - sigma) < 0.02 * sigma * 5
+    assert abs(gen.c_neg.mean() - 0.2) < 3 * sigma / math.sqrt(gen.n_pixels) * 3
+    assert abs(np.corrcoef(gen.c_pos, gen.c_neg)[0, 1]) < 0.02
+    # fixed per pixel: a ramp of dL gives floor(dL / C_pixel) events in each pixel
+    gen.update_log(np.zeros(gen.n_pixels), 0)
+    ev = gen.update_log(np.full(gen.n_pixels, 1.7), 10_000_000)
+    counts = np.bincount(ev.y.astype(int) * 200 + ev.x, minlength=gen.n_pixels)
+    np.testing.assert_array_equal(counts, np.floor(1.7 / gen.c_pos))
+
+
+def test_noise_rates_and_determinism() -> None:
+    p = EventModelParams(shot_noise_rate=2.0, leak_rate=1.0, threshold_sigma=0.03)
+
+    def run(seed: int) -> EventBatch:
+        g = EventGenerator(64, 48, p, np.random.default_rng(seed))
+        out = []
+        L = np.full(64 * 48, np.log(0.3))
+        for t in range(0, 2_000_000_001, 10_000_000):
+            out.append(g.update_log(L, t))
+        return EventBatch.concatenate(out)
+
+    a, b, c = run(5), run(5), run(6)
+    for u, v in zip(a, b, strict=True):
+        np.testing.assert_array_equal(u, v)
+    assert a.size != c.size or not np.array_equal(a.t, c.t)
+    n_pix, T = 64 * 48, 2.0
+    # static scene: leak gives ~1 ON event / pixel / s, shot noise 2 / pixel / s more (each
+    # shot event shifts the reference by one threshold, which the pixel later undoes)
+    rate = a.size / (n_pix * T)
+    assert 2.0 < rate < 6.0
+    assert np.all(np.diff(a.t) >= 0)
+
+
+def test_lowpass_delays_response() -> None:
+    fast = EventGenerator(1, 1, EventModelParams(), np.random.default_rng(0))
+    slow = EventGenerator(1, 1, EventModelParams(cutoff_hz=50.0), np.random.default_rng(0))
+    for g in (fast, slow):
+        g.update_log(np.zeros(1), 0)
+    tf, ts = [], []
+    for t in range(100_000, 50_000_001, 100_000):
+        tf += fast.update_log(np.full(1, 1.1), t).t.tolist()
+        ts += slow.update_log(np.full(1, 1.1), t).t.tolist()
+    assert len(tf) == len(ts) == 5
+    tau = 1 / (2 * math.pi * 50)
+    # first-order step response 1 - exp(-t/tau) reaches 0.2 at t = -tau ln(1 - 0.2/1.1)
+    assert abs(ts[0] * 1e-9 - (-tau * math.log(1 - 0.2 / 1.1))) < 2e-4
+    assert ts[-1] > tf[-1]
+
+
+def test_motion_field_matches_finite_difference() -> None:
+    rng = np.random.default_rng(0)
+    K = np.array([[200.0, 0, 40], [0, 210.0, 30], [0, 0, 1]])
+    W, H = 80, 60
+    x, y = pixel_rays(K, W, H)
+    depth = rng.uniform(2, 10, (H, W))
+    v, w = np.array([0.5, -0.3, 1.2]), np.array([0.2, -0.4, 0.3])
+    flow = motion_field(depth, K, v, w)
+    P = np.stack([x * depth, y * depth, depth], axis=-1)
+    h = 1e-6
+    # the point in the camera frame after dt: P' = R(-w dt) (P - v dt)
+    P2 = P - v * h - np.cross(w, P) * h
+    u2 = K[0, 0] * P2[..., 0] / P2[..., 2] + K[0, 2]
+    u1 = K[0, 0] * x + K[0, 2]
+    np.testing.assert_allclose(flow[..., 0], (u2 - u1) / h, rtol=1e-4, atol=1e-2)
+    v2 = K[1, 1] * P2[..., 1] / P2[..., 2] + K[1, 2]
+    v1 = K[1, 1] * y + K[1, 2]
+    np.testing.assert_allclose(flow[..., 1], (v2 - v1) / h, rtol=1e-4, atol=1e-2)
+
+
+def test_adaptive_sampler_bounds_and_forced() -> None:
+    s = AdaptiveSampler(
+        "optical_flow",
+        0.5,
+        min_rate=100,
+        max_rate=1000,
+        end_ns=50_000_000,
+        forced_ns=np.array([3_333_333]),
+    )
+    assert s.step_ns(0.0) == 10_000_000  # min rate
+    assert s.step_ns(1e9) == 1_000_000  # max rate
+    assert s.step_ns(250.0) == 2_000_000  # 0.5 px / 250 px/s
+    assert s.next_ns(0, 250.0) == 2_000_000
+    assert s.next_ns(2_000_000, 250.0) == 3_333_333
+    assert s.next_ns(49_500_000, 1.0) == 50_000_000
+    assert s.next_ns(50_000_000, 1.0) is None
