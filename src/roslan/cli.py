@@ -19,6 +19,8 @@ __all__ = ["main"]
 # ``parser.set_defaults(func=callable(args) -> int)``.
 COMMAND_MODULES: tuple[str, ...] = (
     "roslan.trajectory.cli",
+    "roslan.datasets_cli",
+    "roslan.pipeline.cli",
 )
 
 

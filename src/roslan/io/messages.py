@@ -34,6 +34,8 @@ EXTRA_MSGDEFS: dict[str, str] = {
     "dvs_msgs/msg/EventArray": (
         "Header header\nuint32 height\nuint32 width\ndvs_msgs/Event[] events\n"
     ),
+    # tf2_msgs is missing from rosbags' ROS 1 Noetic store (ROS 2 stores have it).
+    "tf2_msgs/msg/TFMessage": "geometry_msgs/TransformStamped[] transforms\n",
 }
 
 _STORES = {Flavor.ROS1: Stores.ROS1_NOETIC, Flavor.ROS2: Stores.ROS2_HUMBLE}
@@ -47,6 +49,8 @@ class MessageStore:
         ts = get_typestore(_STORES[flavor])
         extra: dict[str, Any] = {}
         for name, text in EXTRA_MSGDEFS.items():
+            if name in ts.types:  # the stock store already has it
+                continue
             if flavor is Flavor.ROS2:
                 text = text.replace("Header header", "std_msgs/Header header").replace(
                     "time ts", "builtin_interfaces/Time ts"

@@ -1,0 +1,233 @@
+"""ROS 1 and ROS 2 bag writers behind one small interface.
+
+Both write through :mod:`rosbags`: ROS 1 bags v2.0 (chunked, optional lz4/bz2 chunk
+compression) and ROS 2 bags in MCAP storage. One connection per topic; the record
+time of every message is its header stamp; latched topics (``/tf_static``) get
+``latching=1`` in ROS 1 and a ``transient_local`` QoS profile in ROS 2, so players
+re-deliver them to late subscribers.
+
+Messages come as :class:`~roslan.sensors.base.Message`: ``build(store)`` returns a
+message object of the flavour's typestore (serialized here) or the finished wire bytes.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Sequence
+from pathlib import Path
+from typing import Any, NamedTuple, Protocol
+
+from rosbags.interfaces import (
+    Connection,
+    Qos,
+    QosDurability,
+    QosHistory,
+    QosLiveliness,
+    QosReliability,
+    QosTime,
+)
+from rosbags.rosbag1 import Writer as _Ros1Writer
+from rosbags.rosbag1.writer import WriteChunk
+from rosbags.rosbag2 import StoragePlugin
+from rosbags.rosbag2 import Writer as _Ros2Writer
+
+from roslan.errors import OutputError
+from roslan.io.messages import Flavor, MessageStore
+
+__all__ = [
+    "BAG_NAMES",
+    "BagTopic",
+    "BagWriter",
+    "MultiBagWriter",
+    "Ros1BagWriter",
+    "Ros2BagWriter",
+]
+
+BAG_NAMES = {Flavor.ROS1: "landing.bag", Flavor.ROS2: "landing_ros2"}
+"""File (ROS 1) / folder (ROS 2) name of each flavour's bag inside OUTDIR."""
+
+ROS2_BAG_VERSION = 8
+"""rosbag2 metadata version written (8 = Humble/Iron; readable by every later distro)."""
+
+
+class BagTopic(NamedTuple):
+    """One connection: topic name, message type, and whether it is latched."""
+
+    topic: str
+    msgtype: str
+    latched: bool = False
+
+
+def _ros2_qos(latched: bool) -> list[Qos]:
+    # rosbag2 (Humble+) records "infinite" (default) durations as these maxima.
+    infinite = QosTime(2147483647, 4294967295)
+    return [
+        Qos(
+            history=QosHistory.KEEP_LAST,
+            depth=1 if latched else 10,
+            reliability=QosReliability.RELIABLE,
+            durability=QosDurability.TRANSIENT_LOCAL if latched else QosDurability.VOLATILE,
+            deadline=infinite,
+            lifespan=infinite,
+            liveliness=QosLiveliness.AUTOMATIC,
+            liveliness_lease_duration=infinite,
+            avoid_ros_namespace_conventions=False,
+        )
+    ]
+
+
+class _CompactRos1Writer(_Ros1Writer):
+    """rosbags' ROS 1 writer keeps every message's (time, offset) index entry until the
+    bag is closed, although only the per-chunk counts are needed then. Replacing the
+    lists by their counts once a chunk is on disk keeps memory flat for long bags."""
+
+    def write_chunk(self, chunk: WriteChunk) -> None:
+        super().write_chunk(chunk)
+        if chunk.pos != -1:
+            # close() only takes len() of each entry; range(n) is len-able and tiny.
+            chunk.connections = {cid: range(len(items)) for cid, items in chunk.connections.items()}  # type: ignore[assignment,misc]
+
+
+class BagWriter(Protocol):
+    """A bag being written: one flavour, one file or folder."""
+
+    store: MessageStore
+    path: Path
+
+    def add_topics(self, topics: Sequence[BagTopic]) -> None: ...
+
+    def write(self, topic: str, stamp_ns: int, data: bytes) -> None: ...
+
+    def close(self) -> None: ...
+
+    def abort(self) -> None: ...
+
+
+class Ros1BagWriter:
+    """ROS 1 bag v2.0 at ``path`` (must not exist), chunked, ``compression`` none/lz4/bz2."""
+
+    def __init__(self, path: Path, compression: str = "lz4", store: MessageStore | None = None) -> None:
+        self.path = path
+        self.store = store or MessageStore(Flavor.ROS1)
+        self._writer = _CompactRos1Writer(path)
+        if compression != "none":
+            fmt = _Ros1Writer.CompressionFormat[compression.upper()]
+            self._writer.set_compression(fmt)
+        self._writer.open()
+        self._conns: dict[str, Connection] = {}
+
+    def add_topics(self, topics: Sequence[BagTopic]) -> None:
+        for t in topics:
+            self._conns[t.topic] = self._writer.add_connection(
+                t.topic,
+                t.msgtype,
+                typestore=self.store.typestore,
+                callerid="/roslan",
+                latching=1 if t.latched else None,
+            )
+
+    def write(self, topic: str, stamp_ns: int, data: bytes) -> None:
+        self._writer.write(self._conns[topic], stamp_ns, data)
+
+    def close(self) -> None:
+        self._writer.close()
+
+    def abort(self) -> None:
+        self._writer.abort()
+
+
+class Ros2BagWriter:
+    """ROS 2 bag folder at ``path`` (must not exist) with MCAP storage and CDR messages."""
+
+    def __init__(self, path: Path, store: MessageStore | None = None) -> None:
+        self.path = path
+        self.store = store or MessageStore(Flavor.ROS2)
+        self._writer = _Ros2Writer(path, version=ROS2_BAG_VERSION, storage_plugin=StoragePlugin.MCAP)
+        self._writer.open()
+        self._conns: dict[str, Connection] = {}
+
+    def add_topics(self, topics: Sequence[BagTopic]) -> None:
+        for t in topics:
+            self._conns[t.topic] = self._writer.add_connection(
+                t.topic,
+                t.msgtype,
+                typestore=self.store.typestore,
+                offered_qos_profiles=_ros2_qos(t.latched),
+            )
+
+    def write(self, topic: str, stamp_ns: int, data: bytes) -> None:
+        self._writer.write(self._conns[topic], stamp_ns, data)
+
+    def close(self) -> None:
+        self._writer.close()
+
+    def abort(self) -> None:
+        self._writer.abort()
+
+
+class MultiBagWriter:
+    """All bags of one run: every message goes to each flavour, built for that flavour.
+
+    Args:
+        outdir: folder receiving ``landing.bag`` / ``landing_ros2/``.
+        formats: flavours to write (``'ros1'``, ``'ros2'``).
+        topics: every connection, in a fixed (deterministic) order.
+        compression: ROS 1 chunk compression (``none``, ``lz4``, ``bz2``).
+    """
+
+    def __init__(
+        self, outdir: Path, formats: Iterable[str], topics: Sequence[BagTopic], compression: str = "lz4"
+    ) -> None:
+        self.writers: list[BagWriter] = []
+        self.msgtypes = {t.topic: t.msgtype for t in topics}
+        self.counts: dict[str, int] = {t.topic: 0 for t in topics}
+        try:
+            for fmt in formats:
+                flavor = Flavor(fmt)
+                path = outdir / BAG_NAMES[flavor]
+                writer: BagWriter = (
+                    Ros1BagWriter(path, compression) if flavor is Flavor.ROS1 else Ros2BagWriter(path)
+                )
+                self.writers.append(writer)
+                writer.add_topics(topics)
+        except OSError as err:
+            self.abort()
+            msg = f"cannot write bag in {outdir}: {err}"
+            raise OutputError(msg) from err
+
+    def write(self, topic: str, stamp_ns: int, build: Any) -> None:
+        """Write one message (``build`` as in ``Message.build``) at record time ``stamp_ns``."""
+        msgtype = self.msgtypes[topic]
+        for w in self.writers:
+            data = build(w.store)
+            if not isinstance(data, bytes | bytearray | memoryview):
+                data = w.store.serialize(data, msgtype)
+            w.write(topic, stamp_ns, data)
+        self.counts[topic] += 1
+
+    def build(self, topic: str, build: Any) -> list[bytes]:
+        """The wire bytes of one message for each writer (``write_data`` writes them)."""
+        msgtype = self.msgtypes[topic]
+        out = []
+        for w in self.writers:
+            data = build(w.store)
+            if not isinstance(data, bytes | bytearray | memoryview):
+                data = w.store.serialize(data, msgtype)
+            out.append(data)
+        return out
+
+    def write_data(self, topic: str, stamp_ns: int, datas: Sequence[bytes]) -> None:
+        """Write bytes from :meth:`build` (one entry per writer)."""
+        for w, data in zip(self.writers, datas, strict=True):
+            w.write(topic, stamp_ns, data)
+        self.counts[topic] += 1
+
+    def close(self) -> None:
+        for w in self.writers:
+            w.close()
+
+    def abort(self) -> None:
+        for w in self.writers:
+            try:
+                w.abort()
+            except Exception:  # noqa: BLE001 - best effort while already failing
+                pass

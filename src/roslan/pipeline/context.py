@@ -1,0 +1,114 @@
+"""The :class:`~roslan.sensors.base.SimContext` the pipeline hands every sensor."""
+
+from __future__ import annotations
+
+import hashlib
+import importlib
+from collections.abc import Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from roslan.errors import ConfigError
+from roslan.sensors.base import SensorConfig
+
+if TYPE_CHECKING:
+    from roslan.scene.model import Scene
+    from roslan.trajectory.generator import Trajectory
+
+__all__ = ["Context", "stream_key"]
+
+
+def stream_key(name: str) -> int:
+    """Stable 64-bit integer of a component name (SHA-256; never Python's salted ``hash``)."""
+    return int.from_bytes(hashlib.sha256(name.encode("utf-8")).digest()[:8], "little")
+
+
+class Context:
+    """Everything a sensor may use during one run.
+
+    Args:
+        trajectory: the landing.
+        outdir: the (temporary) output folder dataset files go to.
+        seed: run seed; ``rng(name)`` = ``Generator(PCG64(SeedSequence([seed, stream_key(name)])))``,
+            so each component's stream depends only on the seed and its name (adding a sensor
+            never changes another sensor's noise).
+        start_time_ns: absolute stamp of trajectory time 0.
+        sensors: every sensor config of the run.
+        scene_spec: the config's ``scene`` (None: no scene) and ``base_dir`` for relative paths.
+    """
+
+    def __init__(
+        self,
+        trajectory: Trajectory,
+        outdir: Path,
+        *,
+        seed: int = 0,
+        start_time_ns: int = 1,
+        sensors: Sequence[SensorConfig] = (),
+        scene_spec: str | None = None,
+        base_dir: Path | None = None,
+        scene: Scene | None = None,
+    ) -> None:
+        self.trajectory = trajectory
+        self.outdir = Path(outdir)
+        self.seed = int(seed)
+        self.start_time_ns = int(start_time_ns)
+        self.sensors = tuple(sensors)
+        self.scene_spec = scene_spec
+        self.base_dir = base_dir
+        self._scene = scene
+        self._renderer: Any = None
+        self._raycaster: Any = None
+
+    def stamp(self, t_ns: int) -> int:
+        """Absolute header stamp (ns) of trajectory time ``t_ns``."""
+        return self.start_time_ns + int(t_ns)
+
+    def rng(self, name: str) -> np.random.Generator:
+        """A fresh deterministic generator for component ``name`` (same name -> same stream)."""
+        ss = np.random.SeedSequence([self.seed, stream_key(name)])
+        return np.random.Generator(np.random.PCG64(ss))
+
+    def path(self, relpath: str) -> Path:
+        """``outdir / relpath`` with parent folders created; must stay inside outdir."""
+        rel = Path(relpath)
+        if rel.is_absolute() or ".." in rel.parts:
+            msg = f"dataset path {relpath!r} must be relative and stay inside the output folder"
+            raise ValueError(msg)
+        p = self.outdir / rel
+        p.parent.mkdir(parents=True, exist_ok=True)
+        return p
+
+    @property
+    def has_scene(self) -> bool:
+        return self._scene is not None or self.scene_spec is not None
+
+    @property
+    def scene(self) -> Scene:
+        """The scene, loaded on first use (ConfigError if the config has none)."""
+        if self._scene is None:
+            if self.scene_spec is None:
+                msg = (
+                    "this sensor needs a scene but the config has none; add e.g. "
+                    "'scene: warehouse' (built-ins: warehouse, refinery, empty) or a scene YAML path"
+                )
+                raise ConfigError(msg)
+            scene_mod = importlib.import_module("roslan.scene")
+            self._scene = scene_mod.load_scene(self.scene_spec, base_dir=self.base_dir, seed=self.seed)
+        return self._scene
+
+    def renderer(self) -> Any:
+        """The process-wide OpenGL renderer of the scene (created on first use)."""
+        if self._renderer is None:
+            gl = importlib.import_module("roslan.render.gl")
+            self._renderer = gl.get_renderer(self.scene)
+        return self._renderer
+
+    def raycaster(self) -> Any:
+        """The process-wide Embree ray caster of the scene (created on first use)."""
+        if self._raycaster is None:
+            rc = importlib.import_module("roslan.render.raycast")
+            self._raycaster = rc.get_raycaster(self.scene)
+        return self._raycaster

@@ -1,0 +1,544 @@
+"""The simulation pipeline: trajectory -> sensors -> stamp-merged stream -> bags and files.
+
+Steps of :func:`run_simulation`:
+
+1. Validate everything that can fail before touching the disk: the trajectory, every
+   sensor (constructed from its config), topic uniqueness (sensors and ground truth),
+   the scene and its clearance along the path (unless ``allow_collision``), the output
+   folder (refused if it exists, unless ``overwrite``).
+2. Write into a temporary sibling ``.<OUTDIR>.partial-XXXX``: trajectory files, the scene
+   export, then stream every sensor's lazy message generator through one
+   ``heapq.merge`` keyed by ``t_ns`` (ties broken by a stable order: ground truth
+   first, then sensors in config order) into the ROS 1 and/or ROS 2 writers. Memory is
+   bounded by what each sensor holds for its current chunk, not by the trajectory length.
+3. Close sensors (dataset files, calibration), bags, write ``calib/extrinsics.yaml``,
+   ``PLAYBACK.md``, ``timing.json`` and finally ``run.json`` with ``"complete": true``;
+   then rename the folder to OUTDIR (replacing an old OUTDIR only now, on success).
+
+Any exception, Ctrl-C or SIGTERM removes the temporary folder; a SIGKILL leaves only the
+hidden ``.partial`` folder, never an OUTDIR. Same config + seed => byte-identical files,
+except ``timing.json`` and ``PLAYBACK.md``, which report this run's measured speed
+(``run.json`` is deterministic; it points to ``timing.json``).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import datetime as _dt
+import heapq
+import json
+import os
+import platform
+import shutil
+import signal
+import tempfile
+import threading
+import time
+from collections.abc import Iterator, Sequence
+from importlib.metadata import PackageNotFoundError, version
+from pathlib import Path
+from types import FrameType
+from typing import Any
+
+import numpy as np
+import yaml
+
+from roslan import __version__
+from roslan.config.sim import SimConfig
+from roslan.errors import ConfigError, OutputError, SensorError
+from roslan.io.bag import BAG_NAMES, BagTopic, MultiBagWriter
+from roslan.io.messages import Flavor
+from roslan.pipeline.context import Context
+from roslan.sensors.base import Message, Sensor, StaticTransform
+from roslan.sensors.ground_truth import BASE_FRAME, WORLD_FRAME, GroundTruth
+from roslan.sensors.registry import sensor_class
+from roslan.trajectory.frames import matrix_to_quat_xyzw, matrix_to_rpy
+from roslan.trajectory.generator import Trajectory
+
+__all__ = ["RUN_FILE", "TIMING_FILE", "run_simulation", "static_transforms"]
+
+RUN_FILE = "run.json"
+TIMING_FILE = "timing.json"
+DEPENDENCIES = ("numpy", "scipy", "pydantic", "rosbags", "PyYAML", "trimesh", "moderngl", "embreex")
+
+
+# ---------------------------------------------------------------------------- helpers
+def _versions() -> dict[str, str]:
+    out = {"roslan": __version__, "python": platform.python_version()}
+    for dep in DEPENDENCIES:
+        try:
+            out[dep] = version(dep)
+        except PackageNotFoundError:
+            out[dep] = "not installed"
+    return out
+
+
+def static_transforms(sensors: Sequence[Sensor]) -> list[StaticTransform]:
+    """/tf_static content: ``base_link -> frame`` from each sensor's extrinsics, then each
+    sensor's own ``static_transforms()`` (a returned child frame replaces the default one)."""
+    by_child: dict[str, StaticTransform] = {}
+    for s in sensors:
+        by_child[s.config.frame] = StaticTransform(BASE_FRAME, s.config.frame, s.config.pose.matrix())
+        for tf in s.static_transforms():
+            by_child[tf.child] = StaticTransform(tf.parent, tf.child, np.asarray(tf.T, dtype=np.float64))
+    return list(by_child.values())
+
+
+class _Stream:
+    """One sensor's message generator, checked (time order, declared topics) and optionally timed."""
+
+    def __init__(self, name: str, gen: Iterator[Message], topics: set[str], profile: bool) -> None:
+        self.name = name
+        self.gen = gen
+        self.topics = topics
+        self.profile = profile
+        self.seconds = 0.0
+        self.count = 0
+
+    def __iter__(self) -> Iterator[Message]:
+        last = -1
+        it = self.gen
+        topics = self.topics
+        perf = time.perf_counter
+        while True:
+            if self.profile:
+                t0 = perf()
+                msg = next(it, None)
+                self.seconds += perf() - t0
+            else:
+                msg = next(it, None)
+            if msg is None:
+                return
+            if msg.t_ns < last or msg.t_ns < 0:
+                err = f"sensor {self.name!r} yielded t_ns={msg.t_ns} after {last}: streams must be time-ordered"
+                raise SensorError(err)
+            if msg.topic not in topics:
+                err = f"sensor {self.name!r} yielded topic {msg.topic!r} not declared in its topics(): {sorted(topics)}"
+                raise SensorError(err)
+            last = msg.t_ns
+            self.count += 1
+            yield msg
+
+
+class _Progress:
+    """rich progress bar: trajectory seconds done and real-time factor (no-op when quiet)."""
+
+    def __init__(self, total_s: float, quiet: bool) -> None:
+        self.total = total_s
+        self._bar: Any = None
+        self._task: Any = None
+        self._t0 = time.perf_counter()
+        if quiet:
+            return
+        from rich.console import Console
+        from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+
+        self._bar = Progress(
+            TextColumn("simulating"),
+            BarColumn(),
+            TextColumn("{task.completed:.2f}/{task.total:.2f} s of trajectory"),
+            TextColumn("{task.fields[rtf]}"),
+            TimeElapsedColumn(),
+            console=Console(stderr=True),
+        )
+        self._task = self._bar.add_task("sim", total=total_s, rtf="")
+        self._bar.start()
+
+    def update(self, t_s: float) -> None:
+        if self._bar is None:
+            return
+        wall = time.perf_counter() - self._t0
+        rtf = f"{t_s / wall:.1f}x real time" if wall > 0 else ""
+        self._bar.update(self._task, completed=min(t_s, self.total), rtf=rtf)
+
+    def stop(self) -> None:
+        if self._bar is not None:
+            self._bar.stop()
+
+
+@contextlib.contextmanager
+def _sigterm_as_interrupt() -> Iterator[None]:
+    """Turn SIGTERM into KeyboardInterrupt while running, so cleanup runs (main thread only)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def handler(signum: int, frame: FrameType | None) -> None:
+        raise KeyboardInterrupt
+
+    old = signal.signal(signal.SIGTERM, handler)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, old)
+
+
+def _check_outdir(outdir: Path, overwrite: bool) -> None:
+    if outdir.exists() or outdir.is_symlink():
+        if not overwrite:
+            msg = f"output folder {outdir} exists; pass --overwrite (overwrite=True) to replace it"
+            raise OutputError(msg)
+        if not outdir.is_dir():
+            msg = f"output path {outdir} exists and is not a folder; refusing to replace it"
+            raise OutputError(msg)
+        if any(outdir.iterdir()) and not (outdir / RUN_FILE).exists():
+            msg = (
+                f"output folder {outdir} is not empty and holds no {RUN_FILE} (not a roslan output); "
+                "refusing to replace it even with --overwrite"
+            )
+            raise OutputError(msg)
+
+
+def _make_temp(outdir: Path) -> Path:
+    parent = outdir.parent
+    try:
+        parent.mkdir(parents=True, exist_ok=True)
+        tmp = Path(tempfile.mkdtemp(prefix=f".{outdir.name}.partial-", dir=parent))
+    except OSError as err:
+        msg = f"cannot write output folder {outdir}: {err.strerror or err}"
+        raise OutputError(msg) from err
+    if not os.access(tmp, os.W_OK | os.X_OK):  # pragma: no cover - mkdtemp made it 0700
+        shutil.rmtree(tmp, ignore_errors=True)
+        msg = f"cannot write output folder {outdir}: not writable"
+        raise OutputError(msg)
+    return tmp
+
+
+def _finalize(tmp: Path, outdir: Path) -> None:
+    """Move the finished temporary folder to OUTDIR; an old OUTDIR is removed only now."""
+    tmp.chmod(0o755)  # mkdtemp creates 0700
+    old: Path | None = None
+    if outdir.exists() or outdir.is_symlink():
+        old = Path(tempfile.mkdtemp(prefix=f".{outdir.name}.old-", dir=outdir.parent))
+        old.rmdir()
+        outdir.rename(old)
+    try:
+        tmp.rename(outdir)
+    except OSError as err:
+        if old is not None:
+            old.rename(outdir)
+        msg = f"cannot move the finished output into {outdir}: {err}"
+        raise OutputError(msg) from err
+    if old is not None:
+        shutil.rmtree(old, ignore_errors=True)
+
+
+def _write_json(path: Path, data: Any) -> None:
+    path.write_text(json.dumps(data, indent=2, sort_keys=False) + "\n", encoding="utf-8")
+
+
+def _extrinsics(sensors: Sequence[Sensor], static: Sequence[StaticTransform]) -> dict[str, Any]:
+    out: dict[str, Any] = {"base_frame": BASE_FRAME, "world_frame": WORLD_FRAME, "sensors": {}}
+    for s in sensors:
+        c = s.config
+        T = c.pose.matrix()
+        out["sensors"][c.name] = {
+            "type": c.type,
+            "frame_id": c.frame,
+            "topic": c.topic,
+            "T_base_link_sensor": [[float(v) for v in row] for row in T],
+            "position": [float(v) for v in T[:3, 3]],
+            "rpy": [float(v) for v in matrix_to_rpy(T[:3, :3])],
+            "quaternion_xyzw": [float(v) for v in matrix_to_quat_xyzw(T[:3, :3])],
+        }
+    out["static_transforms"] = [
+        {"parent": t.parent, "child": t.child, "T": [[float(v) for v in row] for row in np.asarray(t.T)]}
+        for t in static
+    ]
+    return out
+
+
+def _playback(duration_s: float, wall_s: float, formats: Sequence[str], topics: dict[str, int]) -> str:
+    rtf = duration_s / wall_s if wall_s > 0 else float("inf")
+    lines = [
+        "# Playing this landing",
+        "",
+        f"Trajectory: {duration_s:.3f} s; this simulation took {wall_s:.3f} s of wall time "
+        f"(R = trajectory time / simulation time = {rtf:.2f}).",
+        "",
+    ]
+    if "ros1" in formats:
+        lines += [
+            "## ROS 1",
+            "",
+            "```bash",
+            "rosbag info landing.bag",
+            "rosparam set use_sim_time true   # stamps are simulated time (start_time + trajectory time)",
+            "rosbag play --clock landing.bag             # real time",
+            f"rosbag play --clock landing.bag -r {rtf:.2f}   # at the pace this simulation ran",
+            "```",
+            "",
+        ]
+    if "ros2" in formats:
+        lines += [
+            "## ROS 2",
+            "",
+            "```bash",
+            "ros2 bag info landing_ros2",
+            "ros2 bag play landing_ros2 --clock",
+            f"ros2 bag play landing_ros2 --clock -r {rtf:.2f}",
+            "```",
+            "",
+        ]
+    lines += [
+        "## Foxglove",
+        "",
+        "Open Foxglove Studio -> *Open local file* -> `landing_ros2/landing_ros2.mcap` (or "
+        "`landing.bag`). Add a 3D panel (fixed frame `world`; /tf and /tf_static give "
+        "`world -> base_link -> sensors`) and plots of `/ground_truth/odometry` and `/tau/state`.",
+        "",
+        "## Topics",
+        "",
+        "| topic | messages |",
+        "|---|---|",
+        *(f"| `{t}` | {n} |" for t, n in topics.items()),
+        "",
+    ]
+    return "\n".join(lines)
+
+
+# ---------------------------------------------------------------------------- main entry
+def run_simulation(
+    config: SimConfig,
+    outdir: Path,
+    *,
+    overwrite: bool = False,
+    quiet: bool = False,
+    formats: Sequence[str] | None = None,
+    allow_collision: bool = False,
+    profile: bool = False,
+    config_path: Path | None = None,
+) -> dict[str, Any]:
+    """Simulate ``config`` into ``outdir`` atomically; returns the content of run.json.
+
+    Args:
+        config: validated simulation config.
+        outdir: output folder (must not exist unless ``overwrite``).
+        overwrite: replace an existing roslan output folder (only once the new one is complete).
+        quiet: no progress bar or profile table.
+        formats: bag flavours (``'ros1'``, ``'ros2'``); default ``config.output.formats``.
+        allow_collision: skip the scene clearance check.
+        profile: record (and print unless quiet) per-sensor time in timing.json.
+        config_path: the YAML file the config came from (relative scene paths, run.json).
+    Raises:
+        ConfigError: invalid sensors/topics/scene, or a path that hits the scene.
+        OutputError: OUTDIR exists (without overwrite) or cannot be written.
+    """
+    wall0 = time.perf_counter()
+    outdir = Path(outdir).absolute()
+    fmts = tuple(formats) if formats is not None else tuple(config.output.formats)
+    for f in fmts:
+        if f not in ("ros1", "ros2"):
+            msg = f"bag format {f!r}: allowed 'ros1', 'ros2'"
+            raise ConfigError(msg)
+    fmts = tuple(dict.fromkeys(fmts))
+    base_dir = config_path.parent.resolve() if config_path is not None else None
+
+    # ---- 1. validate before writing anything
+    _check_outdir(outdir, overwrite)
+    traj = Trajectory(config.trajectory)
+    sensors: list[Sensor] = []
+    for i, sc in enumerate(config.sensors):
+        try:
+            sensors.append(sensor_class(sc.type)(sc))
+        except ValueError as err:
+            msg = f"sensors[{i}] ({sc.name}): {err}"
+            raise SensorError(msg) from err
+    gt = GroundTruth(config.output.ground_truth_rate, static_transforms(sensors))
+    owners: dict[str, str] = {t.topic: "ground_truth" for t in gt.topics()}
+    bag_topics = [BagTopic(t.topic, t.msgtype, t.topic in gt.LATCHED) for t in gt.topics()]
+    for s in sensors:
+        for t in s.topics():
+            if t.topic in owners:
+                msg = (
+                    f"sensors: topic {t.topic!r} of sensor {s.config.name!r} is already published by "
+                    f"{owners[t.topic]!r}; every topic must be unique"
+                )
+                raise ConfigError(msg)
+            owners[t.topic] = s.config.name
+            bag_topics.append(BagTopic(t.topic, t.msgtype))
+    scene = None
+    if config.scene is not None:
+        import roslan.scene as scene_mod
+
+        scene = scene_mod.load_scene(config.scene, base_dir=base_dir, seed=config.seed)
+        if not allow_collision:
+            hit = scene_mod.check_clearance(scene, traj)
+            if hit is not None:
+                msg = f"scene {config.scene!r}: {hit}; change the trajectory or pass --allow-collision"
+                raise ConfigError(msg)
+
+    # ---- 2. write into a temporary sibling
+    tmp = _make_temp(outdir)
+    writers: MultiBagWriter | None = None
+    progress: _Progress | None = None
+    try:
+        with _sigterm_as_interrupt():
+            from roslan.trajectory.export import write_trajectory_files
+
+            t_setup = time.perf_counter()
+            write_trajectory_files(traj, tmp, plot=True)
+            if scene is not None:
+                import roslan.scene as scene_mod
+
+                scene_mod.export_scene(scene, tmp / "scene")
+            ctx = Context(
+                traj,
+                tmp,
+                seed=config.seed,
+                start_time_ns=config.output.start_time,
+                sensors=config.sensors,
+                scene_spec=config.scene,
+                base_dir=base_dir,
+                scene=scene,
+            )
+            writers = MultiBagWriter(tmp, fmts, bag_topics, config.output.compression)
+            t_stream = time.perf_counter()
+            streams = [_Stream("ground_truth", gt.messages(ctx), {t.topic for t in gt.topics()}, profile)]
+            streams += [
+                _Stream(s.config.name, s.messages(ctx), {t.topic for t in s.topics()}, profile) for s in sensors
+            ]
+            progress = _Progress(traj.duration, quiet)
+            write_seconds, build_seconds = _pump(streams, writers, ctx.start_time_ns, progress, profile, owners)
+            progress.update(traj.duration)
+            progress.stop()
+            progress = None
+            close_seconds: dict[str, float] = {}
+            for s in sensors:
+                t0 = time.perf_counter()
+                s.close(ctx)
+                close_seconds[s.config.name] = time.perf_counter() - t0
+            t0 = time.perf_counter()
+            writers.close()
+            write_seconds += time.perf_counter() - t0
+            writers_counts, writers = writers.counts, None
+            t_done = time.perf_counter()
+
+            calib = tmp / "calib"
+            calib.mkdir(exist_ok=True)
+            with (calib / "extrinsics.yaml").open("w", encoding="utf-8") as fh:
+                fh.write("# T_base_link_sensor of every sensor (and the /tf_static tree), written by roslan\n")
+                yaml.safe_dump(_extrinsics(sensors, gt.static), fh, sort_keys=False)
+            counts = dict(writers_counts)
+            run = {
+                "complete": True,
+                "roslan_version": __version__,
+                "config_file": str(config_path) if config_path is not None else None,
+                "seed": config.seed,
+                "start_time_ns": config.output.start_time,
+                "start_time_utc": _dt.datetime.fromtimestamp(
+                    config.output.start_time / 1e9, tz=_dt.timezone.utc
+                ).isoformat(),
+                "time_offset_note": "bag stamps = start_time_ns + trajectory time; text files use "
+                "seconds since the trajectory start",
+                "trajectory_duration_s": traj.duration,
+                "touchdown_time_s": traj.T,
+                "formats": list(fmts),
+                "bags": {f: BAG_NAMES[Flavor(f)] for f in fmts},
+                "topics": {
+                    t.topic: {"type": t.msgtype, "messages": counts[t.topic], "publisher": owners[t.topic]}
+                    for t in bag_topics
+                },
+                "messages_total": sum(counts.values()),
+                "sensors": [s.config.name for s in sensors],
+                "versions": _versions(),
+                "timing": f"{TIMING_FILE} (wall-clock figures; the only files that differ between "
+                "identical runs are timing.json and PLAYBACK.md)",
+                "config": config.model_dump(mode="json"),
+            }
+            wall = time.perf_counter() - wall0
+            timing: dict[str, Any] = {
+                "wall_time_s": wall,
+                "setup_s": t_stream - t_setup,
+                "stream_s": t_done - t_stream,
+                "real_time_factor": traj.duration / wall if wall > 0 else None,
+                "stream_real_time_factor": traj.duration / (t_done - t_stream) if t_done > t_stream else None,
+            }
+            if profile:
+                per = {
+                    st.name: {
+                        "generator_s": st.seconds,
+                        "build_s": build_seconds.get(st.name, 0.0),
+                        "close_s": close_seconds.get(st.name, 0.0),
+                        "messages": st.count,
+                    }
+                    for st in streams
+                }
+                timing["profile"] = {"sensors": per, "writers_s": write_seconds}
+                if not quiet:
+                    _print_profile(per, write_seconds)
+            _write_json(tmp / TIMING_FILE, timing)
+            (tmp / "PLAYBACK.md").write_text(_playback(traj.duration, wall, fmts, counts), encoding="utf-8")
+            _write_json(tmp / RUN_FILE, run)  # last: its presence marks a complete folder
+            _finalize(tmp, outdir)
+    except BaseException:
+        if progress is not None:
+            progress.stop()
+        if writers is not None:
+            writers.abort()
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    return run
+
+
+def _print_profile(per: dict[str, dict[str, Any]], writers_s: float) -> None:
+    from rich.console import Console
+    from rich.table import Table
+
+    table = Table(title="time per component (s)")
+    for col in ("component", "messages", "generator", "build", "close", "total"):
+        table.add_column(col, justify="left" if col == "component" else "right")
+    for name, p in per.items():
+        total = p["generator_s"] + p["build_s"] + p["close_s"]
+        table.add_row(
+            name,
+            str(p["messages"]),
+            f"{p['generator_s']:.3f}",
+            f"{p['build_s']:.3f}",
+            f"{p['close_s']:.3f}",
+            f"{total:.3f}",
+        )
+    table.add_row("bag writers", "", "", "", "", f"{writers_s:.3f}")
+    Console(stderr=True).print(table)
+
+
+def _pump(
+    streams: list[_Stream],
+    writers: MultiBagWriter,
+    start_ns: int,
+    progress: _Progress,
+    profile: bool,
+    owners: dict[str, str],
+) -> tuple[float, dict[str, float]]:
+    """Merge all streams by t_ns and write every message; returns writer and build seconds."""
+    merged = heapq.merge(*streams, key=_t_ns)
+    every = 2048
+    n = 0
+    write_s = 0.0
+    build_s: dict[str, float] = {}
+    if not profile:
+        for msg in merged:
+            writers.write(msg.topic, start_ns + msg.t_ns, msg.build)
+            n += 1
+            if n % every == 0:
+                progress.update(msg.t_ns * 1e-9)
+        return write_s, build_s
+    perf = time.perf_counter
+    for msg in merged:
+        t0 = perf()
+        datas = writers.build(msg.topic, msg.build)
+        t1 = perf()
+        writers.write_data(msg.topic, start_ns + msg.t_ns, datas)
+        t2 = perf()
+        owner = owners[msg.topic]
+        build_s[owner] = build_s.get(owner, 0.0) + (t1 - t0)
+        write_s += t2 - t1
+        n += 1
+        if n % every == 0:
+            progress.update(msg.t_ns * 1e-9)
+    return write_s, build_s
+
+
+def _t_ns(msg: Message) -> int:
+    return msg.t_ns
+

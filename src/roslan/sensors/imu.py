@@ -1,0 +1,256 @@
+"""IMU (``type: imu``): sensor_msgs/Imu from the closed-form kinematics plus Kalibr noise.
+
+Measurement model (DESIGN.md §3), for the sensor frame S at lever arm ``r`` (in
+base_link B) with rotation ``R_bs`` (both from ``pose``)::
+
+    a_s   = a_w + R_wb (alpha x r + w x (w x r))          # world accel. of the sensor point
+    f     = R_ws^T (a_s - g_w),   g_w = (0, 0, -gravity)   # specific force: +g up at rest
+    w_s   = R_bs^T w_b                                     # angular velocity in S
+    meas  = true + bias_k + sigma_d * n_k,  sigma_d = density * sqrt(rate)
+    bias_k = bias_{k-1} + random_walk * sqrt(dt) * n'_k,   bias_0 = turn-on bias
+
+(Kalibr / RotorS discrete-time convention). Each noise process has its own random
+stream (``ctx.rng('<name>/...')``), so outputs do not depend on the chunking.
+
+Outputs: the ``topic`` (sensor_msgs/Imu in ``frame_id``), ``imu.txt`` (Event Camera
+Dataset layout ``t ax ay az gx gy gz``, seconds since the trajectory start), and
+``calib/imu.yaml`` (Kalibr IMU file). A second IMU writes ``imu_<name>.txt`` and
+``calib/imu_<name>.yaml``.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator
+from typing import IO, Annotated, Any, Literal
+
+import numpy as np
+import yaml
+from numpy.typing import NDArray
+from pydantic import Field
+
+from roslan.config.base import FiniteFloat, Vec3
+from roslan.io.messages import MessageStore
+from roslan.io.packing import FixedLayout, Leaf, PackedBatch
+from roslan.io.text import write_columns
+from roslan.sensors.base import (
+    Message,
+    SensorConfig,
+    SimContext,
+    StaticTransform,
+    TopicSpec,
+    sample_times_ns,
+)
+from roslan.trajectory.frames import matrix_to_quat_xyzw
+
+__all__ = ["GRAVITY", "Imu", "ImuConfig", "imu_measurements"]
+
+GRAVITY = 9.81
+"""Default gravity magnitude, m/s^2 (Kalibr/RotorS/ESIM value)."""
+
+F64 = NDArray[np.float64]
+NonNegative = Annotated[FiniteFloat, Field(ge=0)]
+CHUNK_S = 1.0
+"""Trajectory seconds of samples computed per vectorized step (bounds memory)."""
+
+
+class ImuConfig(SensorConfig):
+    """``type: imu``. Noise parameters are Kalibr's continuous-time densities; defaults are ESIM's."""
+
+    type: Literal["imu"] = "imu"
+    rate: Annotated[FiniteFloat, Field(gt=0)] = 1000.0
+    accelerometer_noise_density: NonNegative = 1.86e-3
+    """m/s^2/sqrt(Hz)."""
+    accelerometer_random_walk: NonNegative = 4.33e-4
+    """m/s^3/sqrt(Hz)."""
+    gyroscope_noise_density: NonNegative = 1.86e-4
+    """rad/s/sqrt(Hz)."""
+    gyroscope_random_walk: NonNegative = 2.66e-5
+    """rad/s^2/sqrt(Hz)."""
+    accelerometer_bias: Vec3 = (0.0, 0.0, 0.0)
+    """Initial accelerometer bias, m/s^2 (added to the turn-on draw)."""
+    gyroscope_bias: Vec3 = (0.0, 0.0, 0.0)
+    """Initial gyroscope bias, rad/s."""
+    accelerometer_turn_on_bias_sigma: NonNegative = 0.0
+    """Std of a random turn-on accelerometer bias per axis, m/s^2 (0: none)."""
+    gyroscope_turn_on_bias_sigma: NonNegative = 0.0
+    """Std of a random turn-on gyroscope bias per axis, rad/s (0: none)."""
+    gravity: Annotated[FiniteFloat, Field(gt=0)] = GRAVITY
+    orientation: bool = False
+    """Publish the exact orientation of the sensor frame in ``world`` (else covariance[0] = -1)."""
+
+
+def imu_measurements(
+    trajectory: Any, t_ns: NDArray[np.int64], T_bs: F64, gravity: float = GRAVITY
+) -> tuple[F64, F64, F64]:
+    """Noise-free IMU readings at instants ``t_ns``.
+
+    Args:
+        trajectory: a :class:`~roslan.trajectory.Trajectory`.
+        t_ns: (N,) int64 trajectory times.
+        T_bs: (4, 4) sensor pose in base_link.
+        gravity: m/s^2.
+    Returns:
+        specific force (N, 3) m/s^2 and angular velocity (N, 3) rad/s, both in the
+        sensor frame, and R_world_sensor (N, 3, 3).
+    """
+    st = trajectory.state_ns(t_ns)
+    R_bs = T_bs[:3, :3]
+    r = T_bs[:3, 3]
+    w, al = st.omega_body, st.alpha_body
+    lever_b = np.cross(al, r) + np.cross(w, np.cross(w, r))
+    a_s = st.acceleration + np.einsum("nij,nj->ni", st.R_world_body, lever_b)
+    R_ws = st.R_world_body @ R_bs
+    g_w = np.array([0.0, 0.0, -gravity])
+    f = np.einsum("nji,nj->ni", R_ws, a_s - g_w)
+    gyro = w @ R_bs  # R_bs^T w, row-wise
+    return f, gyro, R_ws
+
+
+class Imu:
+    """Simulated IMU; see the module docstring for the model."""
+
+    def __init__(self, config: ImuConfig) -> None:
+        self.config = config
+        self._layouts: dict[str, FixedLayout] = {}
+        self._fh: IO[str] | None = None
+        self._bias: tuple[F64, F64] | None = None
+
+    # ------------------------------------------------------------------ interface
+    def topics(self) -> list[TopicSpec]:
+        return [TopicSpec(self.config.topic, "sensor_msgs/msg/Imu")]
+
+    def static_transforms(self) -> list[StaticTransform]:
+        return []  # base_link -> frame comes from the extrinsics (pipeline)
+
+    def _file_stem(self, ctx: SimContext) -> str:
+        imus = [s.name for s in ctx.sensors if s.type == "imu"]
+        return "imu" if not imus or imus[0] == self.config.name else f"imu_{self.config.name}"
+
+    @property
+    def sigmas(self) -> tuple[float, float]:
+        """Discrete white-noise std of (accelerometer m/s^2, gyroscope rad/s)."""
+        c = self.config
+        s = math.sqrt(c.rate)
+        return c.accelerometer_noise_density * s, c.gyroscope_noise_density * s
+
+    def messages(self, ctx: SimContext) -> Iterator[Message]:
+        c = self.config
+        T_bs = c.pose.matrix()
+        times = sample_times_ns(c.rate, ctx.trajectory.duration_ns)
+        per_chunk = max(1, round(c.rate * CHUNK_S))
+        sig_a, sig_g = self.sigmas
+        dt = 1.0 / c.rate
+        rw_a = c.accelerometer_random_walk * math.sqrt(dt)
+        rw_g = c.gyroscope_random_walk * math.sqrt(dt)
+        rng = {k: ctx.rng(f"{c.name}/{k}") for k in ("acc_noise", "gyro_noise", "acc_walk", "gyro_walk", "turn_on")}
+        b_a = np.asarray(c.accelerometer_bias, dtype=float) + c.accelerometer_turn_on_bias_sigma * rng[
+            "turn_on"
+        ].standard_normal(3)
+        b_g = np.asarray(c.gyroscope_bias, dtype=float) + c.gyroscope_turn_on_bias_sigma * rng[
+            "turn_on"
+        ].standard_normal(3)
+        self._bias = (b_a.copy(), b_g.copy())
+        fh = ctx.path(self._file_stem(ctx) + ".txt").open("w", encoding="utf-8", newline="\n")
+        self._fh = fh
+        try:
+            fh.write("# t ax ay az gx gy gz  (s since trajectory start; m/s^2 and rad/s in the IMU frame)\n")
+            for i0 in range(0, times.size, per_chunk):
+                t = times[i0 : i0 + per_chunk]
+                n = t.size
+                f, g, R_ws = imu_measurements(ctx.trajectory, t, T_bs, c.gravity)
+                # bias random walk: b_k = b_{k-1} + rw sqrt(dt) n_k (continues across chunks)
+                walk_a = b_a + np.cumsum(rw_a * rng["acc_walk"].standard_normal((n, 3)), axis=0)
+                walk_g = b_g + np.cumsum(rw_g * rng["gyro_walk"].standard_normal((n, 3)), axis=0)
+                b_a, b_g = walk_a[-1].copy(), walk_g[-1].copy()
+                acc = f + walk_a + sig_a * rng["acc_noise"].standard_normal((n, 3))
+                gyro = g + walk_g + sig_g * rng["gyro_noise"].standard_normal((n, 3))
+                write_columns(fh, t, *acc.T, *gyro.T)
+                yield from self._chunk_messages(ctx, t, i0, acc, gyro, R_ws)
+        finally:
+            fh.close()
+
+    def _chunk_messages(
+        self, ctx: SimContext, t: NDArray[np.int64], i0: int, acc: F64, gyro: F64, R_ws: F64
+    ) -> Iterator[Message]:
+        n = t.size
+        sec, nsec = np.divmod(ctx.start_time_ns + t, 1_000_000_000)
+        q = matrix_to_quat_xyzw(R_ws) if self.config.orientation else None
+
+        def pack(store: MessageStore) -> NDArray[np.uint8]:
+            cols: dict[str, Any] = {"header.stamp.sec": sec, "header.stamp.nanosec": nsec}
+            if store.is_ros1:
+                cols["header.seq"] = np.arange(i0, i0 + n)
+            for i, a in enumerate("xyz"):
+                cols[f"linear_acceleration.{a}"] = acc[:, i]
+                cols[f"angular_velocity.{a}"] = gyro[:, i]
+            if q is not None:
+                for i, a in enumerate("xyzw"):
+                    cols[f"orientation.{a}"] = q[:, i]
+            return self._layout(store).pack(cols, n)
+
+        batch = PackedBatch(pack)
+        topic = self.config.topic
+        for i, ti in enumerate(t.tolist()):
+            yield Message(ti, topic, "sensor_msgs/msg/Imu", batch.build(i))
+
+    def _layout(self, store: MessageStore) -> FixedLayout:
+        key = store.flavor.value
+        if key not in self._layouts:
+            self._layouts[key] = FixedLayout(store, "sensor_msgs/msg/Imu", self.template(store), self._leaves(store))
+        return self._layouts[key]
+
+    def _leaves(self, store: MessageStore) -> list[Leaf]:
+        leaves: list[Leaf] = [("header.stamp.sec", "<u4", 1), ("header.stamp.nanosec", "<u4", 1)]
+        if store.is_ros1:
+            leaves.append(("header.seq", "<u4", 1))
+        leaves += [(f"linear_acceleration.{a}", "<f8", 1) for a in "xyz"]
+        leaves += [(f"angular_velocity.{a}", "<f8", 1) for a in "xyz"]
+        if self.config.orientation:
+            leaves += [(f"orientation.{a}", "<f8", 1) for a in "xyzw"]
+        return leaves
+
+    def covariances(self) -> tuple[F64, F64, F64]:
+        """Row-major 3x3 covariances (9,) of orientation, angular velocity, linear acceleration."""
+        sig_a, sig_g = self.sigmas
+        orient = np.zeros(9)
+        if not self.config.orientation:
+            orient[0] = -1.0  # REP 145 / sensor_msgs: orientation not provided
+        return orient, (np.eye(3) * sig_g**2).ravel(), (np.eye(3) * sig_a**2).ravel()
+
+    def template(self, store: MessageStore) -> Any:
+        """An Imu message with this sensor's constant fields (frame, covariances)."""
+        orient, cov_g, cov_a = self.covariances()
+        V = store.types["geometry_msgs/msg/Vector3"]
+        Q = store.types["geometry_msgs/msg/Quaternion"]
+        return store.new(
+            "sensor_msgs/msg/Imu",
+            header=store.header(0, self.config.frame),
+            orientation=Q(x=0.0, y=0.0, z=0.0, w=1.0),
+            orientation_covariance=orient,
+            angular_velocity=V(x=0.0, y=0.0, z=0.0),
+            angular_velocity_covariance=cov_g,
+            linear_acceleration=V(x=0.0, y=0.0, z=0.0),
+            linear_acceleration_covariance=cov_a,
+        )
+
+    def kalibr(self) -> dict[str, Any]:
+        """Kalibr ``imu.yaml`` content (noise densities, random walks, rate, topic)."""
+        c = self.config
+        return {
+            "rostopic": c.topic,
+            "update_rate": float(c.rate),
+            "accelerometer_noise_density": float(c.accelerometer_noise_density),
+            "accelerometer_random_walk": float(c.accelerometer_random_walk),
+            "gyroscope_noise_density": float(c.gyroscope_noise_density),
+            "gyroscope_random_walk": float(c.gyroscope_random_walk),
+            "T_i_b": np.linalg.inv(c.pose.matrix()).tolist(),
+        }
+
+    def close(self, ctx: SimContext) -> None:
+        if self._fh is not None and not self._fh.closed:
+            self._fh.close()
+        path = ctx.path(f"calib/{self._file_stem(ctx)}.yaml")
+        with path.open("w", encoding="utf-8") as fh:
+            fh.write(f"# Kalibr IMU configuration of sensor '{self.config.name}' (written by roslan)\n")
+            yaml.safe_dump(self.kalibr(), fh, sort_keys=False, default_flow_style=None)
