@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 from typing import Annotated
 
-from pydantic import Field, model_validator
+from pydantic import Field, field_validator, model_validator
 
 from roslan.config.base import FiniteFloat, Pose, StrictModel, Vec3
 
@@ -32,12 +32,15 @@ class Initial(StrictModel):
     rpy: Vec3 = (0.0, 0.0, 0.0)
     descent_rate: PositiveFloat | None = None
 
-    @model_validator(mode="after")
-    def _height_positive(self) -> Initial:
-        if self.position is not None and not self.position[2] > 0:
-            msg = f"position[2] (height above the goal) = {self.position[2]} must be > 0"
+    @field_validator("position")
+    @classmethod
+    def _height_positive(
+        cls, v: tuple[float, float, float] | None
+    ) -> tuple[float, float, float] | None:
+        if v is not None and not v[2] > 0:
+            msg = f"z = position[2] (height above the goal) = {v[2]} must be > 0"
             raise ValueError(msg)
-        return self
+        return v
 
 
 class Approach(StrictModel):
@@ -68,7 +71,7 @@ class Flapping(StrictModel):
 class TrajectoryConfig(StrictModel):
     """Tau-theory landing: height gap closed with constant tau-dot ``k``, five coupled gaps."""
 
-    k: Annotated[FiniteFloat, Field(gt=0, le=1)] = 0.5
+    k: Annotated[FiniteFloat, Field(gt=0)] = 0.5
     kappa: Kappa = Kappa()
     initial: Initial = Initial(position=(-8.0, 2.0, 4.6), rpy=(0.05, 0.15, 0.3), descent_rate=2.0)
     approach: Approach | None = None
@@ -77,15 +80,32 @@ class TrajectoryConfig(StrictModel):
     hold: NonNegativeFloat = 0.0
     flapping: Flapping = Flapping()
 
-    @model_validator(mode="after")
-    def _check(self) -> TrajectoryConfig:
-        if self.k >= 1.0:
+    @field_validator("k")
+    @classmethod
+    def _below_one(cls, v: float) -> float:
+        if v > 1.0:
             msg = (
-                f"k = {self.k}: k = 1 closes the height gap at constant speed, i.e. the robot "
-                "hits the goal without braking (a crash); use 0 < k < 1 (k <= 0.5 for a soft "
-                "touchdown)"
+                "must satisfy 0 < k < 1: k > 1 makes the height gap close with growing speed "
+                "(no landing at all); k <= 0.5 gives a soft touchdown"
             )
             raise ValueError(msg)
+        if v == 1.0:
+            msg = (
+                "k = 1 closes the height gap at constant speed, i.e. the robot hits the goal "
+                "without braking (a crash); use 0 < k < 1 (k <= 0.5 for a soft touchdown)"
+            )
+            raise ValueError(msg)
+        return v
+
+    def initial_height(self) -> float:
+        """z0 (m): initial height above the goal, from ``initial`` or ``approach``."""
+        if self.approach is not None:
+            return self.approach.distance * math.sin(self.approach.angle)
+        assert self.initial.position is not None
+        return float(self.initial.position[2])
+
+    @model_validator(mode="after")
+    def _check(self) -> TrajectoryConfig:
         if self.approach is not None:
             given = self.initial.model_fields_set if "initial" in self.model_fields_set else set()
             clash = [key for key in ("position", "descent_rate") if key in given]
@@ -108,7 +128,13 @@ class TrajectoryConfig(StrictModel):
                 msg = (
                     f"kappa.{name} = {getattr(self.kappa, name)}: k * kappa.{name} = {kk:.4g} > 1 "
                     f"makes the {name} gap close with unbounded rate at touchdown; use "
-                    f"kappa.{name} <= 1/k = {1 / self.k:.4g} (< 0.5/k for bounded acceleration)"
+                    f"kappa.{name} <= 1/k = {1 / self.k:.4g} (<= 0.5/k for bounded acceleration)"
                 )
                 raise ValueError(msg)
+        if self.flapping.heave > 0 and self.flapping.heave >= self.initial_height():
+            msg = (
+                f"flapping.heave = {self.flapping.heave} m reaches below the goal: it must be "
+                f"smaller than the initial height z0 = {self.initial_height():.4g} m"
+            )
+            raise ValueError(msg)
         return self

@@ -12,6 +12,8 @@ All functions are vectorized over a leading axis of N samples.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
@@ -19,6 +21,7 @@ __all__ = [
     "OPTICAL_FROM_BODY",
     "euler_rates_to_body_acceleration",
     "euler_rates_to_body_rates",
+    "euler_zyx_kinematics",
     "matrix_to_quat_xyzw",
     "matrix_to_rpy",
     "quat_multiply",
@@ -133,17 +136,18 @@ def quat_xyzw_to_matrix(q: ArrayLike) -> F64:
 
 
 def rotation_log(R: ArrayLike) -> F64:
-    """Log map SO(3) -> rotation vectors (..., 3) (axis * angle, angle in [0, pi))."""
-    m = np.asarray(R, dtype=np.float64)
-    cos = np.clip((np.trace(m, axis1=-2, axis2=-1) - 1.0) / 2.0, -1.0, 1.0)
-    angle = np.arccos(cos)
-    v = np.stack(
-        [m[..., 2, 1] - m[..., 1, 2], m[..., 0, 2] - m[..., 2, 0], m[..., 1, 0] - m[..., 0, 1]],
-        axis=-1,
-    )
-    sin = np.sin(angle)
-    small = sin < 1e-12
-    scale = np.where(small, 0.5, angle / (2.0 * np.where(small, 1.0, sin)))
+    """Log map SO(3) -> rotation vectors (..., 3): axis * angle, angle in [0, pi].
+
+    Computed through the quaternion (``angle = 2 atan2(|v|, w)``), which stays accurate
+    near 0 and near pi, where the trace formula loses the axis.
+    """
+    q = matrix_to_quat_xyzw(R)
+    v = q[..., :3]
+    norm = np.linalg.norm(v, axis=-1)
+    angle = 2.0 * np.arctan2(norm, q[..., 3])
+    small = norm < 1e-12
+    # angle / norm -> 2 / w as the angle -> 0 (w -> 1)
+    scale = np.where(small, 2.0, angle / np.where(small, 1.0, norm))
     return v * scale[..., None]
 
 
@@ -164,7 +168,9 @@ def euler_rates_to_body_rates(rpy: ArrayLike, rpy_dot: ArrayLike) -> F64:
     )
 
 
-def euler_rates_to_body_acceleration(rpy: ArrayLike, rpy_dot: ArrayLike, rpy_ddot: ArrayLike) -> F64:
+def euler_rates_to_body_acceleration(
+    rpy: ArrayLike, rpy_dot: ArrayLike, rpy_ddot: ArrayLike
+) -> F64:
     """Body angular acceleration (rad/s^2, body frame): exact time derivative of
     :func:`euler_rates_to_body_rates` (the body frame derivative equals the inertial one
     for angular velocity). Shapes: 3 x (N, 3) -> (N, 3)."""
@@ -213,3 +219,96 @@ def quat_multiply(a: ArrayLike, b: ArrayLike) -> F64:
         ],
         axis=-1,
     )
+
+
+def euler_zyx_kinematics(
+    rpy: F64,
+    rpy_dot: F64,
+    rpy_ddot: F64,
+    q_parent_ref: ArrayLike | None = None,
+) -> tuple[F64, F64, F64, F64]:
+    """Orientation, angular velocity and angular acceleration from ZYX Euler angles.
+
+    The fused, fast path of :func:`rpy_to_quat_xyzw`, :func:`quat_xyzw_to_matrix`,
+    :func:`euler_rates_to_body_rates` and :func:`euler_rates_to_body_acceleration`:
+    six trig calls in all (half angles; full-angle sines and cosines follow from them).
+
+    Args:
+        rpy, rpy_dot, rpy_ddot: (N, 3) Euler angles of ``body`` relative to a reference
+            frame ``ref`` (rad) and their first and second time derivatives.
+        q_parent_ref: optional constant (4,) x, y, z, w orientation of ``ref`` in a
+            parent frame; the returned orientation is then that of body in the parent.
+    Returns:
+        quat_xyzw (N, 4) (w >= 0), R_parent_body (N, 3, 3), omega_body (N, 3) rad/s,
+        alpha_body (N, 3) rad/s^2 (both in the body frame).
+    """
+    n = rpy.shape[0]
+    half = 0.5 * rpy.T  # (3, N), rows contiguous after the copy below
+    half = np.ascontiguousarray(half)
+    yaw_offset = 0.0
+    q_ref = None
+    if q_parent_ref is not None:
+        q_ref = np.asarray(q_parent_ref, dtype=np.float64)
+        if abs(q_ref[0]) < 1e-15 and abs(q_ref[1]) < 1e-15:
+            # a pure yaw of the reference frame just adds to the (outermost) yaw angle
+            yaw_offset = 2.0 * math.atan2(float(q_ref[2]), float(q_ref[3]))
+            q_ref = None
+    if yaw_offset != 0.0:
+        half[2] += 0.5 * yaw_offset
+    cos_h = np.cos(half)
+    sin_h = np.sin(half)
+    chr_, chp, chy = cos_h
+    shr, shp, shy = sin_h
+    # quaternion of Rz(y) Ry(p) Rx(r)
+    a, b = chr_ * chp, shr * shp
+    c, d = shr * chp, chr_ * shp
+    qx = c * chy - d * shy
+    qy = d * chy + c * shy
+    qz = a * shy - b * chy
+    qw = a * chy + b * shy
+    if q_ref is not None:
+        x1, y1, z1, w1 = (float(v) for v in q_ref)
+        qx, qy, qz, qw = (
+            w1 * qx + x1 * qw + y1 * qz - z1 * qy,
+            w1 * qy - x1 * qz + y1 * qw + z1 * qx,
+            w1 * qz + x1 * qy - y1 * qx + z1 * qw,
+            w1 * qw - x1 * qx - y1 * qy - z1 * qz,
+        )
+    sign = np.where(qw < 0.0, -1.0, 1.0)
+    quat = np.stack([qx * sign, qy * sign, qz * sign, qw * sign], axis=1)
+    # rotation matrix from the (unit) quaternion
+    tx, ty, tz = 2.0 * qx, 2.0 * qy, 2.0 * qz
+    xx, yy, zz = tx * qx, ty * qy, tz * qz
+    xy, xz, yz = tx * qy, tx * qz, ty * qz
+    wx, wy, wz = tx * qw, ty * qw, tz * qw
+    R = np.empty((n, 3, 3))
+    Rf = R.reshape(n, 9)
+    Rf[:, 0] = 1.0 - (yy + zz)
+    Rf[:, 1] = xy - wz
+    Rf[:, 2] = xz + wy
+    Rf[:, 3] = xy + wz
+    Rf[:, 4] = 1.0 - (xx + zz)
+    Rf[:, 5] = yz - wx
+    Rf[:, 6] = xz - wy
+    Rf[:, 7] = yz + wx
+    Rf[:, 8] = 1.0 - (xx + yy)
+    # full-angle trig of roll and pitch from the half angles
+    sr, cr = 2.0 * shr * chr_, chr_ * chr_ - shr * shr
+    sp, cp = 2.0 * shp * chp, chp * chp - shp * shp
+    d1 = np.ascontiguousarray(rpy_dot.T)
+    d2 = np.ascontiguousarray(rpy_ddot.T)
+    dr, dp, dy = d1
+    ddr, ddp, ddy = d2
+    srcp, crcp = sr * cp, cr * cp
+    dysp = dy * sp
+    dpsr, dpcr = dp * sr, dp * cr
+    drdy = dr * dy
+    omega = np.empty((n, 3))
+    alpha = np.empty((n, 3))
+    omega[:, 0] = dr - dysp
+    omega[:, 1] = dpcr + dy * srcp
+    omega[:, 2] = dy * crcp - dpsr
+    alpha[:, 0] = ddr - ddy * sp - dy * cp * dp
+    alpha[:, 1] = ddp * cr - dpsr * dr + ddy * srcp + drdy * crcp - dysp * dpsr
+    alpha[:, 2] = ddy * crcp - ddp * sr - dpcr * dr - drdy * srcp - dysp * dpcr
+    return quat, R, omega, alpha

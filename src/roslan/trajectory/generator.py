@@ -11,14 +11,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from roslan.trajectory.config import TrajectoryConfig
-from roslan.trajectory.frames import (
-    euler_rates_to_body_acceleration,
-    euler_rates_to_body_rates,
-    quat_multiply,
-    rpy_to_matrix,
-    rpy_to_quat_xyzw,
-)
-from roslan.trajectory.tau import Terminal, classify, gap
+from roslan.trajectory.frames import euler_zyx_kinematics, rpy_to_matrix, rpy_to_quat_xyzw
+from roslan.trajectory.tau import Terminal, classify, powers
 
 __all__ = ["COMPONENTS", "GAPS", "State", "Trajectory", "TrajectoryWarning"]
 
@@ -92,12 +86,11 @@ class Trajectory:
             y0 = -horiz * math.sin(a.heading)
             z0 = a.distance * math.sin(a.angle)
             # |v0| = vz0 * sqrt(1 + (x0/(kx z0))^2 + (y0/(ky z0))^2)   (DESIGN.md §1)
-            denom = math.sqrt(
-                1.0 + (x0 / (c.kappa.x * z0)) ** 2 + (y0 / (c.kappa.y * z0)) ** 2
-            )
+            denom = math.sqrt(1.0 + (x0 / (c.kappa.x * z0)) ** 2 + (y0 / (c.kappa.y * z0)) ** 2)
             v0 = a.speed / denom
         else:
-            assert c.initial.position is not None and c.initial.descent_rate is not None
+            assert c.initial.position is not None
+            assert c.initial.descent_rate is not None
             x0, y0, z0 = c.initial.position
             v0 = c.initial.descent_rate
         roll0, pitch0, yaw0 = c.initial.rpy
@@ -149,73 +142,97 @@ class Trajectory:
         return out
 
     def summary(self) -> dict[str, Any]:
-        """Touchdown time, tau0, parameters, terminal behaviour, peaks (JSON-ready)."""
+        """Touchdown time, tau0, parameters, terminal behaviour, peaks (JSON-ready).
+
+        Peaks are taken over 20001 instants on [0, T]. ``peak_deceleration`` is the
+        largest braking component of the acceleration along the velocity (m/s^2); it is
+        None when a gap's deceleration grows without bound (see ``terminal``).
+        """
         t = np.linspace(0.0, self.T, 20001)
         st = self.state(t)
         speed = np.linalg.norm(st.velocity, axis=1)
         # deceleration along the direction of motion (positive when braking)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            along = -np.einsum("ij,ij->i", st.acceleration, st.velocity) / np.where(
-                speed > 0, speed, 1.0
+        along = -np.sum(st.acceleration * st.velocity, axis=1) / np.where(speed > 0, speed, 1.0)
+        unbounded = any(
+            term is Terminal.UNBOUNDED_DECELERATION
+            for g, term in self.terminal.items()
+            if g in ("x", "y", "z")
+        )
+        kappa = dict(
+            zip(
+                ("x", "y", "roll", "pitch", "yaw"),
+                self.kappas[[0, 1, 3, 4, 5]].tolist(),
+                strict=True,
             )
+        )
         return {
+            "T": self.T,
             "touchdown_time": self.T,
             "duration": self.duration,
             "tau0": self.tau0,
             "k": self.k,
-            "kappa": dict(zip(("x", "y", "roll", "pitch", "yaw"), self.kappas[[0, 1, 3, 4, 5]].tolist(), strict=True)),
+            "kappa": kappa,
             "initial_gaps": dict(zip(GAPS, self.initial_gaps.tolist(), strict=True)),
             "descent_rate": self.descent_rate,
             "initial_speed": float(speed[0]),
             "terminal": {g: term.value for g, term in self.terminal.items()},
             "peak_speed": float(speed.max()),
-            "peak_deceleration": float(along.max()),
-            "peak_acceleration_norm": float(np.linalg.norm(st.acceleration, axis=1).max()),
+            "peak_deceleration": None if unbounded else float(max(along.max(), 0.0)),
+            "peak_acceleration_norm": (
+                None if unbounded else float(np.linalg.norm(st.acceleration, axis=1).max())
+            ),
+            "flapping": self._flap is not None,
             "warnings": self.warnings(),
         }
 
     # ------------------------------------------------------------------ sampling
     def table_times(self) -> F64:
-        """Instants of the exported table: every ``sample_dt`` from 0, exactly T, then the hold."""
+        """Instants of the exported table (s): every ``sample_dt`` from 0 up to T, exactly T,
+        then every ``sample_dt`` after T through the hold, ending exactly at T + hold."""
         dt = self.config.sample_dt
-        n = int(math.floor(self.T / dt + 1e-9))
+        tol = 1e-9 * max(1.0, self.T)
+        n = math.floor(self.T / dt + 1e-9)
         before = np.arange(n + 1, dtype=np.float64) * dt
-        before = before[before < self.T - 1e-9]
-        m = int(math.floor(self.hold / dt + 1e-9))
-        after = self.T + np.arange(1, m + 1, dtype=np.float64) * dt
-        return np.concatenate([before, [self.T], after])
+        before = before[before < self.T - tol]  # a grid point within tol of T becomes T
+        parts = [before, np.array([self.T])]
+        if self.hold > 0.0:
+            m = math.floor(self.hold / dt + 1e-9)
+            after = self.T + np.arange(1, m + 1, dtype=np.float64) * dt
+            after = after[after < self.duration - tol]
+            parts += [after, np.array([self.duration])]
+        return np.concatenate(parts)
 
     def gaps_at(self, t: ArrayLike) -> tuple[F64, F64, F64, F64]:
         """The 18 components in F: (t, gaps, rates, accels), each (N,) / (N, 6)."""
-        tt = np.atleast_1d(np.asarray(t, dtype=np.float64))
-        tc = np.clip(tt, 0.0, None)
-        s = np.clip(1.0 - tc / self.T, 0.0, 1.0)
+        tt = np.atleast_1d(np.asarray(t, dtype=np.float64)).ravel()
         n = tt.shape[0]
+        # s = 1 - t/T in [0, 1]; s = 0 exactly at t = T
+        s = 1.0 - tt / self.T
+        np.clip(s, 0.0, 1.0, out=s)
         gaps = np.empty((n, 6))
         rates = np.empty((n, 6))
         accels = np.empty((n, 6))
+        T = self.T
+        # one power per distinct exponent (gaps with equal kappa share it)
+        cache: dict[float, tuple[F64, F64, F64]] = {}
         for i in range(6):
-            gaps[:, i], rates[:, i], accels[:, i] = gap(
-                float(self.initial_gaps[i]), float(self.exponents[i]), self.T, s
-            )
+            g0 = float(self.initial_gaps[i])
+            if g0 == 0.0:
+                gaps[:, i] = 0.0
+                rates[:, i] = 0.0
+                accels[:, i] = 0.0
+                continue
+            e = float(self.exponents[i])
+            if e not in cache:
+                cache[e] = powers(s, e)
+            p0, p1, p2 = cache[e]
+            np.multiply(p0, g0, out=gaps[:, i])
+            np.multiply(p1, -g0 * e / T, out=rates[:, i])
+            np.multiply(p2, g0 * e * (e - 1.0) / (T * T), out=accels[:, i])
         if self._flap is not None:
-            f = self._flap
-            w = 2.0 * math.pi * f.frequency
-            ph = w * tc + f.phase
-            sn, cs = np.sin(ph), np.cos(ph)
-            z0 = self.initial_gaps[2]
-            # envelope e = z/z0 fades the oscillation out at touchdown
-            e, de, dde = gaps[:, 2] / z0, rates[:, 2] / z0, accels[:, 2] / z0
-            osc = e * sn
-            dosc = de * sn + e * w * cs
-            ddosc = dde * sn + 2.0 * de * w * cs - e * w * w * sn
-            for col, amp in ((2, f.heave), (4, f.pitch)):
-                if amp > 0:
-                    gaps[:, col] += amp * osc
-                    rates[:, col] += amp * dosc
-                    accels[:, col] += amp * ddosc
+            self._add_flapping(np.clip(tt, 0.0, None), gaps, rates, accels)
         # at rest before the start (t < 0 clamps to the start) and after touchdown
-        after = tt > self.T
+        after = tt > T
         if after.any():
             gaps[after] = 0.0
             rates[after] = 0.0
@@ -226,20 +243,36 @@ class Trajectory:
             accels[before] = 0.0
         return tt, gaps, rates, accels
 
+    def _add_flapping(self, tc: F64, gaps: F64, rates: F64, accels: F64) -> None:
+        """Superimpose heave (on z) and pitch oscillation, faded by e = z/z0 (in place)."""
+        f = self._flap
+        assert f is not None
+        w = 2.0 * math.pi * f.frequency
+        ph = w * tc + f.phase
+        sn, cs = np.sin(ph), np.cos(ph)
+        z0 = float(self.initial_gaps[2])
+        # envelope e = z/z0 (before the heave is added) fades the oscillation out at touchdown
+        e, de, dde = gaps[:, 2] / z0, rates[:, 2] / z0, accels[:, 2] / z0
+        osc = e * sn
+        dosc = de * sn + e * w * cs
+        ddosc = dde * sn + 2.0 * w * de * cs - (w * w) * osc
+        for col, amp in ((2, f.heave), (4, f.pitch)):
+            if amp > 0:
+                gaps[:, col] += amp * osc
+                rates[:, col] += amp * dosc
+                accels[:, col] += amp * ddosc
+
     def state(self, t: ArrayLike) -> State:
         """Full state at instants ``t`` (s), shape (N,)."""
         tt, gaps, rates, accels = self.gaps_at(t)
         R = self.R_world_goal
-        position = gaps[:, :3] @ R.T + self.p_world_goal
-        velocity = rates[:, :3] @ R.T
-        acceleration = accels[:, :3] @ R.T
-        rpy, drpy, ddrpy = gaps[:, 3:], rates[:, 3:], accels[:, 3:]
-        R_goal_body = rpy_to_matrix(rpy)
-        R_world_body = np.einsum("ij,njk->nik", R, R_goal_body)
-        quat = quat_multiply(self._q_world_goal, rpy_to_quat_xyzw(rpy))
-        quat = np.where(quat[:, 3:4] < 0, -quat, quat)
-        omega = euler_rates_to_body_rates(rpy, drpy)
-        alpha = euler_rates_to_body_acceleration(rpy, drpy, ddrpy)
+        position = gaps[:, :3].dot(R.T)
+        position += self.p_world_goal
+        velocity = rates[:, :3].dot(R.T)
+        acceleration = accels[:, :3].dot(R.T)
+        quat, R_world_body, omega, alpha = euler_zyx_kinematics(
+            gaps[:, 3:], rates[:, 3:], accels[:, 3:], self._q_world_goal
+        )
         return State(
             t=tt,
             gaps=gaps,

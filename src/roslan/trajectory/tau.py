@@ -15,12 +15,12 @@ at touchdown is the finite value an instant (``S_FLOOR * T``) before it, never i
 
 from __future__ import annotations
 
-from enum import Enum
+from enum import StrEnum
 
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["S_FLOOR", "Terminal", "classify", "gap", "safe_pow"]
+__all__ = ["S_FLOOR", "Terminal", "classify", "gap", "powers", "safe_pow"]
 
 F64 = NDArray[np.float64]
 
@@ -30,7 +30,7 @@ S_FLOOR = 1e-9
 _EPS = 1e-12
 
 
-class Terminal(str, Enum):
+class Terminal(StrEnum):
     """How a gap closes at touchdown, from its exponent ``n`` (DESIGN.md §1)."""
 
     SOFT = "soft"  # rate -> 0, acceleration -> 0           (n > 2, i.e. k*kappa < 0.5)
@@ -59,9 +59,35 @@ def classify(product: float, g0: float = 1.0) -> Terminal:
 
 def safe_pow(s: F64, e: float) -> F64:
     """``s**e`` for s in [0, 1]: exact (0**0 = 1, 0**e = 0) for e >= 0, floored for e < 0."""
-    if e >= 0.0:
+    if e == 0.0:
+        return np.ones_like(s)
+    if e == 1.0:
+        return s.copy()
+    if e == 2.0:
+        return s * s
+    if e == 0.5:
+        return np.sqrt(s)
+    if e > 0.0:
         return np.power(s, e)
     return np.power(np.maximum(s, S_FLOOR), e)
+
+
+def powers(s: F64, n: float) -> tuple[F64, F64, F64]:
+    """``(s**n, s**(n-1), s**(n-2))`` for s in [0, 1] and n >= 1, with one ``pow`` call.
+
+    The lower power is computed and the others follow by multiplying with s, which
+    stays exact at s = 0 (where ``s**(n-2)`` is finite for n >= 2). For 1 <= n < 2
+    (warned, unbounded-deceleration parameters) ``s**(n-1)`` is a second exact power
+    and only ``s**(n-2)`` is floored at :data:`S_FLOOR`.
+    """
+    if n >= 2.0:
+        p2 = safe_pow(s, n - 2.0)
+        p1 = p2 * s
+        return p1 * s, p1, p2
+    p1 = safe_pow(s, n - 1.0)
+    # linear closure (n = 1): no second derivative at all
+    p2 = np.zeros_like(s) if abs(n - 1.0) <= _EPS else safe_pow(s, n - 2.0)
+    return p1 * s, p1, p2
 
 
 def gap(g0: float, n: float, T: float, s: F64) -> tuple[F64, F64, F64]:
@@ -78,10 +104,5 @@ def gap(g0: float, n: float, T: float, s: F64) -> tuple[F64, F64, F64]:
     if g0 == 0.0:
         z = np.zeros_like(s)
         return z, z.copy(), z.copy()
-    g = g0 * safe_pow(s, n)
-    dg = (-g0 * n / T) * safe_pow(s, n - 1.0)
-    if abs(n - 1.0) <= _EPS:
-        ddg = np.zeros_like(s)
-    else:
-        ddg = (g0 * n * (n - 1.0) / (T * T)) * safe_pow(s, n - 2.0)
-    return g, dg, ddg
+    p0, p1, p2 = powers(s, n)
+    return g0 * p0, (-g0 * n / T) * p1, (g0 * n * (n - 1.0) / (T * T)) * p2

@@ -1,0 +1,81 @@
+"""Atomic file writes: a reader never sees a half-written file under its final name.
+
+Write to a temporary file in the destination folder, flush, then ``os.replace`` it
+onto the final name (atomic on POSIX within one file system). On any exception the
+temporary file is removed and the destination is left as it was.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import tempfile
+from collections.abc import Iterator
+from pathlib import Path
+from typing import IO, Any, Literal, overload
+
+__all__ = ["atomic_write", "atomic_write_bytes", "atomic_write_text"]
+
+
+@overload
+def atomic_write(
+    path: str | Path,
+    mode: Literal["w"] = "w",
+    *,
+    encoding: str = "utf-8",
+    newline: str | None = "\n",
+) -> contextlib.AbstractContextManager[IO[str]]: ...
+@overload
+def atomic_write(
+    path: str | Path, mode: Literal["wb"], *, encoding: str = "utf-8", newline: str | None = "\n"
+) -> contextlib.AbstractContextManager[IO[bytes]]: ...
+def atomic_write(
+    path: str | Path, mode: str = "w", *, encoding: str = "utf-8", newline: str | None = "\n"
+) -> contextlib.AbstractContextManager[IO[str]] | contextlib.AbstractContextManager[IO[bytes]]:
+    """Context manager yielding a file handle whose content appears at ``path`` only
+    when the ``with`` block completes without error.
+
+    Args:
+        path: final file name; its parent folder must exist.
+        mode: ``"w"`` (text, ``encoding``, ``newline``) or ``"wb"`` (binary).
+    Example:
+        >>> with atomic_write(outdir / "table.txt") as fh:  # doctest: +SKIP
+        ...     fh.write("t x\\n")
+    """
+    if mode not in ("w", "wb"):
+        msg = f"atomic_write mode must be 'w' or 'wb', got {mode!r}"
+        raise ValueError(msg)
+    return _atomic(Path(path), mode, encoding, newline)
+
+
+@contextlib.contextmanager
+def _atomic(path: Path, mode: str, encoding: str, newline: str | None) -> Iterator[IO[Any]]:
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        if mode == "wb":
+            fh: IO[Any] = os.fdopen(fd, "wb")
+        else:
+            fh = os.fdopen(fd, "w", encoding=encoding, newline=newline)
+        with fh:
+            yield fh
+        # mkstemp creates 0600 files; give the result the usual permissions (umask applied)
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)
+        os.replace(tmp, path)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise
+
+
+def atomic_write_text(path: str | Path, text: str, *, encoding: str = "utf-8") -> None:
+    """Write ``text`` to ``path`` atomically."""
+    with atomic_write(path, "w", encoding=encoding) as fh:
+        fh.write(text)
+
+
+def atomic_write_bytes(path: str | Path, data: bytes) -> None:
+    """Write ``data`` to ``path`` atomically."""
+    with atomic_write(path, "wb") as fh:
+        fh.write(data)

@@ -1,0 +1,89 @@
+"""``roslan trajectory CONFIG -o OUTDIR``: sample a landing and write its files."""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import os
+import shutil
+import tempfile
+from pathlib import Path
+from typing import Any
+
+from roslan.config.base import load_yaml_model
+from roslan.config.sim import SimConfig
+from roslan.errors import OutputError
+from roslan.trajectory.export import write_trajectory_files
+from roslan.trajectory.generator import Trajectory
+
+__all__ = ["register", "write_into"]
+
+
+def write_into(traj: Trajectory, outdir: Path, *, overwrite: bool, plot: bool = True) -> None:
+    """Write the trajectory files into ``outdir``.
+
+    A new ``outdir`` is filled under a temporary name and renamed at the end, so it
+    never appears half-written. An existing one is an :class:`OutputError` unless
+    ``overwrite`` (then the files are replaced one by one, each atomically).
+    """
+    out = Path(outdir)
+    if out.exists() or out.is_symlink():
+        if not overwrite:
+            msg = f"{out}: output folder already exists; pass --overwrite to replace its files"
+            raise OutputError(msg)
+        if not out.is_dir():
+            msg = f"{out}: exists and is not a folder"
+            raise OutputError(msg)
+        write_trajectory_files(traj, out, plot=plot)
+        return
+    try:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".tmp", dir=out.parent))
+    except OSError as err:
+        msg = f"{out}: cannot create the output folder: {err.strerror or err}"
+        raise OutputError(msg) from err
+    try:
+        write_trajectory_files(traj, tmp, plot=plot)
+        os.chmod(tmp, 0o777 & ~_umask())
+        os.rename(tmp, out)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            shutil.rmtree(tmp)
+        raise
+
+
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
+def _run(args: argparse.Namespace) -> int:
+    config = load_yaml_model(SimConfig, args.config)
+    traj = Trajectory(config.trajectory)  # TrajectoryWarning -> one "warning: ..." line each
+    write_into(traj, Path(args.output), overwrite=args.overwrite, plot=not args.no_plot)
+    files = "trajectory.csv, groundtruth.txt, summary.json"
+    if not args.no_plot:
+        files += ", trajectory.png"
+    print(
+        f"touchdown T = {traj.T:.6f} s, tau(0) = {traj.tau0:.6f} s, "
+        f"{len(traj.table_times())} samples -> {args.output}/ ({files})"
+    )
+    return 0
+
+
+def register(subparsers: Any) -> None:
+    """Add the ``trajectory`` command to the top-level ``roslan`` subparsers."""
+    p = subparsers.add_parser(
+        "trajectory",
+        help="sample a tau-theory landing into CSV/TUM/JSON/PNG",
+        description=(
+            "Read the 'trajectory:' block of a simulation YAML and write trajectory.csv "
+            "(frame F), groundtruth.txt (TUM, world), summary.json and trajectory.png."
+        ),
+    )
+    p.add_argument("config", type=Path, metavar="CONFIG", help="simulation YAML file")
+    p.add_argument("-o", "--output", required=True, type=Path, metavar="OUTDIR")
+    p.add_argument("--overwrite", action="store_true", help="replace files in an existing OUTDIR")
+    p.add_argument("--no-plot", action="store_true", help="skip trajectory.png")
+    p.set_defaults(func=_run)

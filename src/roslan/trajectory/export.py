@@ -1,0 +1,114 @@
+"""Trajectory export: the sampled table (CSV), TUM ground truth, summary and a figure.
+
+Files written into ``outdir`` (each atomically, see :mod:`roslan.io.files`):
+
+* ``trajectory.csv``: the 18 components in the goal frame F (m, rad, s), one row at
+  every instant of :meth:`Trajectory.table_times` (every ``sample_dt`` from 0, the
+  last landing row exactly at T, then the hold).
+* ``groundtruth.txt``: TUM ``t px py pz qx qy qz qw`` of base_link in the world frame,
+  same instants.
+* ``summary.json``: :meth:`Trajectory.summary`.
+* ``trajectory.png``: 3-D path with velocity vectors (the paper's Fig. 3) and each gap
+  against time.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+from roslan.io.files import atomic_write, atomic_write_text
+from roslan.io.text import write_columns
+from roslan.trajectory.generator import COMPONENTS, GAPS, State, Trajectory
+
+__all__ = [
+    "CSV_HEADER",
+    "TUM_HEADER",
+    "plot_trajectory",
+    "table_times_ns",
+    "write_trajectory_files",
+]
+
+CSV_HEADER = "t," + ",".join(COMPONENTS)
+"""``t,x,y,z,roll,pitch,yaw,vx,...,ayaw``: the documented trajectory.csv header."""
+
+TUM_HEADER = "# t px py pz qx qy qz qw"
+
+_FMT = "%.12g"  # 12 significant digits: far below any sensor's noise, compact
+
+
+def table_times_ns(traj: Trajectory) -> NDArray[np.int64]:
+    """Integer-nanosecond stamps of :meth:`Trajectory.table_times` (rounded)."""
+    return np.round(traj.table_times() * 1e9).astype(np.int64)
+
+
+def write_trajectory_files(traj: Trajectory, outdir: Path, *, plot: bool = True) -> None:
+    """Write trajectory.csv, groundtruth.txt, summary.json and (if ``plot``) trajectory.png.
+
+    Args:
+        traj: the trajectory to sample (closed form, evaluated at the table instants).
+        outdir: existing folder; files of the same names are replaced atomically.
+        plot: also render trajectory.png (matplotlib Agg, deterministic).
+    """
+    outdir = Path(outdir)
+    t = traj.table_times()
+    t_ns = table_times_ns(traj)
+    st = traj.state(t)  # at the float instants: the landing row is evaluated at exactly T
+    comps = st.components()
+    with atomic_write(outdir / "trajectory.csv") as fh:
+        fh.write(CSV_HEADER + "\n")
+        write_columns(fh, t_ns, *comps.T, fmt=_FMT, sep=",")
+    with atomic_write(outdir / "groundtruth.txt") as fh:
+        fh.write(TUM_HEADER + "\n")
+        write_columns(fh, t_ns, *st.position.T, *st.quat_xyzw.T, fmt="%.9f", sep=" ")
+    summary = traj.summary()
+    atomic_write_text(outdir / "summary.json", json.dumps(summary, indent=2) + "\n")
+    if plot:
+        plot_trajectory(traj, st, outdir / "trajectory.png")
+
+
+def plot_trajectory(traj: Trajectory, table: State, path: Path) -> None:
+    """Render the 3-D path in F with velocity vectors at the table instants, and the six
+    gaps against time, to a PNG at ``path`` (atomic, deterministic)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    dense = traj.state(np.linspace(0.0, traj.T, 600))
+    fig = Figure(figsize=(12.0, 6.0), dpi=100)
+    FigureCanvasAgg(fig)
+    grid = fig.add_gridspec(3, 4, width_ratios=[1.0, 1.0, 0.8, 0.8])
+    ax3 = fig.add_subplot(grid[:, :2], projection="3d")
+    p = dense.gaps[:, :3]
+    ax3.plot(p[:, 0], p[:, 1], p[:, 2], color="0.3", lw=1.2, label="path")
+    landing = table.t <= traj.T
+    q = table.gaps[landing, :3]
+    v = table.rates[landing, :3]
+    span = float(np.ptp(p, axis=0).max()) or 1.0
+    vmax = float(np.linalg.norm(v, axis=1).max()) or 1.0
+    ax3.quiver(
+        q[:, 0], q[:, 1], q[:, 2], v[:, 0], v[:, 1], v[:, 2],
+        length=0.15 * span / vmax, normalize=False, color="tab:blue", lw=0.8,
+        label="velocity",
+    )  # fmt: skip
+    ax3.scatter([p[0, 0]], [p[0, 1]], [p[0, 2]], color="tab:green", s=25, label="start")
+    ax3.scatter([0.0], [0.0], [0.0], color="tab:red", marker="x", s=40, label="goal")
+    ax3.set_xlabel("x [m]")
+    ax3.set_ylabel("y [m]")
+    ax3.set_zlabel("z [m]")
+    ax3.set_title(f"path in goal frame F (k = {traj.k:g}, T = {traj.T:.3f} s)")
+    ax3.legend(loc="upper left", fontsize=8)
+    units = {"x": "m", "y": "m", "z": "m", "roll": "rad", "pitch": "rad", "yaw": "rad"}
+    for i, name in enumerate(GAPS):
+        ax = fig.add_subplot(grid[i % 3, 2 + i // 3])
+        ax.plot(dense.t, dense.gaps[:, i], color="tab:blue", lw=1.2)
+        ax.axvline(traj.T, color="0.6", lw=0.8, ls="--")
+        ax.set_title(f"{name} [{units[name]}]", fontsize=9)
+        ax.tick_params(labelsize=7)
+        if i % 3 == 2:
+            ax.set_xlabel("t [s]", fontsize=8)
+    fig.tight_layout()
+    with atomic_write(path, "wb") as fh:
+        fig.savefig(fh, format="png", metadata={"Software": None})
