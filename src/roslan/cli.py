@@ -21,6 +21,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "roslan.trajectory.cli",
     "roslan.datasets_cli",
     "roslan.pipeline.cli",
+    "roslan.plots.cli",
 )
 
 
