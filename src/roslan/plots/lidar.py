@@ -1,0 +1,205 @@
+"""``roslan plot lidar``: one LiDAR scan as a coloured point cloud, in perspective and
+from above (the paper's Fig. 5b/d).
+
+Points are drawn in the sensor frame as recorded (``lidar/<name>/NNNNNN.npz``, each
+point at its own firing instant, not de-skewed), coloured by laser ring, height
+(z in the sensor frame), intensity or range.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from roslan.plots.data import LidarScan, LidarSequence, PlotError, find_lidar
+from roslan.plots.style import figure, save_figure, style
+
+__all__ = ["COLOR_BY", "choose_scan", "plot_lidar", "register", "scan_values"]
+
+F64 = NDArray[np.float64]
+COMMAND = "roslan plot lidar"
+COLOR_BY = ("ring", "height", "intensity", "range")
+MAX_POINTS_3D = 60_000
+"""Perspective panel: a deterministic subsample keeps matplotlib's 3-D scatter fast."""
+
+
+def choose_scan(
+    outdir: Path, command: str, sensor: str | None = None, index: int | None = None
+) -> tuple[LidarSequence, int]:
+    """The LiDAR (by name, default the first) and scan index (default: the middle scan)."""
+    seqs = find_lidar(outdir, command)
+    if sensor is None:
+        seq = seqs[0]
+    else:
+        match = [s for s in seqs if s.name == sensor]
+        if not match:
+            names = ", ".join(s.name for s in seqs)
+            msg = f"{command}: {outdir} has no LiDAR named {sensor!r}; it has: {names}"
+            raise PlotError(msg)
+        seq = match[0]
+    n = len(seq)
+    if index is None:
+        index = n // 2
+    if not -n <= index < n:
+        msg = f"{command}: --scan {index}: {seq.name} has {n} scans (0..{n - 1})"
+        raise PlotError(msg)
+    return seq, index % n
+
+
+def scan_values(scan: LidarScan, color_by: str) -> tuple[F64, str]:
+    """(M,) colour values and their colorbar label; ``ring`` falls back to height."""
+    if color_by == "ring" and scan.ring is not None:
+        return scan.ring.astype(np.float64), "ring (laser, 0 = lowest)"
+    if color_by == "intensity" and scan.intensity is not None:
+        return scan.intensity, "intensity"
+    if color_by == "range":
+        return np.linalg.norm(scan.xyz, axis=1), "range [m]"
+    return scan.xyz[:, 2], "height z (sensor frame) [m]"
+
+
+def _extent(xyz: F64) -> float:
+    """Half-width (m) of the square that holds 98 % of the points horizontally."""
+    r = np.linalg.norm(xyz[:, :2], axis=1)
+    return float(max(np.percentile(r, 98) * 1.05, 1.0)) if r.size else 10.0
+
+
+def plot_lidar(
+    outdir: Path,
+    out: Path | None = None,
+    *,
+    sensor: str | None = None,
+    scan: int | None = None,
+    color_by: str = "ring",
+) -> Path:
+    """Draw one scan of the run in ``outdir``; returns the PNG path (default
+    ``OUTDIR/plots/lidar_<name>.png``)."""
+    if color_by not in COLOR_BY:
+        msg = f"{COMMAND}: --color {color_by!r}; allowed: {', '.join(COLOR_BY)}"
+        raise PlotError(msg)
+    outdir = Path(outdir)
+    seq, i = choose_scan(outdir, COMMAND, sensor, scan)
+    sc = seq.read(i)
+    if sc.xyz.shape[0] == 0:
+        msg = f"{COMMAND}: {seq.paths[i]} holds no returns; choose another --scan"
+        raise PlotError(msg)
+    values, vlabel = scan_values(sc, color_by)
+    out = Path(out) if out is not None else outdir / "plots" / f"lidar_{seq.name}.png"
+    cmap = "turbo"
+    vmin, vmax = float(np.percentile(values, 1)), float(np.percentile(values, 99))
+    if vmax <= vmin:
+        vmax = vmin + 1.0
+    ext = _extent(sc.xyz)
+    # far returns first, so nearer points are drawn over them
+    order = np.argsort(values, kind="stable")
+    xyz, val = sc.xyz[order], values[order]
+    with style():
+        fig = figure(12.0, 5.6)
+        ax3 = fig.add_subplot(1, 2, 1, projection="3d")
+        ax2 = fig.add_subplot(1, 2, 2)
+        sub = np.linspace(0, xyz.shape[0] - 1, min(xyz.shape[0], MAX_POINTS_3D)).astype(int)
+        keep = sub[np.all(np.abs(xyz[sub, :2]) <= ext, axis=1)]
+        ax3.scatter(
+            xyz[keep, 0],
+            xyz[keep, 1],
+            xyz[keep, 2],
+            c=val[keep],
+            cmap=cmap,
+            vmin=vmin,
+            vmax=vmax,
+            s=1.0,
+            linewidths=0,
+            depthshade=False,
+        )
+        ax3.set_proj_type("persp", focal_length=0.35)
+        zlo, zhi = np.percentile(xyz[keep, 2], [1, 99]) if keep.size else (-1.0, 1.0)
+        ax3.set_xlim(-ext, ext)
+        ax3.set_ylim(-ext, ext)
+        ax3.set_zlim(zlo, max(zhi, zlo + 0.1))
+        ax3.set_box_aspect((1.0, 1.0, max(0.3, min(1.0, (zhi - zlo) / (2 * ext)))))
+        ax3.view_init(elev=28, azim=-150)
+        ax3.scatter(0, 0, 0, color="k", marker="^", s=40, depthshade=False, label="sensor")
+        ax3.set_xlabel("x [m]")
+        ax3.set_ylabel("y [m]")
+        ax3.set_zlabel("z [m]")
+        from matplotlib.ticker import MaxNLocator
+
+        ax3.zaxis.set_major_locator(MaxNLocator(4))
+        ax3.legend(loc="upper left", fontsize=7)
+        ax3.set_title("Perspective view (sensor frame)", y=1.0, pad=-4)
+        sc2 = ax2.scatter(
+            xyz[:, 0],
+            xyz[:, 1],
+            c=val,
+            cmap=cmap,
+            vmin=vmin,
+            vmax=vmax,
+            s=0.8,
+            linewidths=0,
+            rasterized=True,
+        )
+        ax2.plot(0, 0, "k^", ms=7, label="sensor (x forward)")
+        ax2.set_xlim(-ext, ext)
+        ax2.set_ylim(-ext, ext)
+        ax2.set_aspect("equal")
+        ax2.set_xlabel("x (forward) [m]")
+        ax2.set_ylabel("y (left) [m]")
+        ax2.legend(loc="upper right", fontsize=7)
+        t = sc.t_ns * 1e-9
+        ax2.set_title(
+            f"Bird's-eye view - '{seq.name}' scan {i + 1}/{len(seq)}, t = {t:.3f} s, "
+            f"{sc.xyz.shape[0]:,} returns"
+        )
+        cb = fig.colorbar(sc2, ax=[ax3, ax2], shrink=0.8, pad=0.01, aspect=30)
+        cb.set_label(vlabel)
+        return save_figure(fig, out)
+
+
+def _run(args: argparse.Namespace) -> int:
+    print(
+        plot_lidar(
+            Path(args.outdir), args.output, sensor=args.sensor, scan=args.scan, color_by=args.color
+        )
+    )
+    return 0
+
+
+def register(sub: Any) -> None:
+    """Add ``lidar`` to the ``roslan plot`` subcommands."""
+    p = sub.add_parser(
+        "lidar",
+        help="one LiDAR scan as a coloured point cloud (perspective and bird's-eye)",
+        description=__doc__,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument("outdir", metavar="OUTDIR", help="output folder of a roslan simulate run")
+    p.add_argument(
+        "-o",
+        "--output",
+        type=Path,
+        default=None,
+        help="PNG to write (default OUTDIR/plots/lidar_<name>.png)",
+    )
+    p.add_argument(
+        "--sensor",
+        default=None,
+        metavar="NAME",
+        help="which LiDAR (folder under OUTDIR/lidar; default: the first)",
+    )
+    p.add_argument(
+        "--scan",
+        type=int,
+        default=None,
+        metavar="INDEX",
+        help="scan index (default: the middle scan; negative counts from the end)",
+    )
+    p.add_argument(
+        "--color",
+        choices=COLOR_BY,
+        default="ring",
+        help="colour points by laser ring (default), height, intensity or range",
+    )
+    p.set_defaults(func=_run)

@@ -1,0 +1,308 @@
+"""``roslan plot trajectory``: the landing in 3-D with velocity vectors and orientation
+triads, the gaps and their tau against time (the paper's Figs. 1 and 3).
+
+Everything is drawn in the goal frame F (origin at the goal, z up), where the gaps
+live. Curves come from the closed-form trajectory of the run's resolved config
+(``run.json``) sampled densely; without run.json, from ``trajectory.csv`` alone. The
+exported ``trajectory.csv`` rows are drawn as dots over the curves either way.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from roslan.plots.data import (
+    TrajectoryTable,
+    load_run,
+    load_summary,
+    load_trajectory_table,
+    resolved_config,
+)
+from roslan.plots.style import AXIS_COLORS, GAP_COLORS, figure, save_figure, style
+
+__all__ = ["TrajectorySamples", "load_samples", "plot_trajectory", "register"]
+
+F64 = NDArray[np.float64]
+COMMAND = "roslan plot trajectory"
+GAP_NAMES = ("x", "y", "z", "roll", "pitch", "yaw")
+
+
+@dataclass(frozen=True, slots=True)
+class TrajectorySamples:
+    """What the trajectory plots draw.
+
+    Attributes:
+        dense: the gaps sampled finely (closed form) or the table itself.
+        table: the ``trajectory.csv`` rows.
+        touchdown: touchdown time T, s.
+        k: constant tau-dot of the height gap, or None if unknown.
+        tau0: tau of the height gap at t = 0, s, or None.
+        closed_form: True when ``dense`` comes from the closed-form trajectory.
+    """
+
+    dense: TrajectoryTable
+    table: TrajectoryTable
+    touchdown: float
+    k: float | None
+    tau0: float | None
+    closed_form: bool
+
+
+def _closed_form(outdir: Path, n: int) -> tuple[TrajectoryTable, float, float, float] | None:
+    """Dense samples of the run's trajectory from run.json, or None if unavailable."""
+    cfg = resolved_config(load_run(outdir))
+    if cfg is None or not isinstance(cfg.get("trajectory"), dict):
+        return None
+    from pydantic import ValidationError
+
+    from roslan.errors import RoslanError
+    from roslan.trajectory import Trajectory, TrajectoryConfig
+
+    try:
+        traj = Trajectory(TrajectoryConfig.model_validate(cfg["trajectory"]), warn=False)
+    except (ValidationError, RoslanError, ValueError):
+        return None
+    t = np.linspace(0.0, traj.duration, n)
+    # include the touchdown instant exactly
+    t = np.unique(np.concatenate([t, [traj.T]]))
+    tt, gaps, rates, accels = traj.gaps_at(t)
+    return TrajectoryTable(t=tt, gaps=gaps, rates=rates, accels=accels), traj.T, traj.k, traj.tau0
+
+
+def load_samples(outdir: Path, command: str = COMMAND, n: int = 1500) -> TrajectorySamples:
+    """The trajectory of the run in ``outdir`` (needs ``trajectory.csv``)."""
+    table = load_trajectory_table(outdir, command)
+    summary = load_summary(outdir) or {}
+    cf = _closed_form(outdir, n)
+    if cf is not None:
+        dense, touchdown, k, tau0 = cf
+        return TrajectorySamples(dense, table, touchdown, k, tau0, True)
+    t_sum = summary.get("touchdown_time")
+    if isinstance(t_sum, int | float):
+        t_down = float(t_sum)
+    else:
+        # first row where the height gap has closed
+        closed = np.flatnonzero(np.abs(table.gaps[:, 2]) <= 1e-9)
+        t_down = float(table.t[closed[0]] if closed.size else table.t[-1])
+    k_sum = summary.get("k")
+    tau_sum = summary.get("tau0")
+    return TrajectorySamples(
+        table,
+        table,
+        t_down,
+        float(k_sum) if isinstance(k_sum, int | float) else None,
+        float(tau_sum) if isinstance(tau_sum, int | float) else None,
+        False,
+    )
+
+
+def rpy_matrices(rpy: F64) -> F64:
+    """(N, 3) roll/pitch/yaw -> (N, 3, 3) R = Rz Ry Rx (frame F from body)."""
+    from roslan.trajectory.frames import rpy_to_matrix
+
+    return np.asarray(rpy_to_matrix(rpy), dtype=np.float64)
+
+
+def tau_of(gap: F64, rate: F64) -> F64:
+    """tau = gap / rate (s); NaN where the rate vanishes (not drawn)."""
+    out = np.full_like(gap, np.nan)
+    ok = np.abs(rate) > 1e-9 * max(1.0, float(np.max(np.abs(rate), initial=0.0)))
+    out[ok] = gap[ok] / rate[ok]
+    return out
+
+
+def _draw_3d(ax: Any, s: TrajectorySamples, n_vel: int = 12, n_triads: int = 7) -> None:
+    from mpl_toolkits.mplot3d.art3d import Line3DCollection
+
+    d = s.dense
+    land = d.t <= s.touchdown + 1e-12
+    p = d.gaps[land, :3]
+    t = d.t[land]
+    span = float(np.max(np.ptp(p, axis=0))) if p.shape[0] > 1 else 1.0
+    span = max(span, 1e-3)
+    # path coloured by time
+    seg = np.stack([p[:-1], p[1:]], axis=1)
+    lc = Line3DCollection(seg, cmap="viridis", linewidths=2.2)
+    lc.set_array(0.5 * (t[:-1] + t[1:]))
+    ax.add_collection3d(lc)
+    cbar = ax.figure.colorbar(lc, ax=ax, shrink=0.45, pad=0.0, location="left", aspect=25)
+    cbar.set_label("trajectory time t [s]")
+    # velocity vectors: arrow = displacement in `vel_dt` seconds at the current velocity
+    iv = np.unique(np.linspace(0, p.shape[0] - 1, n_vel).round().astype(int))[:-1]
+    v = d.rates[land][iv, :3]
+    vmax = float(np.max(np.linalg.norm(v, axis=1), initial=0.0))
+    vel_dt = _nice(0.3 * span / vmax) if vmax > 0 else 0.0
+    if vel_dt > 0:
+        ax.quiver(
+            p[iv, 0],
+            p[iv, 1],
+            p[iv, 2],
+            v[:, 0] * vel_dt,
+            v[:, 1] * vel_dt,
+            v[:, 2] * vel_dt,
+            color="darkorange",
+            linewidth=1.5,
+            arrow_length_ratio=0.2,
+            label=f"velocity (arrow = {vel_dt:g} s of travel)",
+        )
+    # orientation triads of base_link (x red, y green, z blue)
+    it = np.unique(np.linspace(0, p.shape[0] - 1, n_triads).round().astype(int))
+    R = rpy_matrices(d.gaps[land][it, 3:])
+    L = 0.07 * span
+    for axis in range(3):
+        u = R[:, :, axis] * L
+        ax.quiver(
+            p[it, 0],
+            p[it, 1],
+            p[it, 2],
+            u[:, 0],
+            u[:, 1],
+            u[:, 2],
+            color=AXIS_COLORS[axis],
+            linewidth=1.6,
+            arrow_length_ratio=0.0,
+            label=f"body {'xyz'[axis]} axis",
+        )
+    ax.scatter(*p[0], s=40, color="k", marker="o", depthshade=False, label="start")
+    ax.scatter(
+        0.0,
+        0.0,
+        0.0,
+        s=110,
+        color="gold",
+        edgecolors="k",
+        marker="*",
+        depthshade=False,
+        label="goal (origin of F)",
+        zorder=5,
+    )
+    # the table rows as dots
+    tab = s.table.gaps[s.table.t <= s.touchdown + 1e-12, :3]
+    if s.closed_form:
+        ax.scatter(
+            tab[:, 0],
+            tab[:, 1],
+            tab[:, 2],
+            s=5,
+            color="0.35",
+            depthshade=False,
+            label="trajectory.csv rows",
+        )
+    lo = np.minimum(p.min(axis=0), 0.0)
+    hi = np.maximum(p.max(axis=0), 0.0)
+    mid, half = (lo + hi) / 2.0, max(float(np.max(hi - lo)) / 2.0 * 1.08, 1e-3)
+    ax.set_xlim(mid[0] - half, mid[0] + half)
+    ax.set_ylim(mid[1] - half, mid[1] + half)
+    ax.set_zlim(max(mid[2] - half, min(lo[2], 0.0) - 0.02 * half), mid[2] + half)
+    ax.set_box_aspect((1.0, 1.0, (ax.get_zlim()[1] - ax.get_zlim()[0]) / (2 * half)))
+    ax.set_xlabel("x_F [m]")
+    ax.set_ylabel("y_F [m]")
+    ax.set_zlabel("z_F (height) [m]")
+    ax.view_init(elev=22, azim=-60)
+    ax.legend(loc="upper left", fontsize=7, framealpha=0.85)
+    ax.set_title("Landing path in the goal frame F")
+
+
+def _nice(x: float) -> float:
+    """Round ``x`` > 0 down to 1, 2 or 5 x 10^k."""
+    if x <= 0 or not math.isfinite(x):
+        return 0.0
+    mag = 10 ** math.floor(math.log10(x))
+    for m in (5, 2, 1):
+        if m * mag <= x:
+            return float(m * mag)
+    return float(mag)
+
+
+def _draw_gaps(ax_pos: Any, ax_ang: Any, ax_tau: Any, s: TrajectorySamples) -> None:
+    d, tab = s.dense, s.table
+    for i, g in enumerate(GAP_NAMES):
+        ax = ax_pos if i < 3 else ax_ang
+        scale = 1.0 if i < 3 else 180.0 / math.pi
+        ax.plot(
+            d.t,
+            d.gaps[:, i] * scale,
+            color=GAP_COLORS[g],
+            label=g,
+            linestyle="-" if i < 3 else "--",
+        )
+        if s.closed_form:
+            ax.plot(tab.t, tab.gaps[:, i] * scale, ".", color=GAP_COLORS[g], ms=3)
+    ax_pos.set_ylabel("position gap [m]")
+    ax_ang.set_ylabel("attitude gap [deg]")
+    # tau of each non-zero gap, up to touchdown
+    land = d.t < s.touchdown - 1e-9
+    for i, g in enumerate(GAP_NAMES):
+        if np.max(np.abs(d.gaps[:, i]), initial=0.0) < 1e-9:
+            continue
+        tau = tau_of(d.gaps[land, i], d.rates[land, i])
+        ax_tau.plot(
+            d.t[land], tau, color=GAP_COLORS[g], label=f"τ_{g}", linestyle="-" if i < 3 else "--"
+        )
+    if s.k is not None and s.tau0 is not None:
+        tt = np.array([0.0, s.touchdown])
+        ax_tau.plot(
+            tt,
+            s.tau0 + s.k * tt,
+            ":",
+            color="k",
+            linewidth=1.2,
+            label=f"τ_z theory, τ̇ = k = {s.k:g}",
+        )
+    ax_tau.set_ylabel("τ = gap / rate [s]")
+    ax_tau.set_xlabel("trajectory time t [s]")
+    for ax in (ax_pos, ax_ang, ax_tau):
+        ax.axvline(s.touchdown, color="0.4", linewidth=0.9, linestyle="-.")
+        ax.set_xlim(d.t[0], d.t[-1])
+        ax.legend(loc="upper left" if ax is ax_tau else "best", ncol=2, fontsize=7)
+    ax_pos.set_title(f"Gaps and τ against time (touchdown T = {s.touchdown:.3f} s, dash-dot)")
+    for ax in (ax_pos, ax_ang):
+        ax.tick_params(labelbottom=False)
+
+
+def plot_trajectory(outdir: Path, out: Path | None = None) -> Path:
+    """Draw the trajectory figure of the run in ``outdir``; returns the PNG path
+    (default ``OUTDIR/plots/trajectory.png``)."""
+    outdir = Path(outdir)
+    s = load_samples(outdir)
+    out = Path(out) if out is not None else outdir / "plots" / "trajectory.png"
+    with style():
+        fig = figure(12.5, 6.2)
+        left, right = fig.subfigures(1, 2, width_ratios=(1.1, 1.0), wspace=0.04)
+        ax3 = left.add_subplot(projection="3d")
+        ax_pos, ax_ang, ax_tau = right.subplots(3, 1, sharex=True)
+        _draw_3d(ax3, s)
+        _draw_gaps(ax_pos, ax_ang, ax_tau, s)
+        return save_figure(fig, out)
+
+
+def _run(args: argparse.Namespace) -> int:
+    path = plot_trajectory(Path(args.outdir), args.output)
+    print(path)
+    return 0
+
+
+def register(sub: Any) -> None:
+    """Add ``trajectory`` to the ``roslan plot`` subcommands."""
+    p = sub.add_parser(
+        "trajectory",
+        help="3-D landing path with velocity vectors and orientation triads; gaps and tau vs time",
+        description=__doc__,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument("outdir", metavar="OUTDIR", help="output folder of a roslan simulate run")
+    p.add_argument(
+        "-o",
+        "--output",
+        type=Path,
+        default=None,
+        help="PNG to write (default OUTDIR/plots/trajectory.png)",
+    )
+    p.set_defaults(func=_run)
