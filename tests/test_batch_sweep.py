@@ -249,4 +249,5 @@ def test_invalid_configs_are_reported_per_task() -> None:
             assert "sensors[0].rate = -1.0" in t.error
         elif t.error:
             assert "kappa" in t.error
-    assert len({t.fingerprint for t in good}) == 1 and good[0].fingerprint
+    assert len({t.fingerprint for t in good}) == 1
+    assert good[0].fingerprint
