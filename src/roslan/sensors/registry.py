@@ -17,6 +17,7 @@ __all__ = ["SENSOR_TYPES", "config_class", "sensor_class"]
 
 SENSOR_TYPES: dict[str, tuple[str, str, str]] = {
     # type: (module, config class, sensor class)
+    "lidar": ("roslan.sensors.lidar", "LidarConfig", "Lidar"),
     "imu": ("roslan.sensors.imu", "ImuConfig", "Imu"),
 }
 
