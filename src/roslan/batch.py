@@ -939,30 +939,50 @@ class _progress:
             self._bar.stop()
 
 
+def _short_error(error: str | None) -> str:
+    if not error:
+        return ""
+    line = error.strip().splitlines()[0]
+    # drop the "<source>: task NNNN: " prefix the table's first column already says
+    _, sep, rest = line.partition(": task ")
+    if sep:
+        line = rest.partition(": ")[2] or line
+    return line if len(line) <= 60 else line[:59] + "…"
+
+
 def print_summary(report: BatchReport, *, max_rows: int = 50) -> None:
     """A rich table of every task's status (failures first when there are many)."""
+    import sys
+
     from rich.console import Console
     from rich.table import Table
 
-    console = Console(stderr=False)
-    table = Table(title=f"batch: {report.outdir}")
-    for col in ("task", "status", "attempts", "wall s", "duration s", "messages", "error"):
-        table.add_column(col, overflow="fold")
+    # piped output (logs, CI) gets a readable fixed width instead of 80 columns
+    console = Console(width=None if sys.stdout.isatty() else 120)
     rows = report.results
     if len(rows) > max_rows:
         bad = [r for r in rows if r.status in ("failed", "invalid")]
         rows = (bad + [r for r in rows if r not in bad])[:max_rows]
     style = {"complete": "green", "skipped": "cyan", "failed": "red", "invalid": "yellow"}
-    for r in rows:
-        table.add_row(
+    cells = [
+        [
             r.name,
-            f"[{style.get(r.status, '')}]{r.status}[/]",
+            r.status,
             str(r.attempts or ""),
             f"{r.wall_s:.2f}" if r.wall_s is not None else "",
             f"{r.duration_s:.2f}" if r.duration_s is not None else "",
             str(r.messages) if r.messages is not None else "",
-            (r.error or "").splitlines()[0][:160] if r.error else "",
-        )
+        ]
+        for r in rows
+    ]
+    table = Table(title=f"batch: {report.outdir}")
+    for j, col in enumerate(("task", "status", "tries", "wall s", "traj s", "msgs")):
+        width = max([len(col)] + [len(c[j]) for c in cells])
+        table.add_column(col, no_wrap=True, min_width=width)
+    table.add_column("error (full text in batch.json)", no_wrap=True)
+    for r, c in zip(rows, cells, strict=True):
+        c[1] = f"[{style.get(r.status, '')}]{r.status}[/]"
+        table.add_row(*c, _short_error(r.error))
     console.print(table)
     counts = ", ".join(f"{n} {s}" for s, n in report.counts().items() if n)
     more = (

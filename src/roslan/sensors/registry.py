@@ -19,6 +19,9 @@ SENSOR_TYPES: dict[str, tuple[str, str, str]] = {
     # type: (module, config class, sensor class)
     "lidar": ("roslan.sensors.lidar", "LidarConfig", "Lidar"),
     "imu": ("roslan.sensors.imu", "ImuConfig", "Imu"),
+    "camera": ("roslan.sensors.camera", "CameraConfig", "Camera"),
+    "depth_camera": ("roslan.sensors.camera", "DepthCameraConfig", "DepthCamera"),
+    "stereo_camera": ("roslan.sensors.camera", "StereoCameraConfig", "StereoCamera"),
 }
 
 
