@@ -53,6 +53,10 @@ class SceneObject:
         pose: (4, 4) float64 ``T_world_object`` used to place it (for export/poses.yaml).
         scale: (3,) scale applied in the object frame before the pose.
         source: where it came from: a mesh path, ``primitive:box``, ``builtin:...``.
+        local_vertices: (V, 3) float32 positions in the object frame before scale and pose
+            (``vertices = R (scale * local_vertices) + t``), or None; kept so that an export
+            reloads to bit-identical world triangles.
+        local_normals: (V, 3) float32 object-frame normals matching ``local_vertices``, or None.
     """
 
     name: str
@@ -64,6 +68,8 @@ class SceneObject:
     pose: F64 = field(default_factory=lambda: np.eye(4))
     scale: tuple[float, float, float] = (1.0, 1.0, 1.0)
     source: str = ""
+    local_vertices: F32 | None = None
+    local_normals: F32 | None = None
 
     @property
     def n_triangles(self) -> int:

@@ -1,0 +1,188 @@
+"""The scene file (YAML) model: the documented contract of issue 4.
+
+.. code-block:: yaml
+
+    name: my_hangar
+    lights: {sun: {direction: [0.3, 0.2, -1.0], intensity: 1.0}, ambient: 0.3}
+    goal: {position: [0, 0, 0.01], rpy: [0, 0, 0]}        # optional suggested landing goal
+    perch: {type: pipe, length: 1.5, radius: 0.05}           # optional perch placed at the goal
+    objects:
+      - name: rack_01
+        mesh: models/rack.glb            # relative to this file: OBJ, glTF/GLB, STL, PLY
+        pose: {position: [4.0, 2.0, 0.0], rpy: [0.0, 0.0, 1.57]}
+        scale: [1.0, 1.0, 1.0]
+      - name: floor
+        primitive: {type: box, size: [60.0, 40.0, 0.1]}  # box|plane|cylinder|sphere|capsule
+        pose: {position: [0, 0, -0.05], rpy: [0, 0, 0]}
+        material: {color: [0.55, 0.55, 0.5], texture: textures/concrete.png,
+                   texture_scale: 2.0, reflectivity: 0.3}
+
+Primitives are centred at their pose origin (cylinder/capsule along local z); a plane
+lies in local z = 0 facing +z. UVs of primitives are in metres, so ``texture_scale``
+is texture repeats per metre.
+"""
+
+from __future__ import annotations
+
+from typing import Annotated, Literal
+
+from pydantic import Field, model_validator
+
+from roslan.config.base import FiniteFloat, Pose, StrictModel, Vec3
+
+__all__ = [
+    "BoxSpec",
+    "CapsuleSpec",
+    "CylinderSpec",
+    "LightsSpec",
+    "MaterialSpec",
+    "ObjectSpec",
+    "PerchSpec",
+    "PlaneSpec",
+    "PrimitiveSpec",
+    "SceneFile",
+    "SphereSpec",
+    "SunSpec",
+]
+
+Pos = Annotated[FiniteFloat, Field(gt=0)]
+Unit = Annotated[FiniteFloat, Field(ge=0, le=1)]
+Segments = Annotated[int, Field(ge=3, le=512)]
+Name = Annotated[str, Field(min_length=1, max_length=100, pattern=r"^[A-Za-z0-9_.\-]+$")]
+
+
+class SunSpec(StrictModel):
+    """Directional light: ``direction`` the light travels (world), ``intensity`` >= 0."""
+
+    direction: Vec3 = (0.3, 0.2, -1.0)
+    intensity: Annotated[FiniteFloat, Field(ge=0)] = 1.0
+
+    @model_validator(mode="after")
+    def _nonzero(self) -> SunSpec:
+        if not any(self.direction):
+            msg = "sun.direction must not be the zero vector"
+            raise ValueError(msg)
+        return self
+
+
+class LightsSpec(StrictModel):
+    sun: SunSpec = SunSpec()
+    ambient: Unit = 0.3
+
+
+class MaterialSpec(StrictModel):
+    """``color`` linear RGB in [0, 1] (multiplies the texture); ``texture`` an image file
+    relative to the scene file; ``texture_scale`` repeats per metre (per UV unit);
+    ``reflectivity`` LiDAR reflectivity in [0, 1]."""
+
+    color: tuple[Unit, Unit, Unit] = (0.7, 0.7, 0.7)
+    texture: str | None = None
+    texture_scale: Pos = 1.0
+    reflectivity: Unit = 0.5
+    name: str | None = None
+
+
+class BoxSpec(StrictModel):
+    type: Literal["box"]
+    size: tuple[Pos, Pos, Pos]
+
+
+class PlaneSpec(StrictModel):
+    type: Literal["plane"]
+    size: tuple[Pos, Pos]
+
+
+class CylinderSpec(StrictModel):
+    type: Literal["cylinder"]
+    radius: Pos
+    height: Pos
+    segments: Segments = 32
+
+
+class SphereSpec(StrictModel):
+    type: Literal["sphere"]
+    radius: Pos
+    segments: Segments = 24
+
+
+class CapsuleSpec(StrictModel):
+    """``height`` is the total length tip to tip (>= 2 radius)."""
+
+    type: Literal["capsule"]
+    radius: Pos
+    height: Pos
+    segments: Segments = 24
+
+    @model_validator(mode="after")
+    def _long_enough(self) -> CapsuleSpec:
+        if self.height < 2 * self.radius:
+            msg = f"capsule height {self.height} must be >= 2 * radius = {2 * self.radius}"
+            raise ValueError(msg)
+        return self
+
+
+PrimitiveSpec = Annotated[
+    BoxSpec | PlaneSpec | CylinderSpec | SphereSpec | CapsuleSpec, Field(discriminator="type")
+]
+PRIMITIVE_TYPES = ("box", "plane", "cylinder", "sphere", "capsule")
+
+
+class ObjectSpec(StrictModel):
+    """One object: exactly one of ``mesh`` (file) or ``primitive``."""
+
+    name: Name
+    mesh: str | None = None
+    primitive: PrimitiveSpec | None = None
+    pose: Pose = Pose()
+    scale: tuple[Pos, Pos, Pos] = (1.0, 1.0, 1.0)
+    material: MaterialSpec = MaterialSpec()
+
+    @model_validator(mode="after")
+    def _one_shape(self) -> ObjectSpec:
+        if (self.mesh is None) == (self.primitive is None):
+            msg = (
+                "give exactly one of 'mesh' (a model file) or "
+                "'primitive' ({type: box|plane|cylinder|sphere|capsule, ...})"
+            )
+            raise ValueError(msg)
+        return self
+
+
+class PerchSpec(StrictModel):
+    """A perch placed so that its top touches the goal (or ``pose``), its axis along the
+    goal frame's y axis (across the approach). ``radius`` defaults per type (bar: half
+    side 0.02 m, pipe 0.05 m, branch 0.03 m). ``supports`` adds posts down to z = 0."""
+
+    type: Literal["bar", "branch", "pipe"]
+    length: Pos = 1.5
+    radius: Pos | None = None
+    pose: Pose | None = None
+    supports: bool = True
+    name: Name = "perch"
+
+
+class SceneFile(StrictModel):
+    """A whole scene file. ``allow_external_paths: true`` lets mesh/texture paths be absolute
+    or leave the scene's folder (off by default: a scene cannot read arbitrary files)."""
+
+    name: Name
+    lights: LightsSpec = LightsSpec()
+    objects: tuple[ObjectSpec, ...] = ()
+    goal: Pose | None = None
+    perch: PerchSpec | None = None
+    allow_external_paths: bool = False
+
+    @model_validator(mode="after")
+    def _unique_names(self) -> SceneFile:
+        seen: dict[str, int] = {}
+        names = [o.name for o in self.objects] + ([self.perch.name] if self.perch else [])
+        for i, name in enumerate(names):
+            if name in seen:
+                where = f"objects[{i}]" if i < len(self.objects) else "perch"
+                msg = (
+                    f"{where}.name = {name!r}: duplicate object name (also objects[{seen[name]}]); "
+                    "every object name must be unique"
+                )
+                raise ValueError(msg)
+            seen[name] = i
+        return self
