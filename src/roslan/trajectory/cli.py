@@ -7,6 +7,7 @@ import contextlib
 import os
 import shutil
 import tempfile
+import warnings
 from pathlib import Path
 from typing import Any
 
@@ -14,7 +15,7 @@ from roslan.config.base import load_yaml_model
 from roslan.config.sim import SimConfig
 from roslan.errors import OutputError
 from roslan.trajectory.export import write_trajectory_files
-from roslan.trajectory.generator import Trajectory
+from roslan.trajectory.generator import Trajectory, TrajectoryWarning
 
 __all__ = ["register", "write_into"]
 
@@ -60,7 +61,11 @@ def _umask() -> int:
 
 def _run(args: argparse.Namespace) -> int:
     config = load_yaml_model(SimConfig, args.config)
-    traj = Trajectory(config.trajectory)  # TrajectoryWarning -> one "warning: ..." line each
+    with warnings.catch_warnings():
+        # every hard-landing note reaches the user (one "warning: ..." line each, printed
+        # by roslan.cli), even if the same text was shown earlier in this process
+        warnings.simplefilter("always", TrajectoryWarning)
+        traj = Trajectory(config.trajectory)
     write_into(traj, Path(args.output), overwrite=args.overwrite, plot=not args.no_plot)
     files = "trajectory.csv, groundtruth.txt, summary.json"
     if not args.no_plot:

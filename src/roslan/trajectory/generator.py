@@ -12,7 +12,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from roslan.trajectory.config import TrajectoryConfig
 from roslan.trajectory.frames import euler_zyx_kinematics, rpy_to_matrix, rpy_to_quat_xyzw
-from roslan.trajectory.tau import Terminal, classify, powers
+from roslan.trajectory.tau import Terminal, classify, exponent, powers
 
 __all__ = ["COMPONENTS", "GAPS", "State", "Trajectory", "TrajectoryWarning"]
 
@@ -104,7 +104,7 @@ class Trajectory:
         self.kappas: F64 = np.array(
             [c.kappa.x, c.kappa.y, 1.0, c.kappa.roll, c.kappa.pitch, c.kappa.yaw]
         )
-        self.exponents: F64 = 1.0 / (self.k * self.kappas)
+        self.exponents: F64 = np.array([exponent(self.k * kap) for kap in self.kappas])
         self.terminal: dict[str, Terminal] = {
             g: classify(self.k * kap, float(g0))
             for g, kap, g0 in zip(GAPS, self.kappas, self.initial_gaps, strict=True)

@@ -20,7 +20,7 @@ from enum import StrEnum
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["S_FLOOR", "Terminal", "classify", "gap", "powers", "safe_pow"]
+__all__ = ["S_FLOOR", "Terminal", "classify", "exponent", "gap", "powers", "safe_pow"]
 
 F64 = NDArray[np.float64]
 
@@ -55,6 +55,16 @@ def classify(product: float, g0: float = 1.0) -> Terminal:
     if product < 1.0 - _EPS:
         return Terminal.UNBOUNDED_DECELERATION
     return Terminal.NONZERO_RATE
+
+
+def exponent(product: float) -> float:
+    """Closure exponent ``n = 1/product`` (product = k or k*kappa), snapped to exactly 1
+    or 2 where :func:`classify` calls the product 1 or 0.5, so numbers and labels agree."""
+    if abs(product - 1.0) <= _EPS:
+        return 1.0
+    if abs(product - 0.5) <= _EPS:
+        return 2.0
+    return 1.0 / product
 
 
 def safe_pow(s: F64, e: float) -> F64:
