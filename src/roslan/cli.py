@@ -22,6 +22,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "roslan.datasets_cli",
     "roslan.pipeline.cli",
     "roslan.plots.cli",
+    "roslan.plots.preview",
 )
 
 

@@ -275,7 +275,7 @@ class ImageSequence:
         return _read_image(self.paths[i])
 
 
-def _read_listing(listing: Path) -> ImageSequence:
+def _read_listing(listing: Path, outdir: Path) -> ImageSequence:
     base = listing.parent
     times: list[float] = []
     paths: list[Path] = []
@@ -301,7 +301,11 @@ def _read_listing(listing: Path) -> ImageSequence:
         paths.append(base / parts[1])
     t_ns = seconds_to_ns(np.asarray(times))
     order = np.argsort(t_ns, kind="stable")
-    name = base.name if listing.name == "images.txt" else listing.stem
+    if listing.name == "images.txt":
+        # <sensor>/images.txt names its sensor; the top-level one is the dataset's "images"
+        name = "images" if listing.parent == outdir else base.name
+    else:
+        name = listing.stem.removeprefix("images_")
     return ImageSequence(name=name, t_ns=t_ns[order], paths=tuple(paths[i] for i in order))
 
 
@@ -315,7 +319,7 @@ def find_images(outdir: Path, prefer: Sequence[str] = ()) -> list[ImageSequence]
         listings.append(top)
     listings += sorted(outdir.glob("images_*.txt"))
     listings += sorted(p for p in outdir.glob("*/images.txt") if p.is_file())
-    seqs = [s for s in (_read_listing(p) for p in listings) if len(s)]
+    seqs = [s for s in (_read_listing(p, outdir) for p in listings) if len(s)]
 
     def rank(s: ImageSequence) -> int:
         for i, key in enumerate(prefer):

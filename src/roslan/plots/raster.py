@@ -150,7 +150,8 @@ def bev_image(
         if hi <= lo:
             hi = lo + 1.0
         lut = colormap_lut(cmap)
-        idx = np.clip((values - lo) / (hi - lo) * 255.0, 0, 255).astype(np.intp)
+        # skip the darkest quarter of the colormap: points must stand out on the dark ground
+        idx = (64 + np.clip((values - lo) / (hi - lo), 0.0, 1.0) * 191.0).astype(np.intp)
         col = np.rint(c - xyz[:, 1] * px_per_m).astype(np.intp)  # y (left) -> image left
         row = np.rint(c - xyz[:, 0] * px_per_m).astype(np.intp)  # x (forward) -> image up
         # draw low values first so the highest value wins each pixel

@@ -1,0 +1,219 @@
+"""``overview.png``: one small figure of a whole run - the trajectory, one camera frame,
+one event frame and one LiDAR scan - written by ``roslan simulate`` at the end of every
+run (:func:`write_overview`) and by ``roslan plot overview``.
+
+Runs without some sensor get a panel saying so ("no camera configured"); an input that
+exists but cannot be read is reported in its panel instead of failing the run.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from roslan.plots.data import PlotError
+from roslan.plots.media import RunMedia, render_events
+from roslan.plots.style import figure, save_figure, style
+
+__all__ = ["EVENT_WINDOW_NS", "register", "write_overview"]
+
+COMMAND = "roslan plot overview"
+EVENT_WINDOW_NS = 20_000_000
+"""Event frame accumulation window (20 ms)."""
+
+
+def _placeholder(ax: Any, title: str, text: str) -> None:
+    ax.set_title(title)
+    ax.text(
+        0.5,
+        0.5,
+        text,
+        ha="center",
+        va="center",
+        fontsize=10,
+        color="0.35",
+        transform=ax.transAxes,
+        wrap=True,
+    )
+    ax.set_xticks([])
+    ax.set_yticks([])
+    ax.grid(False)
+    for spine in ax.spines.values():
+        spine.set_visible(True)
+        spine.set_color("0.8")
+
+
+def _image(ax: Any, img: np.ndarray, title: str) -> None:
+    ax.imshow(img, interpolation="nearest")
+    ax.set_title(title)
+    ax.set_xlabel("u [px]")
+    ax.set_ylabel("v [px]")
+    ax.grid(False)
+
+
+def _trajectory_panel(ax: Any, media: RunMedia, t_ns: int) -> None:
+    s = media.traj
+    if s is None:
+        _placeholder(ax, "Trajectory (frame F)", "no trajectory.csv")
+        return
+    d = s.dense
+    land = d.t <= s.touchdown + 1e-12
+    p = d.gaps[land, :3]
+    ax.plot(p[:, 0], p[:, 1], p[:, 2], color="tab:blue", linewidth=2.0, label="path")
+    ax.plot(
+        p[:, 0],
+        p[:, 1],
+        np.zeros_like(p[:, 2]),
+        color="0.6",
+        linewidth=1.0,
+        linestyle="--",
+        label="ground track",
+    )
+    now = np.array([np.interp(t_ns * 1e-9, d.t, d.gaps[:, i]) for i in range(3)])
+    ax.scatter(*p[0], color="k", s=25, depthshade=False, label="start", zorder=4)
+    ax.scatter(
+        0, 0, 0, color="gold", edgecolors="k", marker="*", s=90, depthshade=False, label="goal"
+    )
+    ax.scatter(
+        *now,
+        color="tab:red",
+        s=30,
+        depthshade=False,
+        label=f"t = {t_ns * 1e-9:.2f} s (frames shown)",
+    )
+    ax.set_xlabel("x_F [m]")
+    ax.set_ylabel("y_F [m]")
+    ax.set_zlabel("z_F [m]")
+    lo, hi = np.minimum(p.min(axis=0), 0.0), np.maximum(p.max(axis=0), 0.0)
+    span = float(np.max(hi - lo))
+    mid = (hi + lo) / 2.0
+    half = np.maximum(hi - lo, 0.35 * span) / 2.0
+    ax.set_xlim(mid[0] - half[0], mid[0] + half[0])
+    ax.set_ylim(mid[1] - half[1], mid[1] + half[1])
+    ax.set_zlim(0.0, 2.0 * half[2])
+    ax.set_box_aspect(tuple(2.0 * half))
+    ax.view_init(elev=20, azim=-60)
+    ax.legend(loc="upper left", fontsize=6)
+    ax.set_title(f"Trajectory (frame F), touchdown T = {s.touchdown:.2f} s")
+
+
+def write_overview(outdir: Path, out: Path | None = None) -> Path:
+    """Write ``OUTDIR/overview.png`` (or ``out``) for the run in ``outdir``; returns its path.
+
+    Frames are taken at the middle of the landing (half the touchdown time), where
+    the robot moves; missing sensors get a "no ... configured" panel.
+    """
+    outdir = Path(outdir)
+    if not outdir.is_dir():
+        msg = f"{COMMAND}: {outdir} is not a directory (give a roslan simulate OUTDIR)"
+        raise PlotError(msg)
+    out = Path(out) if out is not None else outdir / "overview.png"
+    media = RunMedia.open(outdir, COMMAND)
+    try:
+        if media.traj is not None:
+            t_ns = round(media.traj.touchdown * 0.5e9)
+        else:
+            t_ns = media.duration_ns() // 2
+        with style():
+            fig = figure(10.0, 7.0)
+            ax_t = fig.add_subplot(2, 2, 1, projection="3d")
+            ax_c = fig.add_subplot(2, 2, 2)
+            ax_e = fig.add_subplot(2, 2, 3)
+            ax_l = fig.add_subplot(2, 2, 4)
+            _trajectory_panel(ax_t, media, t_ns)
+            _camera_panel(ax_c, media, t_ns)
+            _event_panel(ax_e, media, t_ns)
+            _lidar_panel(ax_l, media, t_ns)
+            fig.suptitle(f"roslan run: {outdir.name}", fontsize=11)
+            return save_figure(fig, out)
+    finally:
+        media.close()
+
+
+def _camera_panel(ax: Any, media: RunMedia, t_ns: int) -> None:
+    if media.camera is None:
+        _placeholder(ax, "Camera", "no camera configured")
+        return
+    try:
+        i = media.camera.index_at(t_ns)
+        img = media.camera.read(i)
+    except PlotError as err:
+        _placeholder(ax, "Camera", f"cannot read: {err}")
+        return
+    t = media.camera.t_ns[i] * 1e-9
+    _image(ax, img, f"Camera '{media.camera.name}', t = {t:.3f} s")
+
+
+def _event_panel(ax: Any, media: RunMedia, t_ns: int) -> None:
+    if media.events is None:
+        _placeholder(ax, "Events", "no event camera configured")
+        return
+    try:
+        img, n = render_events(media, t_ns - EVENT_WINDOW_NS, t_ns)
+    except PlotError as err:
+        _placeholder(ax, "Events", f"cannot read: {err}")
+        return
+    _image(ax, img, f"Events, {EVENT_WINDOW_NS / 1e6:.0f} ms before t: {n:,} (blue ON, red OFF)")
+
+
+def _lidar_panel(ax: Any, media: RunMedia, t_ns: int) -> None:
+    if media.lidar is None:
+        _placeholder(ax, "LiDAR", "no LiDAR configured")
+        return
+    seq = media.lidar
+    try:
+        i = seq.index_at(t_ns)
+        scan = seq.read(i)
+    except PlotError as err:
+        _placeholder(ax, "LiDAR", f"cannot read: {err}")
+        return
+    xyz = scan.xyz
+    if xyz.shape[0] == 0:
+        _placeholder(ax, f"LiDAR '{seq.name}'", "scan without returns")
+        return
+    order = np.argsort(xyz[:, 2], kind="stable")
+    lo, hi = np.percentile(xyz[:, 2], [2, 98])
+    sc = ax.scatter(
+        xyz[order, 0],
+        xyz[order, 1],
+        c=xyz[order, 2],
+        cmap="turbo",
+        s=0.5,
+        linewidths=0,
+        vmin=lo,
+        vmax=max(hi, lo + 0.1),
+        rasterized=True,
+    )
+    r = float(np.percentile(np.linalg.norm(xyz[:, :2], axis=1), 98)) * 1.05
+    ax.set_xlim(-r, r)
+    ax.set_ylim(-r, r)
+    ax.set_aspect("equal")
+    ax.plot(0, 0, "k^", ms=6)
+    ax.set_xlabel("x (forward) [m]")
+    ax.set_ylabel("y (left) [m]")
+    cb = ax.figure.colorbar(sc, ax=ax, shrink=0.85, pad=0.01)
+    cb.set_label("height z (sensor) [m]")
+    ax.set_title(f"LiDAR '{seq.name}' bird's-eye, t = {scan.t_ns * 1e-9:.3f} s")
+
+
+def _run(args: argparse.Namespace) -> int:
+    print(write_overview(Path(args.outdir), args.output))
+    return 0
+
+
+def register(sub: Any) -> None:
+    """Add ``overview`` to the ``roslan plot`` subcommands."""
+    p = sub.add_parser(
+        "overview",
+        help="one small figure of a run: trajectory, camera, event frame, LiDAR scan",
+        description=__doc__,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument("outdir", metavar="OUTDIR", help="output folder of a roslan simulate run")
+    p.add_argument(
+        "-o", "--output", type=Path, default=None, help="PNG to write (default OUTDIR/overview.png)"
+    )
+    p.set_defaults(func=_run)
