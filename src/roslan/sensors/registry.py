@@ -18,10 +18,15 @@ __all__ = ["SENSOR_TYPES", "config_class", "sensor_class"]
 SENSOR_TYPES: dict[str, tuple[str, str, str]] = {
     # type: (module, config class, sensor class)
     "lidar": ("roslan.sensors.lidar", "LidarConfig", "Lidar"),
+    "solid_state_lidar": ("roslan.sensors.solid_state_lidar", "SolidStateLidarConfig", "SolidStateLidar"),
+    "laser": ("roslan.sensors.laser", "LaserConfig", "Laser"),
+    "sonar": ("roslan.sensors.range", "SonarConfig", "Sonar"),
+    "altimeter": ("roslan.sensors.range", "AltimeterConfig", "Altimeter"),
     "imu": ("roslan.sensors.imu", "ImuConfig", "Imu"),
     "camera": ("roslan.sensors.camera", "CameraConfig", "Camera"),
     "depth_camera": ("roslan.sensors.camera", "DepthCameraConfig", "DepthCamera"),
     "stereo_camera": ("roslan.sensors.camera", "StereoCameraConfig", "StereoCamera"),
+    "event_camera": ("roslan.sensors.event_camera", "EventCameraConfig", "EventCamera"),
 }
 
 
