@@ -23,6 +23,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "roslan.pipeline.cli",
     "roslan.plots.cli",
     "roslan.plots.preview",
+    "roslan.scene.cli",
 )
 
 
