@@ -7,8 +7,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from range_helpers import FakeContext, LinearTrajectory, plane, run_sensor, scene
 
+from range_helpers import FakeContext, LinearTrajectory, plane, run_sensor, scene
 from roslan.config.base import validate_model
 from roslan.errors import ConfigError
 from roslan.io.messages import Flavor, MessageStore
@@ -60,7 +60,7 @@ def test_rings_over_flat_ground(tmp_path: Path) -> None:
 
 def test_time_and_azimuth_follow_the_firing_sequence(tmp_path: Path) -> None:
     rate = 10.0
-    lid, pts = _ground_turn(tmp_path, noise_sigma=0.0, rate=rate)
+    _, pts = _ground_turn(tmp_path, noise_sigma=0.0, rate=rate)
     t = pts["time"].astype(np.float64)
     assert t.min() >= 0.0
     assert t.max() < 1.0 / rate
@@ -152,8 +152,10 @@ def test_pointcloud2_roundtrip_through_rosbags(tmp_path: Path) -> None:
             assert msg.header.frame_id == "velodyne"
             # velodyne_pointcloud XYZIRT layout
             layout = [(f.name, f.offset, f.datatype, f.count) for f in msg.fields]
-            assert layout == [("x", 0, 7, 1), ("y", 4, 7, 1), ("z", 8, 7, 1),
-                              ("intensity", 12, 7, 1), ("ring", 16, 4, 1), ("time", 18, 7, 1)]  # fmt: skip
+            assert layout == [
+                ("x", 0, 7, 1), ("y", 4, 7, 1), ("z", 8, 7, 1),
+                ("intensity", 12, 7, 1), ("ring", 16, 4, 1), ("time", 18, 7, 1),
+            ]  # fmt: skip
             assert msg.point_step == 22
             assert msg.height == 1
             assert msg.row_step == 22 * msg.width

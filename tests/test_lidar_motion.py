@@ -7,8 +7,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from range_helpers import FakeContext, LinearTrajectory, run_sensor, scene, vertical_wall_x
 
+from range_helpers import FakeContext, LinearTrajectory, run_sensor, scene, vertical_wall_x
 from roslan.config.base import Pose, validate_model
 from roslan.sensors.beams import rays_in_world
 from roslan.sensors.lidar import Lidar, LidarConfig

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from range_helpers import box, plane, scene
 
+from range_helpers import box, plane, scene
 from roslan.render.raycast import PARALLEL_MIN_RAYS, RayCaster, get_raycaster
 
 
@@ -66,7 +66,7 @@ def test_triangle_ids_and_reflectivity_per_object() -> None:
 
 def test_max_range_scalar_and_per_ray() -> None:
     rc = get_raycaster(scene(plane()))
-    o = np.zeros((3, 3)) + [0, 0, 2.0]
+    o = np.tile([0.0, 0.0, 2.0], (3, 1))
     d = np.tile([0.0, 0.0, -1.0], (3, 1))
     assert np.isinf(rc.cast(o, d, 1.5).distance).all()
     hits = rc.cast(o, d, np.array([1.0, 2.5, 10.0]))
