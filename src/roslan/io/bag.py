@@ -12,10 +12,12 @@ message object of the flavour's typestore (serialized here) or the finished wire
 
 from __future__ import annotations
 
+import struct
 from collections.abc import Iterable, Sequence
 from pathlib import Path
 from typing import Any, NamedTuple, Protocol
 
+import lz4.frame
 from rosbags.interfaces import (
     Connection,
     Qos,
@@ -29,6 +31,7 @@ from rosbags.rosbag1 import Writer as _Ros1Writer
 from rosbags.rosbag1.writer import WriteChunk
 from rosbags.rosbag2 import StoragePlugin
 from rosbags.rosbag2 import Writer as _Ros2Writer
+from rosbags.rosbag2.storage_mcap import McapWriter as _McapWriter
 
 from roslan.errors import OutputError
 from roslan.io.messages import Flavor, MessageStore
@@ -75,16 +78,112 @@ def _ros2_qos(latched: bool) -> list[Qos]:
     ]
 
 
-class _CompactRos1Writer(_Ros1Writer):
-    """rosbags' ROS 1 writer keeps every message's (time, offset) index entry until the
-    bag is closed, although only the per-chunk counts are needed then. Replacing the
-    lists by their counts once a chunk is on disk keeps memory flat for long bags."""
+_U32 = struct.Struct("<L").pack
+_SEC_NSEC_LEN = struct.Struct("<LLL").pack
+_MCAP_MSG = struct.Struct("<BQHLQQ").pack
+_NS = 1_000_000_000
+
+
+def _roslz4_compatible(data: bytes) -> bytes:
+    out: bytes = lz4.frame.compress(
+        data,
+        block_size=lz4.frame.BLOCKSIZE_MAX1MB,
+        block_linked=False,
+        content_checksum=True,
+        store_size=False,
+    )
+    return out
+
+
+class _FastRos1Writer(_Ros1Writer):
+    """rosbags' ROS 1 writer; apart from the lz4 frame parameters its output is byte-identical:
+
+    * lz4 chunks use the frame parameters ROS 1's roslz4 can decode;
+    * ``write`` assembles the message-data record header from per-connection bytes
+      prepared once (rosbags builds a dict and encodes it per message);
+    * once a chunk is on disk its per-message (time, offset) index entries are replaced
+      by their counts, the only thing ``close()`` still needs, so memory stays flat
+      however long the bag is.
+    """
+
+    _prefix: dict[int, bytes]
+
+    def set_compression(self, fmt: _Ros1Writer.CompressionFormat) -> None:
+        super().set_compression(fmt)
+        if self.compression_format == "lz4":
+            # lz4.frame's defaults (content-size field, 64 KiB linked blocks) are rejected by
+            # ROS 1's own roslz4 ("malformed data to decompress"); write the frame layout
+            # roslz4 itself produces: independent 1 MiB blocks, content checksum, no size.
+            self.compressor = _roslz4_compatible
+    def write(self, connection: Connection, timestamp: int, data: bytes | memoryview) -> None:
+        try:
+            prefix = self._prefix[connection.id]
+        except (AttributeError, KeyError):
+            if connection not in self.connections:
+                super().write(connection, timestamp, data)  # raises the library's error
+                return
+            if not hasattr(self, "_prefix"):
+                self._prefix = {}
+            # record header: op=0x02, conn=<u32>, time=<u32 sec, u32 nsec>  (38 bytes)
+            prefix = self._prefix[connection.id] = (
+                _U32(38) + _U32(4) + b"op=\x02" + _U32(9) + b"conn=" + _U32(connection.id) + _U32(13) + b"time="
+            )
+        chunk = self.chunks[-1]
+        bio = chunk.data
+        chunk.connections[connection.id].append((timestamp, bio.tell()))
+        if timestamp < chunk.start:
+            chunk.start = timestamp
+        if timestamp > chunk.end:
+            chunk.end = timestamp
+        sec, nsec = divmod(timestamp, _NS)
+        bio.write(prefix + _SEC_NSEC_LEN(sec, nsec, len(data)))
+        bio.write(data)
+        if bio.tell() > self.chunk_threshold:
+            self.write_chunk(chunk)
 
     def write_chunk(self, chunk: WriteChunk) -> None:
         super().write_chunk(chunk)
         if chunk.pos != -1:
             # close() only takes len() of each entry; range(n) is len-able and tiny.
             chunk.connections = {cid: range(len(items)) for cid, items in chunk.connections.items()}  # type: ignore[assignment,misc]
+
+
+class _FastMcapWriter(_McapWriter):
+    """rosbags' MCAP storage with a one-``struct.pack`` message record (same bytes)."""
+
+    def write(self, connection: Connection, timestamp: int, data: bytes | memoryview) -> None:
+        if timestamp < self.message_start_time:
+            self.message_start_time = timestamp
+        if timestamp > self.message_end_time:
+            self.message_end_time = timestamp
+        self.channel_stats[connection.id] += 1
+        chunk = self.chunk
+        if timestamp < chunk.message_start_time:
+            chunk.message_start_time = timestamp
+        if timestamp > chunk.message_end_time:
+            chunk.message_end_time = timestamp
+        bio = chunk.bio
+        chunk.msgs[connection.id].append((timestamp, bio.tell()))
+        # record: op 0x05, u64 length, u16 channel, u32 sequence (0), u64 log/publish time
+        bio.write(_MCAP_MSG(0x05, 22 + len(data), connection.id, 0, timestamp, timestamp))
+        bio.write(data)
+        if bio.tell() > 2**20:
+            self.close_chunk()
+
+
+class _FastRos2Writer(_Ros2Writer):
+    STORAGE_PLUGINS = {**_Ros2Writer.STORAGE_PLUGINS, StoragePlugin.MCAP: _FastMcapWriter}  # noqa: RUF012
+
+    def write(self, connection: Connection, timestamp: int, data: bytes | memoryview) -> None:
+        if self.storage is None or self.compression_mode.name != "NONE" or connection.owner is not self:
+            super().write(connection, timestamp, data)
+            return
+        self.storage.write(connection, timestamp, data)
+        self.counts[connection.id] += 1
+        if timestamp < self.min_timestamp:
+            self.min_timestamp = timestamp
+        if timestamp > self.max_timestamp:
+            self.max_timestamp = timestamp
 
 
 class BagWriter(Protocol):
@@ -97,6 +196,11 @@ class BagWriter(Protocol):
 
     def write(self, topic: str, stamp_ns: int, data: bytes) -> None: ...
 
+    def connection(self, topic: str) -> Connection: ...
+
+    @property
+    def raw_write(self) -> Any: ...
+
     def close(self) -> None: ...
 
     def abort(self) -> None: ...
@@ -108,7 +212,7 @@ class Ros1BagWriter:
     def __init__(self, path: Path, compression: str = "lz4", store: MessageStore | None = None) -> None:
         self.path = path
         self.store = store or MessageStore(Flavor.ROS1)
-        self._writer = _CompactRos1Writer(path)
+        self._writer = _FastRos1Writer(path)
         if compression != "none":
             fmt = _Ros1Writer.CompressionFormat[compression.upper()]
             self._writer.set_compression(fmt)
@@ -128,6 +232,14 @@ class Ros1BagWriter:
     def write(self, topic: str, stamp_ns: int, data: bytes) -> None:
         self._writer.write(self._conns[topic], stamp_ns, data)
 
+    def connection(self, topic: str) -> Connection:
+        return self._conns[topic]
+
+    @property
+    def raw_write(self) -> Any:
+        """rosbags' ``write(connection, timestamp, data)`` of this bag."""
+        return self._writer.write
+
     def close(self) -> None:
         self._writer.close()
 
@@ -141,7 +253,7 @@ class Ros2BagWriter:
     def __init__(self, path: Path, store: MessageStore | None = None) -> None:
         self.path = path
         self.store = store or MessageStore(Flavor.ROS2)
-        self._writer = _Ros2Writer(path, version=ROS2_BAG_VERSION, storage_plugin=StoragePlugin.MCAP)
+        self._writer = _FastRos2Writer(path, version=ROS2_BAG_VERSION, storage_plugin=StoragePlugin.MCAP)
         self._writer.open()
         self._conns: dict[str, Connection] = {}
 
@@ -156,6 +268,14 @@ class Ros2BagWriter:
 
     def write(self, topic: str, stamp_ns: int, data: bytes) -> None:
         self._writer.write(self._conns[topic], stamp_ns, data)
+
+    def connection(self, topic: str) -> Connection:
+        return self._conns[topic]
+
+    @property
+    def raw_write(self) -> Any:
+        """rosbags' ``write(connection, timestamp, data)`` of this bag."""
+        return self._writer.write
 
     def close(self) -> None:
         self._writer.close()
@@ -193,15 +313,22 @@ class MultiBagWriter:
             self.abort()
             msg = f"cannot write bag in {outdir}: {err}"
             raise OutputError(msg) from err
+        self._prepare()
+
+    def _prepare(self) -> None:
+        # per topic: (store, msgtype, raw rosbags write, connection) for every writer
+        self._targets = {
+            topic: [(w.store, msgtype, w.raw_write, w.connection(topic)) for w in self.writers]
+            for topic, msgtype in self.msgtypes.items()
+        }
 
     def write(self, topic: str, stamp_ns: int, build: Any) -> None:
         """Write one message (``build`` as in ``Message.build``) at record time ``stamp_ns``."""
-        msgtype = self.msgtypes[topic]
-        for w in self.writers:
-            data = build(w.store)
-            if not isinstance(data, bytes | bytearray | memoryview):
-                data = w.store.serialize(data, msgtype)
-            w.write(topic, stamp_ns, data)
+        for store, msgtype, raw_write, conn in self._targets[topic]:
+            data = build(store)
+            if type(data) is not bytes and not isinstance(data, bytearray | memoryview):
+                data = store.serialize(data, msgtype)
+            raw_write(conn, stamp_ns, data)
         self.counts[topic] += 1
 
     def build(self, topic: str, build: Any) -> list[bytes]:

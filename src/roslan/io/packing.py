@@ -27,7 +27,7 @@ Leaf = tuple[str, str, int]
 or ``('data', '<f8', 18)``. Paths use ``.`` between nested fields and integer indices into
 sequences of messages (``'transforms.0.transform.translation.x'``)."""
 
-_PROBE = {"f8": 1.2345678912345679e-123, "u4": 0x01020304, "i4": 0x01020304, "f4": 1.2345678e-12}
+_PROBE = {"f8": 1.2345678912345679e-123, "u4": 0x01020304, "i4": 0x01020304, "u8": 0x0102030405060708, "f4": 1.2345678e-12}
 
 
 def set_path(msg: Any, path: str, value: Any) -> Any:
@@ -65,10 +65,12 @@ class FixedLayout:
         self.size = int(base.size)
         self.offsets: dict[str, tuple[int, np.dtype[Any], int]] = {}
         for path, dtype, count in leaves:
-            probed = np.frombuffer(
-                store.serialize(set_path(zeroed, path, self._value(dtype, count, probe=True)), msgtype),
-                dtype=np.uint8,
-            )
+            try:
+                raw = store.serialize(set_path(zeroed, path, self._value(dtype, count, probe=True)), msgtype)
+            except Exception as err:  # noqa: BLE001 - the serializer's own error types vary
+                msg = f"{msgtype}.{path}: leaf {dtype} x {count} does not fit the field ({err})"
+                raise ValueError(msg) from err
+            probed = np.frombuffer(raw, dtype=np.uint8)
             dt = np.dtype(dtype)
             width = dt.itemsize * count
             if probed.size != self.size:
@@ -114,17 +116,22 @@ class PackedBatch:
 
     def __init__(self, packer: Callable[[MessageStore], NDArray[np.uint8]]) -> None:
         self._packer = packer
-        self._rows: dict[str, NDArray[np.uint8]] = {}
+        self._rows: dict[int, NDArray[np.uint8]] = {}
 
     def rows(self, store: MessageStore) -> NDArray[np.uint8]:
-        key = store.flavor.value
-        rows = self._rows.get(key)
+        """The packed rows of ``store``'s flavour (keyed by store identity: one store per flavour)."""
+        rows = self._rows.get(id(store))
         if rows is None:
-            rows = self._rows[key] = self._packer(store)
+            rows = self._rows[id(store)] = self._packer(store)
         return rows
 
     def build(self, i: int) -> Callable[[MessageStore], bytes]:
+        cache = self._rows
+
         def _build(store: MessageStore) -> bytes:
-            return self.rows(store)[i].tobytes()
+            rows = cache.get(id(store))
+            if rows is None:
+                rows = self.rows(store)
+            return rows[i].tobytes()
 
         return _build

@@ -1,0 +1,235 @@
+"""Bag writers: packed messages equal rosbags' serializer, fast writers equal stock rosbags
+writers byte for byte, round trips through rosbags' AnyReader and ROS 1's own rosbag."""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+import textwrap
+from pathlib import Path
+
+import numpy as np
+import pytest
+from rosbags.highlevel import AnyReader
+from rosbags.rosbag1 import Writer as StockRos1Writer
+from rosbags.rosbag2 import StoragePlugin
+from rosbags.rosbag2 import Writer as StockRos2Writer
+
+from pipeline_helpers import short_config
+from roslan.io.bag import BagTopic, MultiBagWriter, _ros2_qos
+from roslan.io.messages import Flavor, MessageStore
+from roslan.io.packing import FixedLayout
+from roslan.sensors.ground_truth import TAU_LAYOUT, _Layouts
+from roslan.simulate import run_simulation
+from roslan.trajectory.generator import COMPONENTS
+
+
+def _deserialize(store: MessageStore, data: bytes, msgtype: str) -> object:
+    if store.is_ros1:
+        return store.typestore.deserialize_ros1(data, msgtype)
+    return store.typestore.deserialize_cdr(data, msgtype)
+
+
+@pytest.mark.parametrize("flavor", list(Flavor))
+def test_fixed_layout_matches_rosbags_serializer(flavor: Flavor) -> None:
+    store = MessageStore(flavor)
+    lay = _Layouts(store).odom
+    rng = np.random.default_rng(0)
+    n = 5
+    cols = {path: rng.normal(size=n) for path, (_, dt, c) in lay.offsets.items() if dt.kind == "f"}
+    cols["header.stamp.sec"] = rng.integers(1, 2**31, n)
+    cols["header.stamp.nanosec"] = rng.integers(0, 10**9, n)
+    rows = lay.pack(cols, n)
+    for i in range(n):
+        msg = _deserialize(store, rows[i].tobytes(), "nav_msgs/msg/Odometry")
+        # re-serializing the decoded message with rosbags gives the same bytes
+        assert store.serialize(msg, "nav_msgs/msg/Odometry") == rows[i].tobytes()
+        assert msg.pose.pose.position.y == cols["pose.pose.position.y"][i]  # type: ignore[attr-defined]
+        assert msg.twist.twist.angular.z == cols["twist.twist.angular.z"][i]  # type: ignore[attr-defined]
+        assert msg.header.stamp.nanosec == cols["header.stamp.nanosec"][i]  # type: ignore[attr-defined]
+        assert msg.child_frame_id == "base_link"  # type: ignore[attr-defined]
+
+
+def test_fixed_layout_rejects_a_wrong_leaf_width() -> None:
+    store = MessageStore(Flavor.ROS1)
+    tmpl = store.new(
+        "std_msgs/msg/Float64MultiArray",
+        layout=store.new("std_msgs/msg/MultiArrayLayout", dim=[], data_offset=0),
+        data=np.zeros(3),
+    )
+    # data_offset is a uint32: declaring 8 bytes cannot be located
+    with pytest.raises(ValueError, match="layout.data_offset"):
+        FixedLayout(store, "std_msgs/msg/Float64MultiArray", tmpl, [("layout.data_offset", "<u8", 1)])
+
+
+def _write_stock_and_fast(tmp_path: Path, flavor: Flavor) -> tuple[bytes, bytes]:
+    """The same messages through roslan's writer and through stock rosbags."""
+    store = MessageStore(flavor)
+    topics = [BagTopic("/a", "std_msgs/msg/Float64MultiArray", True), BagTopic("/b", "std_msgs/msg/String")]
+    rng = np.random.default_rng(1)
+    msgs = []
+    for i in range(3000):  # > 1 MiB: several chunks
+        if i % 3 == 0:
+            lay = store.new("std_msgs/msg/MultiArrayLayout", dim=[], data_offset=0)
+            msg = store.new("std_msgs/msg/Float64MultiArray", layout=lay, data=rng.normal(size=50))
+            msgs.append(("/a", "std_msgs/msg/Float64MultiArray", 10**18 + i * 1000, msg))
+        else:
+            msgs.append(("/b", "std_msgs/msg/String", 10**18 + i * 1000, store.new("std_msgs/msg/String", data="x" * i)))
+    ours = tmp_path / f"ours_{flavor.value}"
+    ours.mkdir()
+    w = MultiBagWriter(ours, [flavor.value], topics, compression="bz2")
+    for topic, _msgtype, stamp, msg in msgs:
+        w.write(topic, stamp, lambda s, m=msg: m)
+    w.close()
+    stock_dir = tmp_path / f"stock_{flavor.value}"
+    stock_dir.mkdir()
+    if flavor is Flavor.ROS1:
+        path = stock_dir / "landing.bag"
+        sw = StockRos1Writer(path)
+        sw.set_compression(StockRos1Writer.CompressionFormat.BZ2)
+        sw.open()
+        conns = {
+            t.topic: sw.add_connection(
+                t.topic, t.msgtype, typestore=store.typestore, callerid="/roslan", latching=1 if t.latched else None
+            )
+            for t in topics
+        }
+        for topic, msgtype, stamp, msg in msgs:
+            sw.write(conns[topic], stamp, store.serialize(msg, msgtype))
+        sw.close()
+        return (ours / "landing.bag").read_bytes(), path.read_bytes()
+    path2 = stock_dir / "landing_ros2"
+    s2 = StockRos2Writer(path2, version=8, storage_plugin=StoragePlugin.MCAP)
+    s2.open()
+    conns2 = {
+        t.topic: s2.add_connection(
+            t.topic, t.msgtype, typestore=store.typestore, offered_qos_profiles=_ros2_qos(t.latched)
+        )
+        for t in topics
+    }
+    for topic, msgtype, stamp, msg in msgs:
+        s2.write(conns2[topic], stamp, store.serialize(msg, msgtype))
+    s2.close()
+    ours_mcap = (ours / "landing_ros2" / "landing_ros2.mcap").read_bytes()
+    stock_mcap = (path2 / "landing_ros2.mcap").read_bytes()
+    assert (ours / "landing_ros2" / "metadata.yaml").read_bytes() == (path2 / "metadata.yaml").read_bytes()
+    return ours_mcap, stock_mcap
+
+
+@pytest.mark.parametrize("flavor", list(Flavor))
+def test_fast_writers_byte_identical_to_rosbags(tmp_path: Path, flavor: Flavor) -> None:
+    ours, stock = _write_stock_and_fast(tmp_path, flavor)
+    assert ours == stock
+    if flavor is Flavor.ROS1:
+        assert ours.count(b"op=\x05") > 1  # several (bz2) chunk records
+    else:
+        assert len(ours) > 1 << 20  # several 1 MiB MCAP chunks
+
+
+@pytest.fixture(scope="module")
+def landing(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("bags") / "out"
+    run_simulation(short_config(), out, quiet=True)
+    return out
+
+
+def _read_all(paths: list[Path]) -> dict[str, list[tuple[int, object]]]:
+    out: dict[str, list[tuple[int, object]]] = {}
+    with AnyReader(paths) as reader:
+        for conn, stamp, raw in reader.messages():
+            out.setdefault(conn.topic, []).append((stamp, reader.deserialize(raw, conn.msgtype)))
+    return out
+
+
+def test_round_trip_both_bags(landing: Path) -> None:
+    ros1 = _read_all([landing / "landing.bag"])
+    ros2 = _read_all([landing / "landing_ros2"])
+    expected_topics = {
+        "/tf", "/tf_static", "/ground_truth/pose", "/ground_truth/odometry",
+        "/ground_truth/accel", "/tau/state", "/imu",
+    }  # fmt: skip
+    assert set(ros1) == set(ros2) == expected_topics
+    start = short_config().output.start_time
+    for topic in expected_topics:
+        a, b = ros1[topic], ros2[topic]
+        assert len(a) == len(b) > 0
+        stamps = [s for s, _ in a]
+        assert stamps == [s for s, _ in b]
+        assert stamps == sorted(stamps)
+        for stamp, msg in a:
+            hdr = getattr(msg, "header", None)
+            if hdr is not None:  # record time = header stamp
+                assert hdr.stamp.sec * 10**9 + hdr.stamp.nanosec == stamp
+        assert stamps[0] >= start
+    # ROS 1 header.seq counts per topic
+    assert [m.header.seq for _, m in ros1["/imu"]] == list(range(len(ros1["/imu"])))  # type: ignore[attr-defined]
+    # IMU values identical in both flavours and in imu.txt
+    txt = np.loadtxt(landing / "imu.txt")
+    acc1 = np.array([[m.linear_acceleration.x, m.linear_acceleration.y, m.linear_acceleration.z] for _, m in ros1["/imu"]])  # type: ignore[attr-defined]
+    acc2 = np.array([[m.linear_acceleration.x, m.linear_acceleration.y, m.linear_acceleration.z] for _, m in ros2["/imu"]])  # type: ignore[attr-defined]
+    np.testing.assert_array_equal(acc1, acc2)
+    np.testing.assert_allclose(txt[:, 1:4], acc1, rtol=1e-8, atol=1e-8)
+    t_txt = np.round(txt[:, 0] * 1e9).astype(np.int64) + start
+    np.testing.assert_array_equal(t_txt, [s for s, _ in ros1["/imu"]])
+    # tau state = the trajectory's 18 components, with labelled dims
+    _, tau = ros2["/tau/state"][0]
+    assert [d.label for d in tau.layout.dim] == [lbl for lbl, _, _ in TAU_LAYOUT]  # type: ignore[attr-defined]
+    assert tau.data.shape == (len(COMPONENTS),)  # type: ignore[attr-defined]
+
+
+def test_bag_metadata_and_latching(landing: Path) -> None:
+    with AnyReader([landing / "landing.bag"]) as r1:
+        c = {x.topic: x for x in r1.connections}
+        assert c["/tf_static"].ext.latching == 1  # type: ignore[union-attr]
+        assert c["/tf"].ext.latching in (None, 0)  # type: ignore[union-attr]
+    with AnyReader([landing / "landing_ros2"]) as r2:
+        c = {x.topic: x for x in r2.connections}
+        qos = c["/tf_static"].ext.offered_qos_profiles  # type: ignore[union-attr]
+        assert qos[0].durability.name == "TRANSIENT_LOCAL"
+        assert c["/imu"].ext.offered_qos_profiles[0].durability.name == "VOLATILE"  # type: ignore[union-attr]
+    meta = (landing / "landing_ros2" / "metadata.yaml").read_text()
+    assert "storage_identifier: mcap" in meta
+
+
+ROS1_SCRIPT = textwrap.dedent(
+    """
+    import sys, rosbag, genpy
+    counts = {}
+    with rosbag.Bag(sys.argv[1]) as bag:
+        info = bag.get_type_and_topic_info()
+        for topic, msg, t in bag.read_messages():
+            assert isinstance(msg, genpy.Message), type(msg)
+            # deserialize fully: touch every slot
+            msg._check_types()
+            stamp = getattr(getattr(msg, "header", None), "stamp", None)
+            if stamp is not None:
+                assert stamp == t, (topic, stamp, t)
+            counts[topic] = counts.get(topic, 0) + 1
+    for topic in sorted(counts):
+        print(topic, info.topics[topic].msg_type, counts[topic])
+    """
+)
+
+
+@pytest.mark.ros1
+def test_ros1_native_reader(landing: Path, tmp_path: Path) -> None:
+    py = shutil.which("python3", path="/usr/bin")
+    if py is None:
+        pytest.skip("/usr/bin/python3 not found")
+    probe = subprocess.run([py, "-c", "import rosbag, sensor_msgs.msg, tf2_msgs.msg, nav_msgs.msg"], capture_output=True)
+    if probe.returncode != 0:
+        pytest.skip("Debian's python3-rosbag / message packages are not installed for /usr/bin/python3")
+    script = tmp_path / "read.py"
+    script.write_text(ROS1_SCRIPT)
+    proc = subprocess.run([py, str(script), str(landing / "landing.bag")], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    rows = {line.split()[0]: (line.split()[1], int(line.split()[2])) for line in proc.stdout.splitlines()}
+    assert rows["/imu"][0] == "sensor_msgs/Imu"
+    assert rows["/tf"][0] == "tf2_msgs/TFMessage"
+    assert rows["/ground_truth/odometry"][0] == "nav_msgs/Odometry"
+    assert rows["/tau/state"][0] == "std_msgs/Float64MultiArray"
+    assert rows["/ground_truth/accel"][0] == "geometry_msgs/AccelStamped"
+    import json
+
+    run = json.loads((landing / "run.json").read_text())
+    assert {t: n for t, (_, n) in rows.items()} == {t: v["messages"] for t, v in run["topics"].items()}
