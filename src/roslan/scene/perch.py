@@ -48,11 +48,11 @@ def _branch(length: float, radius: float, rng: np.random.Generator) -> LocalMesh
     for i in range(n):
         parts.append(
             cylinder_between(
-                (x[i], y[i], z[i]), (x[i + 1], y[i + 1], z[i + 1]), float(min(r[i], r[i + 1])), 16
+                (x[i], y[i], z[i]), (x[i + 1], y[i + 1], z[i + 1]), float(max(r[i], r[i + 1])), 16
             )
         )
     for i in range(1, n):
-        joint = sphere(float(min(r[i - 1], r[i])), 12)
+        joint = sphere(float(max(r[i - 1], r[i])), 12)
         parts.append(transformed(joint, pose_matrix((x[i], y[i], z[i]))))
     # twigs leave the outer parts away from the approach side (+x) and downwards
     for i in (1, 2, n - 2, n - 1):
