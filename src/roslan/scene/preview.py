@@ -71,7 +71,7 @@ def write_preview(scene: Scene, path: Path, *, dpi: int = 120) -> None:
         allz = np.concatenate(tops)
         order = np.argsort(allz, kind="stable")  # tall parts drawn last, on top
         pc = PolyCollection(
-            allt[order], array=allz[order], cmap="viridis", edgecolors="face", linewidths=0.2
+            list(allt[order]), array=allz[order], cmap="viridis", edgecolors="face", linewidths=0.2
         )
         ax.add_collection(pc)
         fig.colorbar(pc, ax=ax, label="top z of each triangle (m)")
