@@ -3,7 +3,8 @@
 Layout of ``outdir``::
 
     models/<object>.glb     one binary glTF per object, in the object's own frame
-                            (before scale), with UVs, normals and its texture
+                            (before scale), with UVs (metres), normals and its texture
+                            (a JPEG copy)
     textures/<material>.png each distinct texture once (exact pixels)
     poses.yaml              every object: name, model, position, rpy, quaternion_xyzw, scale
     scene.yaml              a scene file that loads back to the same triangles
@@ -13,6 +14,7 @@ from __future__ import annotations
 
 import os
 import re
+import weakref
 from pathlib import Path
 from typing import Any
 
@@ -47,17 +49,34 @@ def _safe(name: str) -> str:
     return re.sub(r"[^A-Za-z0-9_.\-]", "_", name) or "unnamed"
 
 
+_GLB_CACHE: weakref.WeakKeyDictionary[SceneObject, bytes] = weakref.WeakKeyDictionary()
+"""Encoded models of objects already exported in this process (scenes are immutable)."""
+
+
 def _glb(obj: SceneObject, texture: NDArray[np.uint8] | None) -> bytes:
+    cached = _GLB_CACHE.get(obj)
+    if cached is None:
+        cached = _GLB_CACHE[obj] = _encode_glb(obj, texture)
+    return cached
+
+
+def _encode_glb(obj: SceneObject, texture: NDArray[np.uint8] | None) -> bytes:
     import trimesh
     from PIL import Image
 
     v, n = local_geometry(obj)
+    image = None
+    if texture is not None:
+        image = Image.fromarray(texture)
+        # trimesh re-encodes every texture; as JPEG that is ~10x quicker than PNG for these
+        # noisy images. The exact pixels are in textures/*.png, which scene.yaml uses.
+        image.format = "JPEG"
     c = obj.material.color
     factor = [round(255 * min(max(x, 0.0), 1.0)) for x in c] + [255]
     mat = trimesh.visual.material.PBRMaterial(  # type: ignore[no-untyped-call]
         name=obj.material.name,
         baseColorFactor=factor,
-        baseColorTexture=Image.fromarray(texture) if texture is not None else None,
+        baseColorTexture=image,
         metallicFactor=0.0,
         roughnessFactor=1.0,
     )
@@ -118,7 +137,9 @@ def _write(scene: Scene, out: Path) -> None:
                     stem = f"{base}_{k}"
                 used.add(stem)
                 tex_files[key] = f"textures/{stem}.png"
-                Image.fromarray(np.ascontiguousarray(mat.texture)).save(out / tex_files[key])
+                Image.fromarray(np.ascontiguousarray(mat.texture)).save(
+                    out / tex_files[key], compress_level=1
+                )
             tex_rel = tex_files[key]
         model = f"models/{_safe(obj.name)}.glb"
         (out / model).write_bytes(_glb(obj, mat.texture))
