@@ -226,6 +226,8 @@ def euler_zyx_kinematics(
     rpy_dot: F64,
     rpy_ddot: F64,
     q_parent_ref: ArrayLike | None = None,
+    *,
+    out: tuple[F64, F64, F64, F64] | None = None,
 ) -> tuple[F64, F64, F64, F64]:
     """Orientation, angular velocity and angular acceleration from ZYX Euler angles.
 
@@ -238,6 +240,7 @@ def euler_zyx_kinematics(
             frame ``ref`` (rad) and their first and second time derivatives.
         q_parent_ref: optional constant (4,) x, y, z, w orientation of ``ref`` in a
             parent frame; the returned orientation is then that of body in the parent.
+        out: optional preallocated (quat, R, omega, alpha) arrays of the result shapes.
     Returns:
         quat_xyzw (N, 4) (w >= 0), R_parent_body (N, 3, 3), omega_body (N, 3) rad/s,
         alpha_body (N, 3) rad/s^2 (both in the body frame).
@@ -274,24 +277,30 @@ def euler_zyx_kinematics(
             w1 * qz + x1 * qy - y1 * qx + z1 * qw,
             w1 * qw - x1 * qx - y1 * qy - z1 * qz,
         )
+    if out is None:
+        quat, R = np.empty((n, 4)), np.empty((n, 3, 3))
+        omega, alpha = np.empty((n, 3)), np.empty((n, 3))
+    else:
+        quat, R, omega, alpha = out
     sign = np.where(qw < 0.0, -1.0, 1.0)
-    quat = np.stack([qx * sign, qy * sign, qz * sign, qw * sign], axis=1)
+    np.multiply(qx, sign, out=quat[:, 0])
+    np.multiply(qy, sign, out=quat[:, 1])
+    np.multiply(qz, sign, out=quat[:, 2])
+    np.multiply(qw, sign, out=quat[:, 3])
     # rotation matrix from the (unit) quaternion
     tx, ty, tz = 2.0 * qx, 2.0 * qy, 2.0 * qz
     xx, yy, zz = tx * qx, ty * qy, tz * qz
     xy, xz, yz = tx * qy, tx * qz, ty * qz
     wx, wy, wz = tx * qw, ty * qw, tz * qw
-    R = np.empty((n, 3, 3))
-    Rf = R.reshape(n, 9)
-    Rf[:, 0] = 1.0 - (yy + zz)
-    Rf[:, 1] = xy - wz
-    Rf[:, 2] = xz + wy
-    Rf[:, 3] = xy + wz
-    Rf[:, 4] = 1.0 - (xx + zz)
-    Rf[:, 5] = yz - wx
-    Rf[:, 6] = xz - wy
-    Rf[:, 7] = yz + wx
-    Rf[:, 8] = 1.0 - (xx + yy)
+    R[:, 0, 0] = 1.0 - (yy + zz)
+    R[:, 0, 1] = xy - wz
+    R[:, 0, 2] = xz + wy
+    R[:, 1, 0] = xy + wz
+    R[:, 1, 1] = 1.0 - (xx + zz)
+    R[:, 1, 2] = yz - wx
+    R[:, 2, 0] = xz - wy
+    R[:, 2, 1] = yz + wx
+    R[:, 2, 2] = 1.0 - (xx + yy)
     # full-angle trig of roll and pitch from the half angles
     sr, cr = 2.0 * shr * chr_, chr_ * chr_ - shr * shr
     sp, cp = 2.0 * shp * chp, chp * chp - shp * shp
@@ -303,8 +312,6 @@ def euler_zyx_kinematics(
     dysp = dy * sp
     dpsr, dpcr = dp * sr, dp * cr
     drdy = dr * dy
-    omega = np.empty((n, 3))
-    alpha = np.empty((n, 3))
     omega[:, 0] = dr - dysp
     omega[:, 1] = dpcr + dy * srcp
     omega[:, 2] = dy * crcp - dpsr

@@ -29,6 +29,10 @@ COMPONENTS = (
 """The 18 components in trajectory.csv order: gaps, rates, accelerations."""
 
 
+CHUNK = 16384
+"""Instants evaluated per block inside :meth:`Trajectory.state` (keeps temporaries in cache)."""
+
+
 class TrajectoryWarning(UserWarning):
     """Valid parameters whose landing is physically hard (unbounded deceleration...)."""
 
@@ -206,13 +210,20 @@ class Trajectory:
         """The 18 components in F: (t, gaps, rates, accels), each (N,) / (N, 6)."""
         tt = np.atleast_1d(np.asarray(t, dtype=np.float64)).ravel()
         n = tt.shape[0]
-        # s = 1 - t/T in [0, 1]; s = 0 exactly at t = T
-        s = 1.0 - tt / self.T
-        np.clip(s, 0.0, 1.0, out=s)
         gaps = np.empty((n, 6))
         rates = np.empty((n, 6))
         accels = np.empty((n, 6))
+        for a in range(0, n, CHUNK):
+            sl = slice(a, a + CHUNK)
+            self._gaps_into(tt[sl], gaps[sl], rates[sl], accels[sl])
+        return tt, gaps, rates, accels
+
+    def _gaps_into(self, tt: F64, gaps: F64, rates: F64, accels: F64) -> None:
+        """Fill (n, 6) gaps, rates, accels at the instants tt (n,) in place."""
         T = self.T
+        # s = 1 - t/T in [0, 1]; s = 0 exactly at t = T
+        s = 1.0 - tt / T
+        np.clip(s, 0.0, 1.0, out=s)
         # one power per distinct exponent (gaps with equal kappa share it)
         cache: dict[float, tuple[F64, F64, F64]] = {}
         for i in range(6):
@@ -241,7 +252,6 @@ class Trajectory:
         if before.any():
             rates[before] = 0.0
             accels[before] = 0.0
-        return tt, gaps, rates, accels
 
     def _add_flapping(self, tc: F64, gaps: F64, rates: F64, accels: F64) -> None:
         """Superimpose heave (on z) and pitch oscillation, faded by e = z/z0 (in place)."""
@@ -263,16 +273,33 @@ class Trajectory:
                 accels[:, col] += amp * ddosc
 
     def state(self, t: ArrayLike) -> State:
-        """Full state at instants ``t`` (s), shape (N,)."""
-        tt, gaps, rates, accels = self.gaps_at(t)
-        R = self.R_world_goal
-        position = gaps[:, :3].dot(R.T)
-        position += self.p_world_goal
-        velocity = rates[:, :3].dot(R.T)
-        acceleration = accels[:, :3].dot(R.T)
-        quat, R_world_body, omega, alpha = euler_zyx_kinematics(
-            gaps[:, 3:], rates[:, 3:], accels[:, 3:], self._q_world_goal
-        )
+        """Full state at instants ``t`` (s), shape (N,).
+
+        Evaluated in blocks of :data:`CHUNK` instants written straight into the result
+        arrays, so the temporaries stay in cache whatever N is.
+        """
+        tt = np.atleast_1d(np.asarray(t, dtype=np.float64)).ravel()
+        n = tt.shape[0]
+        gaps, rates, accels = np.empty((n, 6)), np.empty((n, 6)), np.empty((n, 6))
+        position, velocity, acceleration = np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3))
+        R_world_body = np.empty((n, 3, 3))
+        quat, omega, alpha = np.empty((n, 4)), np.empty((n, 3)), np.empty((n, 3))
+        RT = np.ascontiguousarray(self.R_world_goal.T)
+        for a in range(0, n, CHUNK):
+            sl = slice(a, a + CHUNK)
+            g, r, ac = gaps[sl], rates[sl], accels[sl]
+            self._gaps_into(tt[sl], g, r, ac)
+            np.dot(g[:, :3], RT, out=position[sl])
+            position[sl] += self.p_world_goal
+            np.dot(r[:, :3], RT, out=velocity[sl])
+            np.dot(ac[:, :3], RT, out=acceleration[sl])
+            euler_zyx_kinematics(
+                g[:, 3:],
+                r[:, 3:],
+                ac[:, 3:],
+                self._q_world_goal,
+                out=(quat[sl], R_world_body[sl], omega[sl], alpha[sl]),
+            )
         return State(
             t=tt,
             gaps=gaps,
