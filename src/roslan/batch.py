@@ -688,15 +688,12 @@ def _write_json_atomic(path: Path, data: Any) -> None:
 
 
 def _existing_matches(task: Task, info: Mapping[str, Any]) -> bool:
-    """True unless run.json's recorded config provably differs from the task's."""
+    """True unless run.json's recorded config (the pipeline's ``model_dump(mode="json")``
+    of the validated config, as our fingerprint) differs from the task's."""
     recorded = info.get("config")
     if not isinstance(recorded, Mapping):
         return True
-    try:
-        cfg = validate_config(recorded, task.base_dir, "run.json")
-    except RoslanError:
-        return False
-    return _fingerprint(cfg.model_dump(mode="json")) == task.fingerprint
+    return _fingerprint(recorded) == task.fingerprint
 
 
 def _cluster(workers: int | None, scheduler: str | None) -> tuple[Any, Any, int | str]:

@@ -84,9 +84,10 @@ _HEADING_STEPS_DEG = (15, -15, 30, -30, 45, -45, 60, -60, 75, -75, 90, -90)
 
 
 def default_sensor_suite() -> list[dict[str, Any]]:
-    """The paper's sensors: frame camera, DAVIS346 event camera, sonar, IMU, HDL-32E
-    (ground truth is always written by the pipeline). Cameras look forward, pitched
-    20 deg down towards the landing spot; the sonar looks straight down."""
+    """The paper's sensors: frame camera (640x480, 30 Hz), event camera (DAVIS346,
+    realistic pixel, APS frames at 25 Hz), sonar (straight down), IMU (1 kHz) and a
+    Velodyne HDL-32E (10 Hz); ground truth is always written by the pipeline. The
+    cameras look forward, pitched 20 deg down towards the landing spot."""
     down20 = [0.0, math.radians(20.0), 0.0]
     return [
         {
@@ -99,9 +100,9 @@ def default_sensor_suite() -> list[dict[str, Any]]:
         {
             "type": "event_camera",
             "name": "dvs",
-            "rate": 30.0,
+            "rate": 25.0,
             "topic": "/dvs",
-            "preset": "davis346",
+            "sensor": "davis346",
             "pose": {"position": [0.12, 0.03, 0.0], "rpy": down20},
         },
         {
@@ -109,7 +110,8 @@ def default_sensor_suite() -> list[dict[str, Any]]:
             "name": "sonar",
             "rate": 20.0,
             "topic": "/sonar",
-            "pose": {"position": [0.0, 0.0, -0.05], "rpy": [0.0, math.pi / 2, 0.0]},
+            "axis": [0.0, 0.0, -1.0],
+            "pose": {"position": [0.0, 0.0, -0.05], "rpy": [0.0, 0.0, 0.0]},
         },
         {"type": "imu", "name": "imu", "rate": 1000.0, "topic": "/imu"},
         {
