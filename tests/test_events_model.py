@@ -116,7 +116,8 @@ def test_descending_ramp_negative_events() -> None:
     )
     gen.update_log(np.zeros(4), 0)
     ev = gen.update_log(np.full(4, -1.0), 1_000_000)
-    assert ev.size == 4 * 3 and np.all(ev.p == 0)
+    assert ev.size == 4 * 3
+    assert np.all(ev.p == 0)
     # levels -0.3, -0.6, -0.9 crossed at 0.3, 0.6, 0.9 ms
     assert sorted(set(ev.t.tolist())) == [300_000, 600_000, 900_000]
 

@@ -125,7 +125,12 @@ class EventBatch(NamedTuple):
             return EventBatch.empty()
         if len(batches) == 1:
             return batches[0]
-        return EventBatch(*(np.concatenate([b[i] for b in batches]) for i in range(4)))
+        return EventBatch(
+            np.concatenate([b.t for b in batches]),
+            np.concatenate([b.x for b in batches]),
+            np.concatenate([b.y for b in batches]),
+            np.concatenate([b.p for b in batches]),
+        )
 
     def slice(self, a: int, b: int) -> EventBatch:
         return EventBatch(self.t[a:b], self.x[a:b], self.y[a:b], self.p[a:b])
@@ -241,7 +246,7 @@ class EventGenerator:
 
     def _crossings(self, S0: F64, S1: F64, t0: int, dt_ns: int) -> EventBatch:
         ref = self.ref
-        up = S1 > ref
+        up = ref < S1
         C = np.where(up, self.c_pos, self.c_neg)
         d = np.abs(S1 - ref)
         n = np.floor(d / C).astype(np.int64)
@@ -315,4 +320,4 @@ class EventGenerator:
         )
         merged = EventBatch.concatenate([batch, noise])
         order = np.argsort(merged.t, kind="stable")
-        return EventBatch(*(a[order] for a in merged))
+        return EventBatch(merged.t[order], merged.x[order], merged.y[order], merged.p[order])

@@ -1,0 +1,565 @@
+"""Event camera (``type: event_camera``): ESIM on the shared OpenGL renderer.
+
+The sensor renders grayscale linear luminance (Rec. 709 weights of the renderer's
+linear radiance) along the closed-form trajectory at adaptively chosen instants
+(:class:`~roslan.events.sampling.AdaptiveSampler`: brightness or exact optical flow
+from depth + camera twist), feeds the frames to the vectorized pixel model
+(:class:`~roslan.events.model.EventGenerator`) and streams:
+
+* ``<topic>/events``: dvs_msgs/EventArray packets of ``packet_duration`` seconds (or
+  ``packet_events`` events), stamped with their last event (as rpg_dvs_ros does),
+  packed with NumPy straight to wire bytes;
+* ``<topic>/camera_info`` at ``rate``; ``<topic>/image_raw`` APS frames (mono8) at
+  ``rate`` when ``aps``; ``<topic>/optic_flow`` (32FC2, px/s) and ``<topic>/depthmap``
+  (32FC1, m) at ``ground_truth_rate`` when enabled;
+* dataset files: ``events.txt`` and ``events.h5`` (the first event camera; others in
+  ``<name>/``), APS frames in ``<name>/images.txt`` + ``<name>/images/NNNNNNNN.png``,
+  ``calib/<name>.yaml`` (camera_info) and, as for every camera, ``calib/camchain.yaml``
+  and ``calib.txt`` when it is the first camera-like sensor.
+
+Headers are in ``<frame>_optical`` (z forward, x right, y down).
+"""
+
+from __future__ import annotations
+
+import heapq
+import itertools
+from collections.abc import Iterator
+from dataclasses import dataclass
+from typing import IO, Annotated, Any, Literal
+
+import numpy as np
+from numpy.typing import NDArray
+from pydantic import Field, model_validator
+
+from roslan.config.base import FiniteFloat
+from roslan.events.files import EventH5Writer, EventTextWriter
+from roslan.events.model import EVENT_PRESETS, EventBatch, EventGenerator, EventModelParams
+from roslan.events.ros import EVENT_ARRAY, pack_event_array
+from roslan.events.sampling import AdaptiveSampler, camera_twist, motion_field, pixel_rays
+from roslan.io.messages import MessageStore
+from roslan.sensors.base import (
+    Message,
+    SensorConfig,
+    SimContext,
+    StaticTransform,
+    TopicSpec,
+    sample_times_ns,
+)
+from roslan.sensors.camera_model import (
+    CameraIntrinsics,
+    CameraModel,
+    RenderPlan,
+    write_calibration_files,
+)
+from roslan.trajectory.frames import OPTICAL_FROM_BODY
+
+__all__ = ["SENSOR_PRESETS", "EventCamera", "EventCameraConfig", "SensorPreset", "luminance"]
+
+F32 = NDArray[np.float32]
+F64 = NDArray[np.float64]
+Positive = Annotated[FiniteFloat, Field(gt=0)]
+NonNegative = Annotated[FiniteFloat, Field(ge=0)]
+
+
+@dataclass(frozen=True)
+class SensorPreset:
+    """A commercial sensor: resolution, a typical lens and its ``realistic`` pixel parameters."""
+
+    width: int
+    height: int
+    focal_px: float
+    aps: bool
+    realistic: dict[str, float]
+
+
+SENSOR_PRESETS: dict[str, SensorPreset] = {
+    # iniVation DAVIS346: 18.5 um pixels, 4 mm lens; APS frames
+    "davis346": SensorPreset(
+        346, 260, 216.0, True,
+        {"threshold_pos": 0.25, "threshold_neg": 0.25, "threshold_sigma": 0.03, "refractory": 5e-4,
+         "cutoff_hz": 300.0, "leak_rate": 0.1, "shot_noise_rate": 0.2},
+    ),
+    # iniVation DVXplorer: 9 um pixels, 4 mm lens; events only
+    "dvxplorer": SensorPreset(
+        640, 480, 444.0, False,
+        {"threshold_pos": 0.2, "threshold_neg": 0.2, "threshold_sigma": 0.03, "refractory": 2e-4,
+         "cutoff_hz": 500.0, "leak_rate": 0.05, "shot_noise_rate": 0.1},
+    ),
+    # Prophesee Gen4 (IMX636): 4.86 um pixels, 4 mm lens; events only
+    "gen4": SensorPreset(
+        1280, 720, 823.0, False,
+        {"threshold_pos": 0.2, "threshold_neg": 0.2, "threshold_sigma": 0.02, "refractory": 1e-4,
+         "cutoff_hz": 1000.0, "leak_rate": 0.02, "shot_noise_rate": 0.1},
+    ),
+}  # fmt: skip
+
+
+class EventCameraConfig(SensorConfig, CameraIntrinsics):
+    """``type: event_camera``. ``rate`` is the APS frame / camera_info rate (Hz).
+
+    Unset pixel parameters come from ``preset`` (``clean``: ideal ESIM pixel;
+    ``realistic``: the sensor's typical non-idealities); unset geometry from ``sensor``.
+    """
+
+    type: Literal["event_camera"] = "event_camera"
+    sensor: Literal["davis346", "dvxplorer", "gen4"] = "davis346"
+    preset: Literal["clean", "realistic"] = "realistic"
+    # pixel model overrides
+    threshold_pos: Positive | None = None
+    threshold_neg: Positive | None = None
+    threshold_sigma: NonNegative | None = None
+    refractory_period: NonNegative | None = None
+    """s."""
+    cutoff_hz: NonNegative | None = None
+    """Photoreceptor low-pass cutoff, Hz (0: off)."""
+    intensity_dependent_lowpass: bool | None = None
+    leak_rate: NonNegative | None = None
+    """Leak events per pixel, Hz."""
+    shot_noise_rate: NonNegative | None = None
+    """Shot-noise events per pixel, Hz."""
+    log_eps: Positive | None = None
+    # adaptive sampling
+    sampling: Literal["optical_flow", "brightness", "fixed"] = "optical_flow"
+    adaptive_lambda: Positive = 0.5
+    """px for optical_flow, log intensity for brightness."""
+    min_rate: Positive = 100.0
+    """Lowest render rate, Hz."""
+    max_rate: Positive = 2000.0
+    """Highest render rate, Hz (``fixed``: always this rate)."""
+    # outputs
+    packet_duration: Positive = 0.001
+    """s of events per EventArray."""
+    packet_events: Annotated[int, Field(gt=0)] | None = None
+    """Events per EventArray instead of a duration."""
+    aps: bool | None = None
+    """APS frames on ``<topic>/image_raw`` at ``rate`` (default: the sensor has them)."""
+    optic_flow: bool = False
+    depthmap: bool = False
+    ground_truth_rate: Positive | None = None
+    """Rate of optic_flow / depthmap, Hz (default ``rate``)."""
+    write_txt: bool = True
+    write_h5: bool = True
+
+    @model_validator(mode="after")
+    def _check(self) -> EventCameraConfig:
+        if self.min_rate > self.max_rate:
+            msg = f"min_rate = {self.min_rate} must be <= max_rate = {self.max_rate}"
+            raise ValueError(msg)
+        return self
+
+    # -------------------------------------------------------------- derived
+    @property
+    def preset_info(self) -> SensorPreset:
+        return SENSOR_PRESETS[self.sensor]
+
+    def camera_model(self) -> CameraModel:
+        """Intrinsics: the calibration file or inline keys; unset resolution / focal
+        length from the sensor preset (its typical lens; scaled with the resolution)."""
+        if self.calibration is not None:
+            return super().camera_model()
+        sp = self.preset_info
+        w, h = self.resolution or (sp.width, sp.height)
+        update: dict[str, Any] = {"resolution": (w, h)}
+        if self.fx is None and self.fy is None:
+            update["fx"] = update["fy"] = sp.focal_px * w / sp.width
+        filled = self.model_copy(update=update)
+        return CameraModel.from_config(filled, name=self.name, source=f"sensor {self.name!r}")
+
+    @property
+    def has_aps(self) -> bool:
+        return self.preset_info.aps if self.aps is None else self.aps
+
+    def model_params(self) -> EventModelParams:
+        base = EVENT_PRESETS[self.preset]
+        if self.preset == "realistic":
+            base = base.with_overrides(**self.preset_info.realistic)
+        return base.with_overrides(
+            threshold_pos=self.threshold_pos,
+            threshold_neg=self.threshold_neg,
+            threshold_sigma=self.threshold_sigma,
+            refractory=self.refractory_period,
+            cutoff_hz=self.cutoff_hz,
+            intensity_dependent=self.intensity_dependent_lowpass,
+            leak_rate=self.leak_rate,
+            shot_noise_rate=self.shot_noise_rate,
+            log_eps=self.log_eps,
+        )
+
+
+def luminance(color: F32) -> F32:
+    """Rec. 709 luminance (H, W) float32 of linear RGB (H, W, 3)."""
+    out: F32 = color @ np.array([0.2126, 0.7152, 0.0722], dtype=np.float32)
+    return out
+
+
+def _srgb8(lin: NDArray[np.floating]) -> NDArray[np.uint8]:
+    x = np.clip(np.asarray(lin, dtype=np.float32), 0.0, 1.0)
+    s = np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1 / 2.4) - 0.055)
+    return np.rint(s * 255.0).astype(np.uint8)
+
+
+class _Camera:
+    """The sensor geometry (:class:`CameraModel`) and how to render it.
+
+    A pinhole camera renders directly; a distorted one renders the virtual pinhole view
+    of :meth:`CameraModel.render_plan` and remaps it (bilinear for luminance, nearest
+    for depth). The flow of a distorted camera is the motion field of each output
+    pixel's ray pushed through the lens model (central differences of ``project``).
+    """
+
+    def __init__(self, model: CameraModel) -> None:
+        self.model = model
+        self.width, self.height = model.width, model.height
+        self.K = model.K
+        self.plan: RenderPlan | None = None
+        if model.is_pinhole:
+            self.rays = pixel_rays(self.K, self.width, self.height)
+        else:
+            u, v = np.meshgrid(
+                np.arange(self.width, dtype=np.float64), np.arange(self.height, dtype=np.float64)
+            )
+            xy = model.undistort_normalized(np.stack([u.ravel(), v.ravel()], axis=1))
+            self.rays = (
+                xy[:, 0].reshape(self.height, self.width),
+                xy[:, 1].reshape(self.height, self.width),
+            )
+
+    def render_plan(self, max_size: int | None) -> RenderPlan:
+        if self.plan is None:
+            self.plan = self.model.render_plan(max_size)
+        return self.plan
+
+    def remap(self, img: NDArray[Any], *, nearest: bool = False) -> NDArray[Any]:
+        plan = self.plan
+        if plan is None or plan.map1 is None or plan.map2 is None:
+            return img
+        import cv2
+
+        interp = cv2.INTER_NEAREST if nearest else cv2.INTER_LINEAR
+        out: NDArray[Any] = cv2.remap(
+            img, plan.map1, plan.map2, interp, borderMode=cv2.BORDER_REPLICATE
+        )
+        return out
+
+    def flow(self, depth: NDArray[np.floating], v: F64, w: F64) -> NDArray[np.float32]:
+        """(H, W, 2) float32 image motion of the output pixels, px/s."""
+        if self.model.is_pinhole:
+            return motion_field(depth, self.K, v, w, self.rays)
+        f = motion_field(depth, np.eye(3), v, w, self.rays).astype(np.float64)
+        h = 1e-4  # s: the lens is smooth at this scale
+        x, y = self.rays
+        ones = np.ones(x.size)
+        a = self.model.project(
+            np.stack([(x - h * f[..., 0]).ravel(), (y - h * f[..., 1]).ravel(), ones], 1)
+        )
+        b = self.model.project(
+            np.stack([(x + h * f[..., 0]).ravel(), (y + h * f[..., 1]).ravel(), ones], 1)
+        )
+        return ((b - a) / (2 * h)).reshape(self.height, self.width, 2).astype(np.float32)
+
+
+class EventCamera:
+    """The event camera sensor (see the module docstring)."""
+
+    def __init__(self, config: EventCameraConfig) -> None:
+        self.config = config
+        self.params = config.model_params()
+        self.camera = _Camera(config.camera_model())
+        self._writers: list[EventTextWriter | EventH5Writer] = []
+        self._images_fh: IO[str] | None = None
+        self.stats: dict[str, float] = {}
+
+    # -------------------------------------------------------------- interface
+    @property
+    def optical_frame(self) -> str:
+        return f"{self.config.frame}_optical"
+
+    def topics(self) -> list[TopicSpec]:
+        c, t = self.config, self.config.topic
+        out = [
+            TopicSpec(f"{t}/events", EVENT_ARRAY),
+            TopicSpec(f"{t}/camera_info", "sensor_msgs/msg/CameraInfo"),
+        ]
+        if c.has_aps:
+            out.append(TopicSpec(f"{t}/image_raw", "sensor_msgs/msg/Image"))
+        if c.optic_flow:
+            out.append(TopicSpec(f"{t}/optic_flow", "sensor_msgs/msg/Image"))
+        if c.depthmap:
+            out.append(TopicSpec(f"{t}/depthmap", "sensor_msgs/msg/Image"))
+        return out
+
+    def static_transforms(self) -> list[StaticTransform]:
+        T = np.eye(4)
+        T[:3, :3] = OPTICAL_FROM_BODY.T
+        return [StaticTransform(self.config.frame, self.optical_frame, T)]
+
+    @property
+    def T_body_cam(self) -> F64:
+        """(4, 4) pose of the optical frame in base_link."""
+        T = self.config.pose.matrix()
+        R = np.eye(4)
+        R[:3, :3] = OPTICAL_FROM_BODY.T
+        out: F64 = T @ R
+        return out
+
+    def _prefix(self, ctx: SimContext) -> str:
+        cams = [s.name for s in ctx.sensors if s.type == "event_camera"]
+        return "" if not cams or cams[0] == self.config.name else f"{self.config.name}/"
+
+    # -------------------------------------------------------------- rendering
+    def render(
+        self, ctx: SimContext, t_ns: int, *, need_depth: bool
+    ) -> tuple[F32, F32 | None, F64, F64]:
+        """Luminance (H, W), depth (H, W) or None, camera v and w (optical frame) at ``t_ns``."""
+        cam = self.camera
+        renderer = ctx.renderer()
+        plan = cam.render_plan(getattr(renderer, "max_size", None))
+        T_wc, v, w = camera_twist(ctx.trajectory, t_ns, self.T_body_cam)
+        res = renderer.render(T_wc, plan.K, plan.width, plan.height, color=True, depth=need_depth)
+        lum = cam.remap(luminance(res.color))
+        depth = None if res.depth is None else cam.remap(res.depth, nearest=True)
+        return lum, depth, v, w
+
+    # -------------------------------------------------------------- stream
+    def messages(self, ctx: SimContext) -> Iterator[Message]:
+        c = self.config
+        cam = self.camera
+        W, H = cam.width, cam.height
+        end = int(ctx.trajectory.duration_ns)
+        info_times = sample_times_ns(c.rate, end)
+        gt_rate = c.ground_truth_rate or c.rate
+        gt_times = (
+            sample_times_ns(gt_rate, end) if (c.optic_flow or c.depthmap) else np.zeros(0, np.int64)
+        )
+        forced = np.union1d(info_times, gt_times)
+        sampler = AdaptiveSampler(
+            c.sampling, c.adaptive_lambda, c.min_rate, c.max_rate, end, forced
+        )
+        gen = EventGenerator(W, H, self.params, ctx.rng(f"{c.name}/pixels"))
+        prefix = self._prefix(ctx)
+        stem = "events" if not prefix else f"{prefix}events"
+        if c.write_txt:
+            self._writers.append(EventTextWriter(ctx.path(f"{stem}.txt")))
+        if c.write_h5:
+            self._writers.append(EventH5Writer(ctx.path(f"{stem}.h5"), W, H))
+        if c.has_aps:
+            self._images_fh = ctx.path(f"{c.name}/images.txt").open(
+                "w", encoding="utf-8", newline="\n"
+            )
+        need_depth = c.sampling == "optical_flow" or c.optic_flow or c.depthmap
+        info_set = set(info_times.tolist())
+        gt_set = set(gt_times.tolist())
+        pending: list[tuple[int, int, Message]] = []
+        counter = itertools.count()
+        buf: list[EventBatch] = []
+        packets = _Packetizer(self, ctx)
+        n_frames = n_events = 0
+        image_index = 0
+        t = 0
+        prev_L: F64 | None = None
+        t_prev = 0
+        while True:
+            lum, depth, v, w = self.render(ctx, t, need_depth=need_depth)
+            n_frames += 1
+            batch = gen.update(lum, t)
+            if batch.size:
+                n_events += batch.size
+                for wr in self._writers:
+                    wr.write(batch)
+                buf.append(batch)
+            flow = None
+            if depth is not None and (
+                c.sampling == "optical_flow" or (c.optic_flow and t in gt_set)
+            ):
+                flow = cam.flow(depth, v, w)
+            # messages of this instant
+            out: list[Message] = []
+            if t in info_set:
+                out.append(self._camera_info_msg(ctx, t))
+                if c.has_aps:
+                    out.append(self._image_msg(ctx, t, _srgb8(lum), "mono8", 1))
+                    self._write_image(ctx, t, lum, image_index)
+                    image_index += 1
+            if t in gt_set:
+                if c.optic_flow and flow is not None:
+                    out.append(self._image_msg(ctx, t, flow, "32FC2", 8))
+                if c.depthmap and depth is not None:
+                    d = np.where(np.isfinite(depth), depth, np.float32(np.nan)).astype(np.float32)
+                    out.append(self._image_msg(ctx, t, d, "32FC1", 4))
+            buf, ready = packets.split(buf, t, final=False)
+            for m in (*ready, *out):
+                heapq.heappush(pending, (m.t_ns, next(counter), m))
+            horizon = t if not buf else min(t, int(buf[0].t[0]))
+            while pending and pending[0][0] <= horizon:
+                yield heapq.heappop(pending)[2]
+            # next instant: ESIM's lambda / max rate of change
+            if c.sampling == "optical_flow":
+                rate = (
+                    float(np.max(np.hypot(flow[..., 0], flow[..., 1]))) if flow is not None else 0.0
+                )
+            elif c.sampling == "brightness":
+                L = gen.lp.copy()
+                if prev_L is None:
+                    rate = float("inf")  # no estimate yet: smallest step
+                else:
+                    rate = float(np.max(np.abs(L - prev_L))) / ((t - t_prev) * 1e-9)
+                prev_L, t_prev = L, t
+            else:
+                rate = 0.0
+            nxt = sampler.next_ns(t, rate)
+            if nxt is None:
+                break
+            t = nxt
+        buf, ready = packets.split(buf, t, final=True)
+        for m in ready:
+            heapq.heappush(pending, (m.t_ns, next(counter), m))
+        while pending:
+            yield heapq.heappop(pending)[2]
+        self.stats = {
+            "frames": n_frames,
+            "events": n_events,
+            "dropped": gen.n_dropped,
+            "duration_s": end * 1e-9,
+        }
+
+    # -------------------------------------------------------------- messages
+    def _header(self, store: MessageStore, ctx: SimContext, t_ns: int) -> Any:
+        return store.header(ctx.stamp(t_ns), self.optical_frame)
+
+    def _camera_info_msg(self, ctx: SimContext, t_ns: int) -> Message:
+        cam = self.camera
+        model = cam.model
+        dm = model.ros_distortion_model()
+        D = model.ros_D()
+        K = cam.K
+        P = model.projection_matrix()
+
+        def build(store: MessageStore) -> Any:
+            arrays = {
+                "d": np.asarray(D, dtype=np.float64),
+                "k": K.ravel().astype(np.float64),
+                "r": np.eye(3).ravel(),
+                "p": P.ravel(),
+            }
+            if store.is_ros1:
+                arrays = {k.upper(): v for k, v in arrays.items()}
+            roi = store.new(
+                "sensor_msgs/msg/RegionOfInterest",
+                x_offset=0,
+                y_offset=0,
+                height=0,
+                width=0,
+                do_rectify=False,
+            )
+            return store.new(
+                "sensor_msgs/msg/CameraInfo",
+                header=self._header(store, ctx, t_ns),
+                height=cam.height,
+                width=cam.width,
+                distortion_model=dm,
+                binning_x=0,
+                binning_y=0,
+                roi=roi,
+                **arrays,
+            )
+
+        return Message(
+            t_ns, f"{self.config.topic}/camera_info", "sensor_msgs/msg/CameraInfo", build
+        )
+
+    def _image_msg(
+        self, ctx: SimContext, t_ns: int, data: NDArray[Any], encoding: str, bpp: int
+    ) -> Message:
+        topic = {"mono8": "image_raw", "32FC2": "optic_flow", "32FC1": "depthmap"}[encoding]
+        H, W = data.shape[:2]
+        raw = np.ascontiguousarray(data).view(np.uint8).ravel()
+
+        def build(store: MessageStore) -> Any:
+            return store.new(
+                "sensor_msgs/msg/Image",
+                header=self._header(store, ctx, t_ns),
+                height=H,
+                width=W,
+                encoding=encoding,
+                is_bigendian=0,
+                step=W * bpp,
+                data=raw,
+            )
+
+        return Message(t_ns, f"{self.config.topic}/{topic}", "sensor_msgs/msg/Image", build)
+
+    def _write_image(self, ctx: SimContext, t_ns: int, lum: F32, index: int) -> None:
+        import cv2
+
+        rel = f"images/{index:08d}.png"
+        cv2.imwrite(str(ctx.path(f"{self.config.name}/{rel}")), _srgb8(lum))
+        assert self._images_fh is not None
+        s, ns = divmod(int(t_ns), 1_000_000_000)
+        self._images_fh.write(f"{s}.{ns:09d} {rel}\n")
+
+    def close(self, ctx: SimContext) -> None:
+        write_calibration_files(ctx, self.config)
+        for wr in self._writers:
+            wr.close()
+        self._writers = []
+        if self._images_fh is not None and not self._images_fh.closed:
+            self._images_fh.close()
+
+
+class _Packetizer:
+    """Cuts the event stream into EventArray messages (by duration or by count)."""
+
+    def __init__(self, sensor: EventCamera, ctx: SimContext) -> None:
+        self.sensor = sensor
+        self.ctx = ctx
+        c = sensor.config
+        self.d_ns = max(1, round(c.packet_duration * 1e9))
+        self.count = c.packet_events
+        self.seq = 0
+
+    def split(
+        self, buf: list[EventBatch], t_ns: int, *, final: bool
+    ) -> tuple[list[EventBatch], list[Message]]:
+        """Messages for every complete packet (all of them when ``final``) and the rest."""
+        if not buf:
+            return buf, []
+        ev = EventBatch.concatenate(buf)
+        cuts: list[int]
+        if self.count is not None:
+            n_full = ev.size // self.count
+            cuts = [i * self.count for i in range(n_full + 1)]
+            if final and ev.size > cuts[-1]:
+                cuts.append(ev.size)
+        else:
+            # packet j = [j d, (j+1) d) is complete once the frame time reaches its end
+            limit = (
+                ev.size
+                if final
+                else int(np.searchsorted(ev.t, (t_ns // self.d_ns) * self.d_ns, side="left"))
+            )
+            if limit == 0:
+                return [ev], []
+            j = ev.t[:limit] // self.d_ns
+            cuts = [0, *(np.flatnonzero(np.diff(j)) + 1).tolist(), limit]
+        msgs = [self._message(ev.slice(a, b)) for a, b in itertools.pairwise(cuts) if b > a]
+        rest = ev.slice(cuts[-1], ev.size)
+        return ([rest] if rest.size else []), msgs
+
+    def _message(self, ev: EventBatch) -> Message:
+        s = self.sensor
+        ctx = self.ctx
+        t_last = int(ev.t[-1])
+        seq = self.seq
+        self.seq += 1
+        cam = s.camera
+        frame = s.optical_frame
+        t_abs = ev.t + ctx.start_time_ns
+        stamp = ctx.stamp(t_last)
+
+        def build(store: MessageStore) -> bytes:
+            return pack_event_array(
+                store.flavor, stamp, frame, cam.height, cam.width, t_abs, ev.x, ev.y, ev.p, seq
+            )
+
+        return Message(t_last, f"{s.config.topic}/events", EVENT_ARRAY, build)

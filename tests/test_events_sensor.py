@@ -1,0 +1,321 @@
+"""Event camera sensor: rendered edge timing, streaming files, ROS packing and bags."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from roslan.events import (
+    AdaptiveSampler,
+    EventBatch,
+    EventGenerator,
+    EventModelParams,
+    motion_field,
+)
+from roslan.events.files import format_events_txt
+from roslan.events.ros import EVENT_ARRAY, pack_event_array
+from roslan.io.messages import Flavor, MessageStore
+from roslan.io.text import format_columns
+from roslan.scene.mesh import box, place, plane, pose_matrix
+from roslan.scene.model import Material, Scene
+from roslan.trajectory import Trajectory, TrajectoryConfig
+
+
+def _edge_scene() -> Scene:
+    tex = np.full((64, 1024, 3), 40, np.uint8)
+    tex[:, 512:] = 220  # bright for world x > 0
+    mat = Material(color=(1.0, 1.0, 1.0), texture=tex, texture_scale=1.0 / 20.0, name="edge")
+    return Scene("edge", (place("floor", plane((20.0, 20.0)), mat, pose_matrix((0.0, 0.0, 0.0))),))
+
+
+def test_moving_edge_event_times_per_column() -> None:
+    gl = pytest.importorskip("roslan.render.gl")
+    renderer = gl.get_renderer(_edge_scene())
+    W, H, f, Z, v = 64, 12, 40.0, 2.0, 2.0
+    K = np.array([[f, 0, (W - 1) / 2], [0, f, (H - 1) / 2], [0, 0, 1.0]])
+    x0 = ((W - 1) / 2 - 70) * Z / f  # camera x at t = 0: the edge (world x = 0) at u = 70
+
+    def pose(t_ns: int) -> np.ndarray:
+        T = np.eye(4)
+        T[:3, :3] = np.array([[1.0, 0, 0], [0, -1.0, 0], [0, 0, -1.0]])  # looking down
+        T[:3, 3] = (x0 + v * t_ns * 1e-9, 0.0, Z)
+        return T
+
+    end = round((76 * Z / f / v) * 1e9)
+    sampler = AdaptiveSampler("optical_flow", 0.5, min_rate=10, max_rate=1000, end_ns=end)
+    gen = EventGenerator(
+        W, H, EventModelParams(threshold_pos=0.2, threshold_neg=0.2), np.random.default_rng(0)
+    )
+    v_cam = np.array([v, 0.0, 0.0])  # world +x = optical +x
+    t: int | None = 0
+    batches, steps = [], []
+    while t is not None:
+        res = renderer.render(pose(t), K, W, H)
+        lum = res.color @ np.array([0.2126, 0.7152, 0.0722], np.float32)
+        batches.append(gen.update(lum, t))
+        flow = motion_field(res.depth, K, v_cam, np.zeros(3))
+        np.testing.assert_allclose(flow[..., 0], -f * v / Z, rtol=1e-4)  # exact flow from depth
+        nxt = sampler.next_ns(t, float(np.abs(flow).max()))
+        if nxt is not None:
+            steps.append(nxt - t)
+        t = nxt
+    ev = EventBatch.concatenate(batches)
+    dt = max(steps)
+    assert dt == pytest.approx(0.5 / (f * v / Z) * 1e9, rel=1e-3)
+    row = ev.y == H // 2
+    px_time = 1e9 / (f * v / Z)
+    for u in range(2, W - 2):
+        sel = row & (ev.x == u)
+        assert sel.sum() >= 10
+        assert np.all(ev.p[sel] == 1)  # dark -> bright
+        t_cross = ((W - 1) / 2 - u) * Z / f - x0
+        t_cross_ns = t_cross / v * 1e9
+        median = float(np.median(ev.t[sel]))
+        assert abs(median - t_cross_ns) <= dt + px_time, u
+
+
+@pytest.mark.parametrize("flavor", list(Flavor))
+@pytest.mark.parametrize(
+    ("n", "frame_id"), [(0, "dvs"), (1, "dv"), (2, "dvs_optical"), (7, "a"), (9, "abcd")]
+)
+def test_event_array_bytes_match_rosbags(flavor: Flavor, n: int, frame_id: str) -> None:
+    store = MessageStore(flavor)
+    rng = np.random.default_rng(n)
+    t = np.sort(rng.integers(1_700_000_000 * 10**9, 1_700_000_010 * 10**9, n))
+    x, y, p = rng.integers(0, 1280, n), rng.integers(0, 720, n), rng.integers(0, 2, n)
+    E = store.types["dvs_msgs/msg/Event"]
+    events = [
+        E(x=int(x[i]), y=int(y[i]), ts=store.time(int(t[i])), polarity=bool(p[i])) for i in range(n)
+    ]
+    header = (
+        store.header(1_700_000_000_123_456_789, frame_id, seq=3)
+        if store.is_ros1
+        else store.header(1_700_000_000_123_456_789, frame_id)
+    )
+    msg = store.new(EVENT_ARRAY, header=header, height=720, width=1280, events=events)
+    want = store.serialize(msg, EVENT_ARRAY)
+    got = pack_event_array(
+        flavor, 1_700_000_000_123_456_789, frame_id, 720, 1280, t, x, y, p, seq=3
+    )
+    assert got == want
+    back = (
+        store.typestore.deserialize_ros1(got, EVENT_ARRAY)
+        if store.is_ros1
+        else store.typestore.deserialize_cdr(got, EVENT_ARRAY)
+    )
+    assert [e.x for e in back.events] == x.tolist()
+
+
+def test_event_msgdefs_match_rpg_dvs_ros() -> None:
+    store = MessageStore(Flavor.ROS1)
+    _text, md5 = store.typestore.generate_msgdef(EVENT_ARRAY)
+    # the md5sum rosbag computes for rpg_dvs_ros dvs_msgs/EventArray (from its field list)
+    import hashlib
+
+    ev = hashlib.md5(b"uint16 x\nuint16 y\ntime ts\nbool polarity").hexdigest()
+    hdr = hashlib.md5(b"uint32 seq\ntime stamp\nstring frame_id").hexdigest()
+    # genmsg rule: a complex field (array or not) becomes "<md5 of its type> <name>"
+    want = hashlib.md5(
+        f"{hdr} header\nuint32 height\nuint32 width\n{ev} events".encode()
+    ).hexdigest()
+    assert md5 == want
+
+
+def test_txt_formatter_matches_shared_text_helper() -> None:
+    rng = np.random.default_rng(0)
+    n = 5000
+    t = np.sort(rng.integers(0, 200 * 10**9, n)).astype(np.int64)
+    t[:3] = [0, 1, 999_999_999]
+    x, y, p = (
+        rng.integers(0, 1280, n),
+        rng.integers(0, 720, n),
+        rng.integers(0, 2, n).astype(np.int8),
+    )
+    x[0], y[0] = 0, 10000
+    got = format_events_txt(t, x, y, p).decode()
+    want = format_columns(t, x, y, p, fmt="%d")
+    assert got == want
+
+
+# ------------------------------------------------------------------ end to end
+def _scene() -> Scene:
+    from roslan.scene.textures import checker
+
+    floor = place(
+        "floor", plane((10.0, 10.0)), Material(texture=checker(1, 128, 8), texture_scale=0.5)
+    )
+    crate = place(
+        "crate", box((0.6, 0.6, 0.6)), Material(color=(0.8, 0.3, 0.2)), pose_matrix((0.8, 0.5, 0.3))
+    )
+    return Scene("test", (floor, crate))
+
+
+def _run(tmp: Path, seed: int, **over: Any) -> tuple[Any, list[Any]]:
+    from roslan.pipeline.context import Context
+    from roslan.sensors.event_camera import EventCamera, EventCameraConfig
+
+    traj = Trajectory(
+        TrajectoryConfig(
+            initial={"position": (-1.2, 0.3, 0.6), "rpy": (0, 0, 0), "descent_rate": 1.5}
+        ),
+        warn=False,
+    )
+    cfg = EventCameraConfig.model_validate(
+        {
+            "type": "event_camera",
+            "name": "dvs",
+            "rate": 25,
+            "topic": "/dvs",
+            "resolution": (40, 30),
+            "pose": {"rpy": (0.0, 0.5, 0.0)},
+            "max_rate": 300,
+            "min_rate": 50,
+            **over,
+        }
+    )
+    ctx = Context(
+        traj, tmp, seed=seed, sensors=[cfg], scene=_scene(), start_time_ns=1_700_000_000_000_000_000
+    )
+    sensor = EventCamera(cfg)
+    msgs = list(sensor.messages(ctx))
+    sensor.close(ctx)
+    return sensor, msgs
+
+
+def _write_bags(tmp: Path, sensor: Any, msgs: list[Any]) -> dict[str, Path]:
+    from rosbags.rosbag1 import Writer as Writer1
+    from rosbags.rosbag2 import StoragePlugin
+    from rosbags.rosbag2 import Writer as Writer2
+
+    start = 1_700_000_000_000_000_000
+    out = {}
+    for flavor in Flavor:
+        store = MessageStore(flavor)
+        path = tmp / ("bag.bag" if flavor is Flavor.ROS1 else "bag2")
+        writer: Any = (
+            Writer1(path)
+            if flavor is Flavor.ROS1
+            else Writer2(path, version=8, storage_plugin=StoragePlugin.MCAP)
+        )
+        with writer:
+            conns = {
+                spec.topic: writer.add_connection(
+                    spec.topic, spec.msgtype, typestore=store.typestore
+                )
+                for spec in sensor.topics()
+            }
+            for m in msgs:
+                data = m.build(store)
+                if not isinstance(data, bytes):
+                    data = store.serialize(data, m.msgtype)
+                writer.write(conns[m.topic], start + m.t_ns, data)
+        out[flavor.value] = path
+    return out
+
+
+@pytest.fixture(scope="module")
+def run_dir(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Any, list[Any]]:
+    pytest.importorskip("roslan.render.gl")
+    tmp = tmp_path_factory.mktemp("evrun")
+    sensor, msgs = _run(tmp, 3, optic_flow=True, depthmap=True)
+    return tmp, sensor, msgs
+
+
+def test_stream_is_ordered_and_complete(run_dir: tuple[Path, Any, list[Any]]) -> None:
+    tmp, sensor, msgs = run_dir
+    stamps = [m.t_ns for m in msgs]
+    assert stamps == sorted(stamps)
+    topics = {m.topic for m in msgs}
+    assert topics == {
+        "/dvs/events",
+        "/dvs/camera_info",
+        "/dvs/image_raw",
+        "/dvs/optic_flow",
+        "/dvs/depthmap",
+    }
+    assert sensor.stats["events"] > 1000
+    assert (tmp / "dvs" / "images.txt").read_text().count("\n") == sum(
+        m.topic == "/dvs/image_raw" for m in msgs
+    )
+    assert (tmp / "calib" / "dvs.yaml").is_file()
+
+
+def test_txt_h5_and_bags_agree(run_dir: tuple[Path, Any, list[Any]]) -> None:
+    import h5py
+    from rosbags.highlevel import AnyReader
+
+    tmp, sensor, msgs = run_dir
+    txt = np.loadtxt(tmp / "events.txt", dtype=np.float64, ndmin=2)
+    with open(tmp / "events.txt") as fh:
+        t_txt = np.array([int(line.split()[0].replace(".", "")) for line in fh], dtype=np.int64)
+    with h5py.File(tmp / "events.h5", "r") as f:
+        g = f["events"]
+        t, x, y, p = g["t"][:], g["x"][:], g["y"][:], g["p"][:]
+        assert g["t"].dtype == np.int64
+        assert g["x"].dtype == np.uint16
+        assert g["p"].dtype == np.int8
+        assert g["t"].compression == "gzip"
+        assert g["t"].chunks is not None
+        assert f.attrs["width"] == 40
+        assert f.attrs["height"] == 30
+    assert t.size == sensor.stats["events"] == txt.shape[0]
+    np.testing.assert_array_equal(t_txt, t)
+    np.testing.assert_array_equal(txt[:, 1:].astype(np.int64), np.stack([x, y, p], 1))
+    assert np.all(np.diff(t) >= 0)
+    assert set(np.unique(p).tolist()) <= {0, 1}
+    bags = _write_bags(tmp, sensor, msgs)
+    start = 1_700_000_000_000_000_000
+    for path in bags.values():
+        with AnyReader([path]) as reader:
+            conns = [c for c in reader.connections if c.topic == "/dvs/events"]
+            assert conns[0].msgtype == EVENT_ARRAY
+            bt, bx, by, bp = [], [], [], []
+            for conn, stamp, raw in reader.messages(connections=conns):
+                m = reader.deserialize(raw, conn.msgtype)
+                assert m.width == 40
+                assert m.height == 30
+                assert m.header.frame_id == "dvs_optical"
+                ts = [e.ts.sec * 10**9 + e.ts.nanosec for e in m.events]
+                assert stamp == ts[-1] == m.header.stamp.sec * 10**9 + m.header.stamp.nanosec
+                bt += ts
+                bx += [e.x for e in m.events]
+                by += [e.y for e in m.events]
+                bp += [int(e.polarity) for e in m.events]
+            np.testing.assert_array_equal(np.array(bt) - start, t)
+            np.testing.assert_array_equal(bx, x)
+            np.testing.assert_array_equal(by, y)
+            np.testing.assert_array_equal(bp, p)
+            # packets are 1 ms: no packet spans two milliseconds
+            info = [c for c in reader.connections if c.topic == "/dvs/camera_info"]
+            for conn, _, raw in reader.messages(connections=info):
+                ci = reader.deserialize(raw, conn.msgtype)
+                assert ci.width == 40
+                break
+
+
+def test_same_seed_same_bytes(tmp_path: Path, run_dir: tuple[Path, Any, list[Any]]) -> None:
+    tmp, _sensor, msgs = run_dir
+    _other, msgs2 = _run(tmp_path, 3, optic_flow=True, depthmap=True)
+    assert (tmp_path / "events.txt").read_bytes() == (tmp / "events.txt").read_bytes()
+    assert (tmp_path / "events.h5").read_bytes() == (tmp / "events.h5").read_bytes()
+    store = MessageStore(Flavor.ROS2)
+    a = [m.build(store) for m in msgs if m.topic == "/dvs/events"]
+    b = [m.build(store) for m in msgs2 if m.topic == "/dvs/events"]
+    assert a == b
+
+
+def test_packets_by_event_count(tmp_path: Path) -> None:
+    pytest.importorskip("roslan.render.gl")
+    _, msgs = _run(tmp_path, 0, packet_events=100, preset="clean", write_h5=False)
+    store = MessageStore(Flavor.ROS1)
+    sizes = [
+        len(store.typestore.deserialize_ros1(m.build(store), EVENT_ARRAY).events)
+        for m in msgs
+        if m.topic == "/dvs/events"
+    ]
+    assert all(s == 100 for s in sizes[:-1])
+    assert 0 < sizes[-1] <= 100
+    assert not (tmp_path / "events.h5").exists()
