@@ -82,16 +82,17 @@ def plot_trajectory(traj: Trajectory, table: State, path: Path) -> None:
     grid = fig.add_gridspec(3, 4, width_ratios=[1.0, 1.0, 0.8, 0.8])
     ax3 = fig.add_subplot(grid[:, :2], projection="3d")
     p = dense.gaps[:, :3]
-    ax3.plot(p[:, 0], p[:, 1], p[:, 2], color="0.3", lw=1.2, label="path")
+    ax3.plot(p[:, 0], p[:, 1], p[:, 2], color="0.55", lw=0.8, ls="--", label="path")
     landing = table.t <= traj.T
     q = table.gaps[landing, :3]
     v = table.rates[landing, :3]
     span = float(np.ptp(p, axis=0).max()) or 1.0
     vmax = float(np.linalg.norm(v, axis=1).max()) or 1.0
+    # arrows: at each table row, the velocity (length proportional to speed)
     ax3.quiver(
         q[:, 0], q[:, 1], q[:, 2], v[:, 0], v[:, 1], v[:, 2],
-        length=0.15 * span / vmax, normalize=False, color="tab:blue", lw=0.8,
-        label="velocity",
+        length=0.12 * span / vmax, normalize=False, color="tab:blue", lw=1.0,
+        arrow_length_ratio=0.25, label=f"velocity (max {vmax:.2f} m/s)",
     )  # fmt: skip
     ax3.scatter([p[0, 0]], [p[0, 1]], [p[0, 2]], color="tab:green", s=25, label="start")
     ax3.scatter([0.0], [0.0], [0.0], color="tab:red", marker="x", s=40, label="goal")
