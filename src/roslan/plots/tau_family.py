@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 
-from roslan.errors import ConfigError
+from roslan.errors import ConfigError, OutputError
 from roslan.io.files import atomic_write
 from roslan.trajectory.tau import classify, gap
 
@@ -69,7 +69,7 @@ def _run(args: argparse.Namespace) -> int:
     out = Path(args.output)
     if not out.parent.is_dir():
         msg = f"{out}: folder {out.parent} does not exist"
-        raise ConfigError(msg)
+        raise OutputError(msg)
     plot_tau_family(list(args.k), out)
     print(f"wrote {out}")
     return 0
