@@ -94,5 +94,5 @@ def test_interpolated_poses_match_exact_state_on_a_flapping_landing() -> None:
         R_ws = st.R_world_body @ T_bs[:3, :3]
         o_ref = st.position + st.R_world_body @ T_bs[:3, 3]
         d_ref = np.einsum("nij,nj->ni", R_ws, lid.directions.reshape(-1, 3))
-        np.testing.assert_allclose(o.reshape(-1, 3), o_ref, atol=1e-9)
+        np.testing.assert_allclose(o.reshape(-1, 3), o_ref, atol=1.5e-6)  # float32, as Embree
         np.testing.assert_allclose(d.reshape(-1, 3), d_ref, atol=5e-7)  # float32 directions

@@ -108,3 +108,19 @@ def test_shape_mismatch_is_an_error() -> None:
     rc = get_raycaster(scene(plane()))
     with pytest.raises(RenderError, match="origins"):
         rc.cast(np.zeros((3, 3)), np.zeros((2, 3)))
+
+
+def test_cast_incidence_matches_cast() -> None:
+    sc = scene(plane(refl=0.3), box((1, -1, 0), (2, 1, 1), refl=0.8))
+    rng = np.random.default_rng(5)
+    o = np.tile([0.0, 0.0, 0.5], (5000, 1))
+    d = _unit(rng.normal(size=(5000, 3)))
+    rc = get_raycaster(sc)
+    hits = rc.cast(o, d, 30.0)
+    dist, echo = rc.cast_incidence(o, d, 30.0)
+    np.testing.assert_array_equal(dist, hits.distance)
+    np.testing.assert_allclose(echo, hits.reflectivity * hits.cos_incidence(d), rtol=1e-6)
+    assert set(np.round(hits.reflectivity[hits.hit], 6).tolist()) == {0.3, 0.8}
+    empty = get_raycaster(scene()).cast_incidence(o, d)
+    assert np.isinf(empty[0]).all()
+    assert (empty[1] == 0).all()

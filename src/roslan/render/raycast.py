@@ -148,6 +148,32 @@ class RayCaster:
         res = self._embree.run(o, d, dists=tfar, output=1)
         return res["tfar"], res["primID"]
 
+    def _trace(
+        self, origins: ArrayLike, directions: ArrayLike, max_range: float | ArrayLike
+    ) -> tuple[NDArray[np.float32], NDArray[np.float32], NDArray[np.float32], NDArray[np.int32]]:
+        """float32 contiguous (o, d), raw tfar and primID (-1 for a miss)."""
+        o = np.ascontiguousarray(np.asarray(origins, dtype=np.float32).reshape(-1, 3))
+        d = np.ascontiguousarray(np.asarray(directions, dtype=np.float32).reshape(-1, 3))
+        if o.shape != d.shape:
+            msg = f"origins {o.shape} and directions {d.shape} must both be (N, 3)"
+            raise RenderError(msg)
+        n = o.shape[0]
+        mr = np.asarray(max_range, dtype=np.float64)
+        tfar = np.empty(n, np.float32)
+        tfar[:] = np.minimum(np.where(np.isfinite(mr), mr, 1e37), 1e37)
+        if n == 0 or self._embree is None:
+            return o, d, np.full(n, np.inf, np.float32), np.full(n, -1, np.int32)
+        if self.threads > 1 and n >= PARALLEL_MIN_RAYS:
+            n_chunks = max(self.threads, -(-n // _CHUNK_RAYS))
+            bounds = np.linspace(0, n, n_chunks + 1).astype(np.int64)
+            sl = [slice(int(a), int(b)) for a, b in itertools.pairwise(bounds)]
+            parts = list(_pool(self.threads).map(lambda s: self._run(o[s], d[s], tfar[s]), sl))
+            dist = np.concatenate([p[0] for p in parts])
+            tri = np.concatenate([p[1] for p in parts])
+        else:
+            dist, tri = self._run(o, d, tfar)
+        return o, d, dist, tri.astype(np.int32, copy=False)
+
     def cast(
         self,
         origins: ArrayLike,
@@ -165,34 +191,12 @@ class RayCaster:
         Returns:
             :class:`Hits` (float32/int32 arrays of length N).
         """
-        o = np.ascontiguousarray(np.asarray(origins, dtype=np.float32).reshape(-1, 3))
-        d = np.ascontiguousarray(np.asarray(directions, dtype=np.float32).reshape(-1, 3))
-        if o.shape != d.shape:
-            msg = f"origins {o.shape} and directions {d.shape} must both be (N, 3)"
-            raise RenderError(msg)
-        n = o.shape[0]
-        mr = np.asarray(max_range, dtype=np.float64)
-        tfar = np.empty(n, np.float32)
-        tfar[:] = np.minimum(np.where(np.isfinite(mr), mr, 1e37), 1e37)
-        if n == 0 or self._embree is None:
-            return Hits(
-                np.full(n, np.inf, np.float32),
-                np.full(n, -1, np.int32),
-                np.zeros((n, 3), np.float32),
-                np.zeros(n, np.float32),
-            )
-        if self.threads > 1 and n >= PARALLEL_MIN_RAYS:
-            n_chunks = max(self.threads, -(-n // _CHUNK_RAYS))
-            bounds = np.linspace(0, n, n_chunks + 1).astype(np.int64)
-            sl = [slice(int(a), int(b)) for a, b in itertools.pairwise(bounds)]
-            parts = list(_pool(self.threads).map(lambda s: self._run(o[s], d[s], tfar[s]), sl))
-            dist = np.concatenate([p[0] for p in parts])
-            tri = np.concatenate([p[1] for p in parts])
-        else:
-            dist, tri = self._run(o, d, tfar)
+        _o, d, dist, tri = self._trace(origins, directions, max_range)
+        n = tri.shape[0]
+        if self.n_triangles == 0:
+            return Hits(dist, tri, np.zeros((n, 3), np.float32), np.zeros(n, np.float32))
         hit = tri >= 0
         dist = np.where(hit, dist, np.float32(np.inf)).astype(np.float32, copy=False)
-        tri = tri.astype(np.int32, copy=False)
         idx = np.where(hit, tri, 0)
         normal = self._normals[idx]
         # face the ray: the sign of a triangle's winding must not matter to a beam
@@ -201,6 +205,25 @@ class RayCaster:
         normal[~hit] = 0.0
         refl = np.where(hit, self._reflectivity[idx], np.float32(0.0)).astype(np.float32)
         return Hits(dist, tri, normal, refl)
+
+    def cast_incidence(
+        self,
+        origins: ArrayLike,
+        directions: ArrayLike,
+        max_range: float | ArrayLike = np.inf,
+    ) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
+        """What a LiDAR needs, without the (N, 3) normals: ``distance`` (N,) float32 as in
+        :meth:`cast` and ``reflectivity * cos(incidence)`` (N,) float32 (0 for misses)."""
+        _o, d, dist, tri = self._trace(origins, directions, max_range)
+        if self.n_triangles == 0:
+            return dist, np.zeros(tri.shape[0], np.float32)
+        hit = tri >= 0
+        idx = np.where(hit, tri, 0)
+        n = self._normals[idx]
+        cos = np.abs(n[:, 0] * d[:, 0] + n[:, 1] * d[:, 1] + n[:, 2] * d[:, 2])
+        echo = np.where(hit, self._reflectivity[idx] * cos, np.float32(0.0)).astype(np.float32)
+        dist = np.where(hit, dist, np.float32(np.inf)).astype(np.float32, copy=False)
+        return dist, echo
 
 
 _CACHE: weakref.WeakKeyDictionary[Scene, RayCaster] = weakref.WeakKeyDictionary()
