@@ -16,8 +16,11 @@ from __future__ import annotations
 
 import argparse
 import itertools
+import os
 import time
 from concurrent.futures import ThreadPoolExecutor
+from functools import partial
+from typing import Any
 
 import numpy as np
 
@@ -28,6 +31,10 @@ from roslan.scene import load_scene
 from roslan.sensors.beams import measure, pointcloud2, rays_in_world
 from roslan.sensors.lidar import Lidar, LidarConfig
 from roslan.trajectory import Trajectory, TrajectoryConfig
+
+
+def _bare(emb: Any, o: np.ndarray, d: np.ndarray, tfar: float, q: slice) -> Any:
+    return emb.run(o[q], d[q], dists=np.float32(tfar), output=1)
 
 
 def _median_ms(samples: list[float]) -> float:
@@ -55,7 +62,16 @@ def main() -> None:
     n_rays = s.azimuth_steps * s.n_lasers
     starts = np.linspace(0.0, traj.T - 0.1, args.repeat)
 
-    whole, poses, cast, model, pack, points = [], [], [], [], [], []
+    emb = caster._embree
+    n_chunks = max(caster.threads, -(-n_rays // 8192))
+    bounds = np.linspace(0, n_rays, n_chunks + 1).astype(int)
+    slices = [slice(int(a), int(b)) for a, b in itertools.pairwise(bounds)]
+    pool = ThreadPoolExecutor(caster.threads)
+
+    # Interleaved: each iteration times the whole turn, its parts, and bare Embree on the
+    # very same rays, so CPU load from other processes hits all of them alike.
+    whole, poses, meas, pack, bare, ratio, points = [], [], [], [], [], [], []
+    o32 = d32 = np.zeros((0, 3), np.float32)
     for t0 in starts:
         t0_ns = round(t0 * 1e9)
         a = time.perf_counter()
@@ -65,60 +81,48 @@ def main() -> None:
         whole.append(time.perf_counter() - a)
         points.append(pts.shape[0])
         assert len(raw) > 22 * pts.shape[0]
-        # parts
         a = time.perf_counter()
         tk = t0 + np.arange(s.azimuth_steps) * s.column_period
         o, d = rays_in_world(traj, lid.T_body_sensor, tk, lid.frac, lid.directions)
-        o, d = o.reshape(-1, 3), d.reshape(-1, 3)
+        o32 = np.ascontiguousarray(o.reshape(-1, 3), dtype=np.float32)
+        d32 = np.ascontiguousarray(d.reshape(-1, 3), dtype=np.float32)
         b = time.perf_counter()
-        caster.cast(o, d, s.max_range)
-        c = time.perf_counter()
-        measure(caster, o, d, min_range=s.min_range, max_range=s.max_range,
+        measure(caster, o32, d32, min_range=s.min_range, max_range=s.max_range,
                 noise_sigma=s.noise_sigma, dropout=0.0, rng=rng, intensity_scale=255.0)  # fmt: skip
-        e = time.perf_counter()
+        c = time.perf_counter()
         store.serialize(pointcloud2(store, t0_ns, "velodyne", pts), "sensor_msgs/msg/PointCloud2")
+        e = time.perf_counter()
+        list(pool.map(partial(_bare, emb, o32, d32, float(s.max_range)), slices))
         f = time.perf_counter()
         poses.append(b - a)
-        cast.append(c - b)
-        model.append(e - c - (c - b))
-        pack.append(f - e)
-
-    # bare Embree on the same rays: embreex run() over the same chunks and threads
-    tk = starts[len(starts) // 2] + np.arange(s.azimuth_steps) * s.column_period
-    o, d = rays_in_world(traj, lid.T_body_sensor, tk, lid.frac, lid.directions)
-    o32 = np.ascontiguousarray(o.reshape(-1, 3), dtype=np.float32)
-    d32 = np.ascontiguousarray(d.reshape(-1, 3), dtype=np.float32)
-    emb = caster._embree
-    n_chunks = max(caster.threads, -(-n_rays // 8192))
-    bounds = np.linspace(0, n_rays, n_chunks + 1).astype(int)
-    slices = [slice(int(a), int(b)) for a, b in itertools.pairwise(bounds)]
-
-    def run(sl: slice) -> object:
-        return emb.run(o32[sl], d32[sl], dists=np.float32(s.max_range), output=1)
-
-    bare, bare1 = [], []
-    with ThreadPoolExecutor(caster.threads) as pool:
-        for _ in range(args.repeat):
-            a = time.perf_counter()
-            list(pool.map(run, slices))
-            bare.append(time.perf_counter() - a)
-    for _ in range(max(3, args.repeat // 3)):
+        meas.append(c - b)
+        pack.append(e - c)
+        bare.append(f - e)
+        ratio.append((f - e) / whole[-1])
+    pool.shutdown()
+    bare1 = []
+    for _ in range(max(3, args.repeat // 5)):
         a = time.perf_counter()
         emb.run(o32, d32, dists=np.float32(s.max_range), output=1)
         bare1.append(time.perf_counter() - a)
 
     w = _median_ms(whole)
     eb = _median_ms(bare)
-    print(f"scene {args.scene}: {scene.n_triangles} triangles (load {t_load:.2f} s, BVH {t_bvh * 1e3:.0f} ms)")
-    print(f"HDL-32E turn at {s.rate:g} Hz: {n_rays} rays, median {int(np.median(points))} returns, "
-          f"{caster.threads} threads")  # fmt: skip
-    print(f"  whole turn (poses+cast+model+pack+serialize): {w:.2f} ms median, "
-          f"{_median_ms([min(whole)]):.2f} ms best -> {n_rays / (w * 1e-3) / 1e6:.2f} M rays/s")  # fmt: skip
-    print(f"  firing poses {_median_ms(poses):.2f} ms | cast {_median_ms(cast):.2f} ms | "
-          f"sensor model {_median_ms(model):.2f} ms | PointCloud2 pack+serialize {_median_ms(pack):.2f} ms")  # fmt: skip
-    print(f"  bare Embree, same rays, {caster.threads} threads: {eb:.2f} ms -> "
-          f"{n_rays / (eb * 1e-3) / 1e6:.2f} M rays/s; 1 thread: {_median_ms(bare1):.2f} ms")  # fmt: skip
-    print(f"  turn throughput / bare Embree throughput = {eb / w:.2f}")
+    print(f"scene {args.scene}: {scene.n_triangles} triangles "
+          f"(load {t_load:.2f} s, BVH {t_bvh * 1e3:.0f} ms)")  # fmt: skip
+    print(f"HDL-32E turn at {s.rate:g} Hz: {n_rays} rays, median "
+          f"{int(np.median(points))} returns, {caster.threads} threads")  # fmt: skip
+    print(f"  whole turn (poses+cast+model+packing): {w:.2f} ms median, "
+          f"{min(whole) * 1e3:.2f} ms best -> {n_rays / w / 1e3:.2f} M rays/s")  # fmt: skip
+    print(f"  firing poses {_median_ms(poses):.2f} ms | cast + sensor model "
+          f"{_median_ms(meas):.2f} ms | PointCloud2 message + serialize "
+          f"{_median_ms(pack):.2f} ms")  # fmt: skip
+    print(f"  bare Embree, same rays, {caster.threads} threads: {eb:.2f} ms median, "
+          f"{min(bare) * 1e3:.2f} ms best -> {n_rays / (eb * 1e-3) / 1e6:.2f} M rays/s; "
+          f"1 thread: {_median_ms(bare1):.2f} ms")  # fmt: skip
+    print(f"  turn throughput / bare Embree throughput = {eb / w:.2f} (ratio of medians), "
+          f"{float(np.median(ratio)):.2f} (median of per-turn ratios)")  # fmt: skip
+    print(f"  load average during the run: {os.getloadavg()[0]:.1f} on {os.cpu_count()} CPUs")
 
 
 if __name__ == "__main__":
