@@ -124,3 +124,22 @@ def test_cast_incidence_matches_cast() -> None:
     empty = get_raycaster(scene()).cast_incidence(o, d)
     assert np.isinf(empty[0]).all()
     assert (empty[1] == 0).all()
+
+
+def test_parallel_cast_works_in_a_forked_child() -> None:
+    import multiprocessing as mp
+
+    sc = scene(plane())
+    n = 2 * PARALLEL_MIN_RAYS
+    o = np.tile([0.0, 0.0, 2.0], (n, 1))
+    d = np.tile([0.0, 0.0, -1.0], (n, 1))
+    RayCaster(sc, threads=2).cast(o, d)  # the parent's pool exists before the fork
+    ctx = mp.get_context("fork")
+    with ctx.Pool(1) as pool:
+        res = pool.apply_async(_child_cast, (sc, o, d))
+        dist = res.get(timeout=60)
+    np.testing.assert_allclose(dist, 2.0)
+
+
+def _child_cast(sc: object, o: np.ndarray, d: np.ndarray) -> np.ndarray:
+    return RayCaster(sc, threads=2).cast(o, d).distance  # type: ignore[arg-type]
