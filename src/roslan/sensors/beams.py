@@ -87,6 +87,10 @@ def _rotate(rv: NDArray[Any], v: NDArray[Any]) -> NDArray[Any]:
     """Rotate vectors v (N, 3) by rotation vectors rv (N, 3) (Rodrigues)."""
     c1 = _cross(rv, v)
     big = float(np.abs(rv).max(initial=0.0))
+    if big < 2e-4:
+        # |rv| < 3.5e-4 rad: the 2nd-order term (< 6e-8) is below float32 resolution
+        first: NDArray[Any] = v + c1
+        return first
     if big < 1e-3:
         # |rv| < 2e-3 rad (the usual case: ~w * 46 us): 2nd-order series, error < 1.5e-9
         small: NDArray[Any] = v + c1 + 0.5 * _cross(rv, c1)
