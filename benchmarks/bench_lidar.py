@@ -121,7 +121,8 @@ def main() -> None:
           f"{min(bare) * 1e3:.2f} ms best -> {n_rays / (eb * 1e-3) / 1e6:.2f} M rays/s; "
           f"1 thread: {_median_ms(bare1):.2f} ms")  # fmt: skip
     print(f"  turn throughput / bare Embree throughput = {eb / w:.2f} (ratio of medians), "
-          f"{float(np.median(ratio)):.2f} (median of per-turn ratios)")  # fmt: skip
+          f"{float(np.median(ratio)):.2f} (median of per-turn ratios), "
+          f"{min(bare) / min(whole):.2f} (best to best)")  # fmt: skip
     print(f"  load average during the run: {os.getloadavg()[0]:.1f} on {os.cpu_count()} CPUs")
 
 
