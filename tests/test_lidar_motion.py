@@ -96,3 +96,36 @@ def test_interpolated_poses_match_exact_state_on_a_flapping_landing() -> None:
         d_ref = np.einsum("nij,nj->ni", R_ws, lid.directions.reshape(-1, 3))
         np.testing.assert_allclose(o.reshape(-1, 3), o_ref, atol=1.5e-6)  # float32, as Embree
         np.testing.assert_allclose(d.reshape(-1, 3), d_ref, atol=5e-7)  # float32 directions
+
+
+def test_points_from_a_landing_lie_on_the_empty_scene_ground(tmp_path: Path) -> None:
+    """Real tau-theory landing (rolling, pitching, yawing, flapping) over the built-in
+    `empty` scene (ground plane z = 0): every point, mapped to the world with the exact
+    pose of its own firing instant, lies on the ground."""
+    from roslan.scene import load_scene
+
+    cfg = TrajectoryConfig(
+        initial={"position": [-3.0, 1.0, 2.5], "rpy": [0.2, 0.3, 0.5], "descent_rate": 2.0},
+        flapping={"frequency": 8.0, "heave": 0.05, "pitch": 0.2},
+    )
+    traj = Trajectory(cfg, warn=False)
+    pose = Pose(position=(0.1, 0.0, -0.05), rpy=(0.0, 0.4, 0.0))
+    data = {"type": "lidar", "name": "v", "noise_sigma": 0.0, "pose": pose.model_dump()}
+    lid = Lidar(validate_model(LidarConfig, data))
+    ctx = FakeContext(load_scene("empty"), traj, tmp_path)
+    t0_ns = 400_000_000
+    pts = lid.scan(traj, ctx.raycaster(), t0_ns, ctx.rng("v"))
+    assert pts.shape[0] > 20_000
+    t = t0_ns * 1e-9 + pts["time"].astype(np.float64)
+    st = traj.state(t)
+    T = pose.matrix()
+    R_ws = st.R_world_body @ T[:3, :3]
+    p_ws = st.position + st.R_world_body @ T[:3, 3]
+    xyz = np.column_stack([pts["x"], pts["y"], pts["z"]]).astype(np.float64)
+    world = p_ws + np.einsum("nij,nj->ni", R_ws, xyz)
+    np.testing.assert_allclose(world[:, 2], 0.0, atol=2e-4)
+    # with one pose for the whole turn (the Gazebo plugin's shortcut) they would not
+    st0 = traj.state([t0_ns * 1e-9])
+    R0 = st0.R_world_body[0] @ T[:3, :3]
+    world0 = st0.position[0] + st0.R_world_body[0] @ T[:3, 3] + xyz @ R0.T
+    assert np.abs(world0[:, 2]).max() > 0.05
