@@ -272,8 +272,9 @@ class ScanWriter:
     ``lidar/<name>/NNNNNN.npz`` per scan with 1-D arrays ``x y z intensity`` (float32,
     m, sensor frame at each point's firing instant), ``ring`` (uint16) and ``time``
     (float32, s after the scan stamp), plus ``stamp`` (int64 trajectory ns) - and
-    ``lidar/<name>/timestamps.txt`` with lines ``t file`` (t in seconds since the
-    trajectory start, 9 decimals).
+    ``lidar/<name>/timestamps.txt`` with lines ``t <name>/NNNNNN.npz`` (t in seconds since
+    the trajectory start, 9 decimals; the path relative to ``lidar/``). Organized clouds
+    are stored without their NaN (no return) entries.
     """
 
     def __init__(self, folder: Path, index: Path) -> None:
