@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 import roslan.cli
+import roslan.plots.cli
 from roslan.errors import OutputError
 from roslan.io.files import atomic_write
 from roslan.io.text import format_seconds, write_columns
