@@ -125,7 +125,11 @@ def test_invalid_and_failing_tasks_are_reported_without_stopping_others(tmp_path
         )
     )
     assert tasks[1].error is not None
+    # debris of a simulation killed earlier (SIGKILL leaves the hidden partial folder)
+    (out / ".0000.partial-x1y2").mkdir(parents=True)
+    (out / ".0000.partial-x1y2" / "imu.txt").write_text("0 1 2\n")
     report = run_tasks(tasks, out, workers=0, retries=3, progress=False)
+    assert not list(out.glob(".*partial*"))
     status = [r.status for r in report.results]
     assert status == ["complete", "invalid", "failed", "complete"]
     assert "kappa.x = 3.0" in (report.results[1].error or "")

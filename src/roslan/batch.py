@@ -40,6 +40,7 @@ import json
 import logging
 import math
 import os
+import shutil
 import time
 import traceback
 import types
@@ -708,15 +709,21 @@ def _cluster(workers: int | None, scheduler: str | None) -> tuple[Any, Any, int 
             msg = f"--scheduler {scheduler}: cannot connect to a Dask scheduler there ({err})"
             raise ConfigError(msg) from None
         return client, None, scheduler
+    import dask
+
     n = workers if workers is not None else (os.cpu_count() or 1)
-    cluster = LocalCluster(
-        n_workers=n,
-        threads_per_worker=1,
-        processes=True,
-        host="127.0.0.1",
-        dashboard_address=None,
-        silence_logs=logging.CRITICAL,
-    )
+    # A simulation can keep its worker's event loop starved for minutes on a loaded
+    # machine (GIL-holding rendering); the nanny already reports real process deaths, so
+    # the scheduler must not also expel "silent" workers (worker-ttl) and rerun their tasks.
+    with dask.config.set({"distributed.scheduler.worker-ttl": None}):
+        cluster = LocalCluster(
+            n_workers=n,
+            threads_per_worker=1,
+            processes=True,
+            host="127.0.0.1",
+            dashboard_address=None,
+            silence_logs=logging.ERROR,
+        )
     return Client(cluster), cluster, n
 
 
@@ -777,6 +784,9 @@ def run_tasks(
             continue
         # A folder without a complete run.json is debris of an interrupted run: replace it.
         todo.append((task, overwrite or folder.exists()))
+        # So is a hidden partial folder of a killed simulation (SIGKILL skips its cleanup).
+        for debris in out.glob(f".{task.name}.partial-*"):
+            shutil.rmtree(debris, ignore_errors=True)
 
     state = {"last": 0.0}
 
