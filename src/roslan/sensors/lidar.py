@@ -263,6 +263,16 @@ class Lidar:
         )
         self.ring = s.rings
         self.frac = np.arange(s.n_lasers, dtype=np.float64) * (s.firing_interval / s.column_period)
+        # per-beam constants of the packed cloud, in firing order
+        n = s.azimuth_steps * s.n_lasers
+        self._d32 = self.directions.reshape(n, 3).astype(np.float32)
+        self._off32 = self.offsets.reshape(n).astype(np.float32)
+        self._ring_flat = np.tile(self.ring, s.azimuth_steps)
+        # organized: rows = rings (lowest first), columns = azimuth steps
+        laser_of_ring = np.argsort(self.ring)
+        self._organized_order = (
+            laser_of_ring[:, None] + s.n_lasers * np.arange(s.azimuth_steps)[None, :]
+        ).reshape(-1)
         self.T_body_sensor = config.pose.matrix()
         self._writer: ScanWriter | None = None
 
@@ -286,7 +296,7 @@ class Lidar:
         when ``organized`` (NaN x/y/z, zero intensity where there is no return).
         """
         s = self.spec
-        steps, n_l = self.offsets.shape
+        steps = self.offsets.shape[0]
         t_knots = t0_ns * 1e-9 + np.arange(steps, dtype=np.float64) * s.column_period
         origins, dirs = rays_in_world(
             trajectory,
@@ -298,8 +308,6 @@ class Lidar:
         )
         origins = origins.reshape(-1, 3)
         dirs = dirs.reshape(-1, 3)
-        off = self.offsets.reshape(-1)
-        d_s = self.directions.reshape(-1, 3)
         m = measure(
             caster,
             origins,
@@ -311,22 +319,21 @@ class Lidar:
             rng=rng,
             intensity_scale=self.config.intensity_scale,
         )
-        xyz = d_s * np.where(m.valid, m.range, np.nan)[:, None]
-        ring = np.broadcast_to(self.ring[None, :], (steps, n_l)).reshape(-1)
+        sel: Any
         if self.config.organized:
-            pts = np.empty(steps * n_l, XYZIRT)
-            # rows = rings (lowest first), columns = azimuth steps
-            order = (np.argsort(self.ring)[:, None] + n_l * np.arange(steps)[None, :]).reshape(-1)
-            sel: Any = order
+            sel = self._organized_order
+            r = np.where(m.valid, m.range, np.nan)[sel].astype(np.float32)
         else:
-            sel = np.flatnonzero(m.valid)
-            pts = np.empty(sel.shape[0], XYZIRT)
-        pts["x"] = xyz[sel, 0]
-        pts["y"] = xyz[sel, 1]
-        pts["z"] = xyz[sel, 2]
+            sel = slice(None) if bool(m.valid.all()) else np.flatnonzero(m.valid)
+            r = m.range[sel].astype(np.float32)
+        d32 = self._d32[sel]
+        pts = np.empty(d32.shape[0], XYZIRT)
+        pts["x"] = d32[:, 0] * r
+        pts["y"] = d32[:, 1] * r
+        pts["z"] = d32[:, 2] * r
         pts["intensity"] = m.intensity[sel]
-        pts["ring"] = ring[sel]
-        pts["time"] = off[sel]
+        pts["ring"] = self._ring_flat[sel]
+        pts["time"] = self._off32[sel]
         return pts
 
     def messages(self, ctx: SimContext) -> Iterator[Message]:
