@@ -25,9 +25,10 @@ CHILD = textwrap.dedent(
     from roslan.simulate import run_simulation
 
     duration, outdir, trace = float(sys.argv[1]), Path(sys.argv[2]), sys.argv[3] == "1"
-    # T = z0 / (k v0): z0 = duration m at 1 m/s with k = 0.5 gives T = 2 * duration... so z0 = duration / 2
+    # T = z0 / (k v0) with k = 0.5, v0 = 1 m/s: z0 = duration / 2 gives T = duration
     cfg = SimConfig.model_validate({
-        "trajectory": {"k": 0.5, "initial": {"position": [-20.0, 5.0, duration / 2], "rpy": [0.05, 0.15, 0.3],
+        "trajectory": {"k": 0.5, "initial": {"position": [-20.0, 5.0, duration / 2],
+                                             "rpy": [0.05, 0.15, 0.3],
                                              "descent_rate": 1.0}},
         "sensors": [{"type": "imu", "name": "imu", "rate": 1000.0, "topic": "/imu"}],
         "output": {"formats": ["ros1", "ros2"], "ground_truth_rate": 200.0},
@@ -56,7 +57,14 @@ CHILD = textwrap.dedent(
 def run_case(duration: float, trace: bool) -> dict[str, float]:
     with tempfile.TemporaryDirectory() as tmp:
         proc = subprocess.run(
-            [sys.executable, "-c", CHILD, str(duration), str(Path(tmp) / "out"), "1" if trace else "0"],
+            [
+                sys.executable,
+                "-c",
+                CHILD,
+                str(duration),
+                str(Path(tmp) / "out"),
+                "1" if trace else "0",
+            ],
             check=True,
             capture_output=True,
             text=True,
@@ -69,8 +77,11 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--durations", type=float, nargs="+", default=[60.0, 240.0])
     args = ap.parse_args()
-    print(f"{'traj s':>7} {'msgs':>8} {'wall s':>7} {'RTF':>6} {'stream RTF':>10} {'peak RSS MB':>11} "
-          f"{'py heap MB':>10} {'bag MB':>7}")
+    print(
+        f"{'traj s':>7} {'msgs':>8} {'wall s':>7} {'RTF':>6} {'stream RTF':>10} "
+        f"{'peak RSS MB':>11} "
+        f"{'py heap MB':>10} {'bag MB':>7}"
+    )
     for d in args.durations:
         r = run_case(d, trace=False)
         t = run_case(d, trace=True)

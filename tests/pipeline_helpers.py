@@ -35,7 +35,9 @@ def short_config(**overrides: Any) -> SimConfig:
     return SimConfig.model_validate(data)
 
 
-def tree_bytes(root: Path, skip: tuple[str, ...] = ("timing.json", "PLAYBACK.md")) -> dict[str, bytes]:
+def tree_bytes(
+    root: Path, skip: tuple[str, ...] = ("timing.json", "PLAYBACK.md")
+) -> dict[str, bytes]:
     """Every file under ``root`` (relative path -> content), except the documented
     non-deterministic ones."""
     return {

@@ -58,14 +58,19 @@ def test_fixed_layout_rejects_a_wrong_leaf_width() -> None:
         data=np.zeros(3),
     )
     # data_offset is a uint32: declaring 8 bytes cannot be located
-    with pytest.raises(ValueError, match="layout.data_offset"):
-        FixedLayout(store, "std_msgs/msg/Float64MultiArray", tmpl, [("layout.data_offset", "<u8", 1)])
+    with pytest.raises(ValueError, match=r"layout\.data_offset"):
+        FixedLayout(
+            store, "std_msgs/msg/Float64MultiArray", tmpl, [("layout.data_offset", "<u8", 1)]
+        )
 
 
 def _write_stock_and_fast(tmp_path: Path, flavor: Flavor) -> tuple[bytes, bytes]:
     """The same messages through roslan's writer and through stock rosbags."""
     store = MessageStore(flavor)
-    topics = [BagTopic("/a", "std_msgs/msg/Float64MultiArray", True), BagTopic("/b", "std_msgs/msg/String")]
+    topics = [
+        BagTopic("/a", "std_msgs/msg/Float64MultiArray", True),
+        BagTopic("/b", "std_msgs/msg/String"),
+    ]
     rng = np.random.default_rng(1)
     msgs = []
     for i in range(3000):  # > 1 MiB: several chunks
@@ -74,7 +79,14 @@ def _write_stock_and_fast(tmp_path: Path, flavor: Flavor) -> tuple[bytes, bytes]
             msg = store.new("std_msgs/msg/Float64MultiArray", layout=lay, data=rng.normal(size=50))
             msgs.append(("/a", "std_msgs/msg/Float64MultiArray", 10**18 + i * 1000, msg))
         else:
-            msgs.append(("/b", "std_msgs/msg/String", 10**18 + i * 1000, store.new("std_msgs/msg/String", data="x" * i)))
+            msgs.append(
+                (
+                    "/b",
+                    "std_msgs/msg/String",
+                    10**18 + i * 1000,
+                    store.new("std_msgs/msg/String", data="x" * i),
+                )
+            )
     ours = tmp_path / f"ours_{flavor.value}"
     ours.mkdir()
     w = MultiBagWriter(ours, [flavor.value], topics, compression="bz2")
@@ -90,7 +102,11 @@ def _write_stock_and_fast(tmp_path: Path, flavor: Flavor) -> tuple[bytes, bytes]
         sw.open()
         conns = {
             t.topic: sw.add_connection(
-                t.topic, t.msgtype, typestore=store.typestore, callerid="/roslan", latching=1 if t.latched else None
+                t.topic,
+                t.msgtype,
+                typestore=store.typestore,
+                callerid="/roslan",
+                latching=1 if t.latched else None,
             )
             for t in topics
         }
@@ -112,7 +128,9 @@ def _write_stock_and_fast(tmp_path: Path, flavor: Flavor) -> tuple[bytes, bytes]
     s2.close()
     ours_mcap = (ours / "landing_ros2" / "landing_ros2.mcap").read_bytes()
     stock_mcap = (path2 / "landing_ros2.mcap").read_bytes()
-    assert (ours / "landing_ros2" / "metadata.yaml").read_bytes() == (path2 / "metadata.yaml").read_bytes()
+    assert (ours / "landing_ros2" / "metadata.yaml").read_bytes() == (
+        path2 / "metadata.yaml"
+    ).read_bytes()
     return ours_mcap, stock_mcap
 
 
@@ -165,8 +183,18 @@ def test_round_trip_both_bags(landing: Path) -> None:
     assert [m.header.seq for _, m in ros1["/imu"]] == list(range(len(ros1["/imu"])))  # type: ignore[attr-defined]
     # IMU values identical in both flavours and in imu.txt
     txt = np.loadtxt(landing / "imu.txt")
-    acc1 = np.array([[m.linear_acceleration.x, m.linear_acceleration.y, m.linear_acceleration.z] for _, m in ros1["/imu"]])  # type: ignore[attr-defined]
-    acc2 = np.array([[m.linear_acceleration.x, m.linear_acceleration.y, m.linear_acceleration.z] for _, m in ros2["/imu"]])  # type: ignore[attr-defined]
+    acc1 = np.array(
+        [
+            [m.linear_acceleration.x, m.linear_acceleration.y, m.linear_acceleration.z]
+            for _, m in ros1["/imu"]
+        ]
+    )  # type: ignore[attr-defined]
+    acc2 = np.array(
+        [
+            [m.linear_acceleration.x, m.linear_acceleration.y, m.linear_acceleration.z]
+            for _, m in ros2["/imu"]
+        ]
+    )  # type: ignore[attr-defined]
     np.testing.assert_array_equal(acc1, acc2)
     np.testing.assert_allclose(txt[:, 1:4], acc1, rtol=1e-8, atol=1e-8)
     t_txt = np.round(txt[:, 0] * 1e9).astype(np.int64) + start
@@ -216,14 +244,24 @@ def test_ros1_native_reader(landing: Path, tmp_path: Path) -> None:
     py = shutil.which("python3", path="/usr/bin")
     if py is None:
         pytest.skip("/usr/bin/python3 not found")
-    probe = subprocess.run([py, "-c", "import rosbag, sensor_msgs.msg, tf2_msgs.msg, nav_msgs.msg"], capture_output=True)
+    probe = subprocess.run(
+        [py, "-c", "import rosbag, sensor_msgs.msg, tf2_msgs.msg, nav_msgs.msg"],
+        capture_output=True,
+    )
     if probe.returncode != 0:
-        pytest.skip("Debian's python3-rosbag / message packages are not installed for /usr/bin/python3")
+        pytest.skip(
+            "Debian's python3-rosbag / message packages are not installed for /usr/bin/python3"
+        )
     script = tmp_path / "read.py"
     script.write_text(ROS1_SCRIPT)
-    proc = subprocess.run([py, str(script), str(landing / "landing.bag")], capture_output=True, text=True, timeout=120)
+    proc = subprocess.run(
+        [py, str(script), str(landing / "landing.bag")], capture_output=True, text=True, timeout=120
+    )
     assert proc.returncode == 0, proc.stderr
-    rows = {line.split()[0]: (line.split()[1], int(line.split()[2])) for line in proc.stdout.splitlines()}
+    rows = {
+        line.split()[0]: (line.split()[1], int(line.split()[2]))
+        for line in proc.stdout.splitlines()
+    }
     assert rows["/imu"][0] == "sensor_msgs/Imu"
     assert rows["/tf"][0] == "tf2_msgs/TFMessage"
     assert rows["/ground_truth/odometry"][0] == "nav_msgs/Odometry"
@@ -232,4 +270,6 @@ def test_ros1_native_reader(landing: Path, tmp_path: Path) -> None:
     import json
 
     run = json.loads((landing / "run.json").read_text())
-    assert {t: n for t, (_, n) in rows.items()} == {t: v["messages"] for t, v in run["topics"].items()}
+    assert {t: n for t, (_, n) in rows.items()} == {
+        t: v["messages"] for t, v in run["topics"].items()
+    }

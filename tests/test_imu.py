@@ -32,8 +32,10 @@ def _traj(**kw: object) -> Trajectory:
     return Trajectory(TrajectoryConfig.model_validate({**SHORT_TRAJECTORY, **kw}))
 
 
-def _run(cfg: ImuConfig, traj: Trajectory, tmp_path: Path, seed: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray, list]:
-    """Run the sensor; returns t_ns, acc (N,3), gyro (N,3) decoded from the ROS 2 bytes, and messages."""
+def _run(
+    cfg: ImuConfig, traj: Trajectory, tmp_path: Path, seed: int = 0
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, list]:
+    """Run the sensor: t_ns, acc (N,3), gyro (N,3) decoded from the ROS 2 bytes, messages."""
     ctx = Context(traj, tmp_path, seed=seed, start_time_ns=10**18, sensors=[cfg])
     imu = Imu(cfg)
     store = MessageStore(Flavor.ROS2)
@@ -41,8 +43,15 @@ def _run(cfg: ImuConfig, traj: Trajectory, tmp_path: Path, seed: int = 0) -> tup
     imu.close(ctx)
     decoded = [store.typestore.deserialize_cdr(m.build(store), m.msgtype) for m in msgs]
     t = np.array([m.t_ns for m in msgs])
-    acc = np.array([[d.linear_acceleration.x, d.linear_acceleration.y, d.linear_acceleration.z] for d in decoded])
-    gyro = np.array([[d.angular_velocity.x, d.angular_velocity.y, d.angular_velocity.z] for d in decoded])
+    acc = np.array(
+        [
+            [d.linear_acceleration.x, d.linear_acceleration.y, d.linear_acceleration.z]
+            for d in decoded
+        ]
+    )
+    gyro = np.array(
+        [[d.angular_velocity.x, d.angular_velocity.y, d.angular_velocity.z] for d in decoded]
+    )
     return t, acc, gyro, decoded
 
 
@@ -53,7 +62,9 @@ def test_defaults_are_esim_and_minimal_config_validates() -> None:
     assert ImuConfig.model_validate({"type": "imu", "name": "i", "topic": "/i"}).rate == 1000.0
 
 
-@pytest.mark.parametrize(("key", "value"), [("rate", 0), ("rate", -5), ("gyroscope_noise_density", -1.0)])
+@pytest.mark.parametrize(
+    ("key", "value"), [("rate", 0), ("rate", -5), ("gyroscope_noise_density", -1.0)]
+)
 def test_bad_values_are_config_errors(key: str, value: float) -> None:
     data = {"type": "imu", "name": "imu", "topic": "/imu", key: value}
     with pytest.raises(ConfigError, match=key):
@@ -65,7 +76,9 @@ def test_zero_noise_equals_finite_difference_kinematics(tmp_path: Path) -> None:
     trajectory, differentiated numerically; specific force = R_ws^T (d2p/dt2 + g z)."""
     traj = _traj()
     pose = {"position": [0.3, -0.2, 0.1], "rpy": [0.2, -0.1, 0.4]}
-    cfg = ImuConfig.model_validate({"type": "imu", "name": "imu", "rate": 100, "topic": "/imu", "pose": pose, **QUIET})
+    cfg = ImuConfig.model_validate(
+        {"type": "imu", "name": "imu", "rate": 100, "topic": "/imu", "pose": pose, **QUIET}
+    )
     t_ns, acc, gyro, _ = _run(cfg, traj, tmp_path)
     R_bs = rpy_to_matrix(np.array(pose["rpy"]))
     r = np.array(pose["position"])
@@ -89,7 +102,9 @@ def test_zero_noise_equals_finite_difference_kinematics(tmp_path: Path) -> None:
 
 def test_at_rest_reads_plus_g(tmp_path: Path) -> None:
     traj = _traj(hold=0.5)
-    cfg = ImuConfig.model_validate({"type": "imu", "name": "imu", "rate": 100, "topic": "/imu", **QUIET})
+    cfg = ImuConfig.model_validate(
+        {"type": "imu", "name": "imu", "rate": 100, "topic": "/imu", **QUIET}
+    )
     t_ns, acc, gyro, _ = _run(cfg, traj, tmp_path)
     rest = t_ns > traj.T * 1e9 + 1e6
     assert rest.sum() >= 40
@@ -97,7 +112,14 @@ def test_at_rest_reads_plus_g(tmp_path: Path) -> None:
     np.testing.assert_allclose(gyro[rest], 0.0, atol=1e-12)
     # a sensor rolled by 90 deg about x sees gravity along its +y... (z_s = -y_b): f = R^T g_up
     cfg2 = ImuConfig.model_validate(
-        {"type": "imu", "name": "imu", "rate": 100, "topic": "/imu", "pose": {"rpy": [math.pi / 2, 0, 0]}, **QUIET}
+        {
+            "type": "imu",
+            "name": "imu",
+            "rate": 100,
+            "topic": "/imu",
+            "pose": {"rpy": [math.pi / 2, 0, 0]},
+            **QUIET,
+        }
     )
     _, acc2, _, _ = _run(cfg2, traj, tmp_path / "b")
     np.testing.assert_allclose(acc2[rest], np.tile([0.0, 9.81, 0.0], (rest.sum(), 1)), atol=1e-9)
@@ -107,8 +129,16 @@ def test_white_noise_std_matches_density(tmp_path: Path) -> None:
     traj = _traj(hold=4.0)
     rate = 400.0
     cfg = ImuConfig.model_validate(
-        {"type": "imu", "name": "imu", "rate": rate, "topic": "/imu", "accelerometer_noise_density": 0.02,
-         "gyroscope_noise_density": 0.003, "accelerometer_random_walk": 0.0, "gyroscope_random_walk": 0.0}
+        {
+            "type": "imu",
+            "name": "imu",
+            "rate": rate,
+            "topic": "/imu",
+            "accelerometer_noise_density": 0.02,
+            "gyroscope_noise_density": 0.003,
+            "accelerometer_random_walk": 0.0,
+            "gyroscope_random_walk": 0.0,
+        }
     )
     clean = ImuConfig.model_validate({**cfg.model_dump(), **QUIET})
     _, acc, gyro, _ = _run(cfg, traj, tmp_path / "n")
@@ -128,17 +158,29 @@ def test_bias_random_walk_statistics(tmp_path: Path) -> None:
     rate = 200.0
     rw = 0.05
     cfg = ImuConfig.model_validate(
-        {"type": "imu", "name": "imu", "rate": rate, "topic": "/imu", **QUIET, "gyroscope_random_walk": rw,
-         "accelerometer_random_walk": 2 * rw, "gyroscope_bias": [0.1, 0.0, -0.1]}
+        {
+            "type": "imu",
+            "name": "imu",
+            "rate": rate,
+            "topic": "/imu",
+            **QUIET,
+            "gyroscope_random_walk": rw,
+            "accelerometer_random_walk": 2 * rw,
+            "gyroscope_bias": [0.1, 0.0, -0.1],
+        }
     )
-    clean = ImuConfig.model_validate({**cfg.model_dump(), **QUIET, "gyroscope_bias": [0.0, 0.0, 0.0]})
+    clean = ImuConfig.model_validate(
+        {**cfg.model_dump(), **QUIET, "gyroscope_bias": [0.0, 0.0, 0.0]}
+    )
     _, acc, gyro, _ = _run(cfg, traj, tmp_path / "n")
     _, acc0, gyro0, _ = _run(clean, traj, tmp_path / "c")
     bias_g = gyro - gyro0
     inc = np.diff(bias_g, axis=0)
     n = inc.size
     assert abs(inc.std() / (rw * math.sqrt(1 / rate)) - 1) < 5 / math.sqrt(2 * n)
-    assert abs(np.diff(acc - acc0, axis=0).std() / (2 * rw * math.sqrt(1 / rate)) - 1) < 5 / math.sqrt(2 * n)
+    assert abs(
+        np.diff(acc - acc0, axis=0).std() / (2 * rw * math.sqrt(1 / rate)) - 1
+    ) < 5 / math.sqrt(2 * n)
     # the walk starts at the configured bias (plus one step)
     np.testing.assert_allclose(bias_g[0], [0.1, 0.0, -0.1], atol=6 * rw / math.sqrt(rate))
     # and it is continuous across the 1 s vectorized chunks (no reset)
@@ -148,7 +190,14 @@ def test_bias_random_walk_statistics(tmp_path: Path) -> None:
 def test_turn_on_bias_and_seed_determinism(tmp_path: Path) -> None:
     traj = _traj()
     cfg = ImuConfig.model_validate(
-        {"type": "imu", "name": "imu", "rate": 100, "topic": "/imu", **QUIET, "gyroscope_turn_on_bias_sigma": 0.5}
+        {
+            "type": "imu",
+            "name": "imu",
+            "rate": 100,
+            "topic": "/imu",
+            **QUIET,
+            "gyroscope_turn_on_bias_sigma": 0.5,
+        }
     )
     clean = ImuConfig.model_validate({**cfg.model_dump(), "gyroscope_turn_on_bias_sigma": 0.0})
     _, _, g1, _ = _run(cfg, traj, tmp_path / "a", seed=1)
@@ -168,8 +217,12 @@ def test_covariances_orientation_and_files(tmp_path: Path) -> None:
     t_ns, acc, gyro, decoded = _run(cfg, traj, tmp_path)
     m = decoded[0]
     assert m.orientation_covariance[0] == -1.0
-    np.testing.assert_allclose(m.linear_acceleration_covariance.reshape(3, 3), np.eye(3) * (1.86e-3**2 * 50))
-    np.testing.assert_allclose(m.angular_velocity_covariance.reshape(3, 3), np.eye(3) * (1.86e-4**2 * 50))
+    np.testing.assert_allclose(
+        m.linear_acceleration_covariance.reshape(3, 3), np.eye(3) * (1.86e-3**2 * 50)
+    )
+    np.testing.assert_allclose(
+        m.angular_velocity_covariance.reshape(3, 3), np.eye(3) * (1.86e-4**2 * 50)
+    )
     assert m.header.frame_id == "imu"
     assert m.header.stamp.sec * 10**9 + m.header.stamp.nanosec == 10**18 + t_ns[0]
     np.testing.assert_array_equal(t_ns, sample_times_ns(50, traj.duration_ns))

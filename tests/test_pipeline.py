@@ -36,7 +36,11 @@ def no_plot(monkeypatch: pytest.MonkeyPatch) -> None:
     import roslan.trajectory.export as export
 
     real = export.write_trajectory_files
-    monkeypatch.setattr(export, "write_trajectory_files", lambda traj, outdir, plot=True: real(traj, outdir, plot=False))
+    monkeypatch.setattr(
+        export,
+        "write_trajectory_files",
+        lambda traj, outdir, plot=True: real(traj, outdir, plot=False),
+    )
 
 
 @pytest.fixture(scope="module")
@@ -49,11 +53,15 @@ def out(tmp_path_factory: pytest.TempPathFactory) -> Path:
 def test_output_folder_contract(out: Path) -> None:
     names = {p.name for p in out.iterdir()}
     expected = {
-        "landing.bag", "landing_ros2", "trajectory.csv", "groundtruth.txt", "summary.json", "imu.txt",
+        "landing.bag", "landing_ros2", "trajectory.csv", "groundtruth.txt", "summary.json",
+        "imu.txt",
         "calib", "PLAYBACK.md", "run.json", "timing.json",
     }  # fmt: skip
     assert expected <= names
-    assert {p.name for p in (out / "landing_ros2").iterdir()} == {"metadata.yaml", "landing_ros2.mcap"}
+    assert {p.name for p in (out / "landing_ros2").iterdir()} == {
+        "metadata.yaml",
+        "landing_ros2.mcap",
+    }
     assert (out / "calib" / "imu.yaml").is_file()
     ext = yaml.safe_load((out / "calib" / "extrinsics.yaml").read_text())
     T = np.array(ext["sensors"]["imu"]["T_base_link_sensor"])
@@ -73,7 +81,8 @@ def test_output_folder_contract(out: Path) -> None:
     timing = json.loads((out / "timing.json").read_text())
     assert timing["wall_time_s"] > 0
     play = (out / "PLAYBACK.md").read_text()
-    assert "rosbag play" in play and "ros2 bag play landing_ros2" in play and "Foxglove" in play
+    for needle in ("rosbag play", "ros2 bag play landing_ros2", "Foxglove"):
+        assert needle in play
 
 
 def test_ground_truth_content(out: Path) -> None:
@@ -91,13 +100,19 @@ def test_ground_truth_content(out: Path) -> None:
     t_ns = np.array([s for s, _ in msgs["/ground_truth/odometry"]]) - cfg.output.start_time
     st = traj.state_ns(t_ns)
     odo = msgs["/ground_truth/odometry"]
-    pos = np.array([[m.pose.pose.position.x, m.pose.pose.position.y, m.pose.pose.position.z] for _, m in odo])
+    pos = np.array(
+        [[m.pose.pose.position.x, m.pose.pose.position.y, m.pose.pose.position.z] for _, m in odo]
+    )
     np.testing.assert_allclose(pos, st.position, atol=1e-12)
     # twist is in base_link: rotate it back to the world and compare with the world velocity
     q = np.array([[m.pose.pose.orientation.x, m.pose.pose.orientation.y, m.pose.pose.orientation.z,
                    m.pose.pose.orientation.w] for _, m in odo])  # fmt: skip
-    v_b = np.array([[m.twist.twist.linear.x, m.twist.twist.linear.y, m.twist.twist.linear.z] for _, m in odo])
-    np.testing.assert_allclose(np.einsum("nij,nj->ni", quat_xyzw_to_matrix(q), v_b), st.velocity, atol=1e-9)
+    v_b = np.array(
+        [[m.twist.twist.linear.x, m.twist.twist.linear.y, m.twist.twist.linear.z] for _, m in odo]
+    )
+    np.testing.assert_allclose(
+        np.einsum("nij,nj->ni", quat_xyzw_to_matrix(q), v_b), st.velocity, atol=1e-9
+    )
     tf = msgs["/tf"]
     tr = tf[10][1].transforms[0]
     assert (tr.header.frame_id, tr.child_frame_id) == ("world", "base_link")
@@ -132,7 +147,8 @@ def test_existing_outdir_refused_then_overwritten(tmp_path: Path, no_plot: None)
         run_simulation(short_config(), d, quiet=True)
     assert (d / "run.json").read_bytes() == before
     run_simulation(short_config(), d, quiet=True, overwrite=True, formats=["ros2"])
-    assert (d / "landing_ros2").is_dir() and not (d / "landing.bag").exists()
+    assert (d / "landing_ros2").is_dir()
+    assert not (d / "landing.bag").exists()
     assert sorted(p.name for p in tmp_path.iterdir()) == ["o"]
 
 
@@ -178,7 +194,9 @@ def _nothing_written(tmp_path: Path) -> None:
         ({"type": "imu", "name": "x", "topic": "/x", "bogus": 1}, "bogus"),
     ],
 )
-def test_bad_sensor_config_cli(tmp_path: Path, capsys: pytest.CaptureFixture[str], sensor: dict, match: str) -> None:
+def test_bad_sensor_config_cli(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], sensor: dict, match: str
+) -> None:
     job = tmp_path / "cfg" / "job.yaml"
     job.parent.mkdir()
     job.write_text(yaml.safe_dump({"trajectory": SHORT_TRAJECTORY, "sensors": [sensor]}))
@@ -198,7 +216,7 @@ def test_duplicate_topics(tmp_path: Path) -> None:
         SimConfig.model_validate({"sensors": [imu, {**imu, "name": "b"}]})
     # a sensor topic colliding with a ground-truth topic
     cfg = short_config(sensors=[{**imu, "topic": "/tf"}])
-    with pytest.raises(ConfigError, match="'/tf'.*already published by 'ground_truth'"):
+    with pytest.raises(ConfigError, match=r"'/tf'.*already published by 'ground_truth'"):
         run_simulation(cfg, tmp_path / "out", quiet=True)
     _nothing_written(tmp_path)
 
@@ -210,7 +228,8 @@ def test_malformed_yaml(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> N
     work.mkdir()
     assert main(["simulate", str(job), "-o", str(work / "out")]) == 2
     err = capsys.readouterr().err
-    assert "bad.yaml" in err and "malformed YAML" in err
+    assert "bad.yaml" in err
+    assert "malformed YAML" in err
     _nothing_written(work)
 
 
@@ -225,7 +244,9 @@ class _Exploding(Imu):
 
 
 @pytest.mark.parametrize("error", [RuntimeError("boom"), KeyboardInterrupt()])
-def test_interrupted_run_leaves_nothing(tmp_path: Path, monkeypatch: pytest.MonkeyPatch, error: BaseException, no_plot: None) -> None:
+def test_interrupted_run_leaves_nothing(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, error: BaseException, no_plot: None
+) -> None:
     old = tmp_path / "out"
     run_simulation(short_config(), old, quiet=True)
     before = tree_bytes(old)
@@ -262,7 +283,9 @@ def test_killed_run_leaves_no_complete_outdir(tmp_path: Path) -> None:
         """
     )
     target = tmp_path / "out"
-    proc = subprocess.Popen([sys.executable, "-c", script, str(target)], stdout=subprocess.PIPE, text=True)
+    proc = subprocess.Popen(
+        [sys.executable, "-c", script, str(target)], stdout=subprocess.PIPE, text=True
+    )
     assert proc.stdout is not None
     assert proc.stdout.readline().strip() == "started"
     proc.send_signal(signal.SIGKILL)
@@ -296,7 +319,9 @@ def test_sigterm_cleans_up(tmp_path: Path) -> None:
             sys.exit(130)
         """
     )
-    proc = subprocess.Popen([sys.executable, "-c", script, str(tmp_path / "out")], stdout=subprocess.PIPE, text=True)
+    proc = subprocess.Popen(
+        [sys.executable, "-c", script, str(tmp_path / "out")], stdout=subprocess.PIPE, text=True
+    )
     assert proc.stdout is not None
     assert proc.stdout.readline().strip() == "started"
     proc.send_signal(signal.SIGTERM)
@@ -304,7 +329,9 @@ def test_sigterm_cleans_up(tmp_path: Path) -> None:
     assert list(tmp_path.iterdir()) == []
 
 
-def test_misbehaving_sensor_is_reported(tmp_path: Path, monkeypatch: pytest.MonkeyPatch, no_plot: None) -> None:
+def test_misbehaving_sensor_is_reported(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, no_plot: None
+) -> None:
     class Backwards(Imu):
         def messages(self, ctx: Context) -> Iterator[Message]:  # type: ignore[override]
             msgs = list(super().messages(ctx))
@@ -333,7 +360,12 @@ def test_context_rng_streams() -> None:
         a.path("../escape.txt")
 
 
-def test_cli_default_job_and_seed(tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch, no_plot: None) -> None:
+def test_cli_default_job_and_seed(
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    monkeypatch: pytest.MonkeyPatch,
+    no_plot: None,
+) -> None:
     # the packaged default job, shortened: patch the loader to keep the test fast
     import roslan.pipeline.cli as pcli
 
@@ -341,22 +373,33 @@ def test_cli_default_job_and_seed(tmp_path: Path, capsys: pytest.CaptureFixture[
     assert path is None
     assert any(s.type == "imu" for s in cfg.sensors)
     monkeypatch.setattr(
-        pcli, "load_config", lambda p: (cfg.model_copy(update={"trajectory": short_config().trajectory}), None)
+        pcli,
+        "load_config",
+        lambda p: (cfg.model_copy(update={"trajectory": short_config().trajectory}), None),
     )
-    assert main(["simulate", "-o", str(tmp_path / "o"), "--seed", "7", "--format", "ros2", "--profile"]) == 0
+    assert (
+        main(
+            ["simulate", "-o", str(tmp_path / "o"), "--seed", "7", "--format", "ros2", "--profile"]
+        )
+        == 0
+    )
     captured = capsys.readouterr()
     assert "wrote" in captured.out
     assert "ground_truth" in captured.err  # the profile table
     run = json.loads((tmp_path / "o" / "run.json").read_text())
-    assert run["seed"] == 7 and run["formats"] == ["ros2"]
+    assert run["seed"] == 7
+    assert run["formats"] == ["ros2"]
     timing = json.loads((tmp_path / "o" / "timing.json").read_text())
     assert set(timing["profile"]["sensors"]) >= {"ground_truth", "imu"}
 
 
 def test_two_imus_get_separate_files(tmp_path: Path, no_plot: None) -> None:
     imu = {"type": "imu", "name": "imu", "rate": 100, "topic": "/imu"}
-    cfg = short_config(sensors=[imu, {**imu, "name": "imu2", "topic": "/imu2", "pose": {"position": [0, 0.1, 0]}}])
+    cfg = short_config(
+        sensors=[imu, {**imu, "name": "imu2", "topic": "/imu2", "pose": {"position": [0, 0.1, 0]}}]
+    )
     run_simulation(cfg, tmp_path / "o", quiet=True)
-    assert (tmp_path / "o" / "imu.txt").is_file() and (tmp_path / "o" / "imu_imu2.txt").is_file()
+    assert (tmp_path / "o" / "imu.txt").is_file()
+    assert (tmp_path / "o" / "imu_imu2.txt").is_file()
     assert (tmp_path / "o" / "calib" / "imu_imu2.yaml").is_file()
     assert isinstance(ImuConfig.model_validate(imu), ImuConfig)

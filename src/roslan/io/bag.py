@@ -12,10 +12,11 @@ message object of the flavour's typestore (serialized here) or the finished wire
 
 from __future__ import annotations
 
+import contextlib
 import struct
 from collections.abc import Iterable, Sequence
 from pathlib import Path
-from typing import Any, NamedTuple, Protocol
+from typing import Any, Literal, NamedTuple, Protocol
 
 import lz4.frame
 from rosbags.interfaces import (
@@ -48,7 +49,7 @@ __all__ = [
 BAG_NAMES = {Flavor.ROS1: "landing.bag", Flavor.ROS2: "landing_ros2"}
 """File (ROS 1) / folder (ROS 2) name of each flavour's bag inside OUTDIR."""
 
-ROS2_BAG_VERSION = 8
+ROS2_BAG_VERSION: Literal[8, 9] = 8
 """rosbag2 metadata version written (8 = Humble/Iron; readable by every later distro)."""
 
 
@@ -115,6 +116,7 @@ class _FastRos1Writer(_Ros1Writer):
             # ROS 1's own roslz4 ("malformed data to decompress"); write the frame layout
             # roslz4 itself produces: independent 1 MiB blocks, content checksum, no size.
             self.compressor = _roslz4_compatible
+
     def write(self, connection: Connection, timestamp: int, data: bytes | memoryview) -> None:
         try:
             prefix = self._prefix[connection.id]
@@ -126,7 +128,14 @@ class _FastRos1Writer(_Ros1Writer):
                 self._prefix = {}
             # record header: op=0x02, conn=<u32>, time=<u32 sec, u32 nsec>  (38 bytes)
             prefix = self._prefix[connection.id] = (
-                _U32(38) + _U32(4) + b"op=\x02" + _U32(9) + b"conn=" + _U32(connection.id) + _U32(13) + b"time="
+                _U32(38)
+                + _U32(4)
+                + b"op=\x02"
+                + _U32(9)
+                + b"conn="
+                + _U32(connection.id)
+                + _U32(13)
+                + b"time="
             )
         chunk = self.chunks[-1]
         bio = chunk.data
@@ -145,7 +154,8 @@ class _FastRos1Writer(_Ros1Writer):
         super().write_chunk(chunk)
         if chunk.pos != -1:
             # close() only takes len() of each entry; range(n) is len-able and tiny.
-            chunk.connections = {cid: range(len(items)) for cid, items in chunk.connections.items()}  # type: ignore[assignment,misc]
+            counts = {cid: range(len(items)) for cid, items in chunk.connections.items()}
+            chunk.connections = counts  # type: ignore[assignment]
 
 
 class _FastMcapWriter(_McapWriter):
@@ -175,7 +185,11 @@ class _FastRos2Writer(_Ros2Writer):
     STORAGE_PLUGINS = {**_Ros2Writer.STORAGE_PLUGINS, StoragePlugin.MCAP: _FastMcapWriter}  # noqa: RUF012
 
     def write(self, connection: Connection, timestamp: int, data: bytes | memoryview) -> None:
-        if self.storage is None or self.compression_mode.name != "NONE" or connection.owner is not self:
+        if (
+            self.storage is None
+            or self.compression_mode.name != "NONE"
+            or connection.owner is not self
+        ):
             super().write(connection, timestamp, data)
             return
         self.storage.write(connection, timestamp, data)
@@ -209,7 +223,9 @@ class BagWriter(Protocol):
 class Ros1BagWriter:
     """ROS 1 bag v2.0 at ``path`` (must not exist), chunked, ``compression`` none/lz4/bz2."""
 
-    def __init__(self, path: Path, compression: str = "lz4", store: MessageStore | None = None) -> None:
+    def __init__(
+        self, path: Path, compression: str = "lz4", store: MessageStore | None = None
+    ) -> None:
         self.path = path
         self.store = store or MessageStore(Flavor.ROS1)
         self._writer = _FastRos1Writer(path)
@@ -253,7 +269,9 @@ class Ros2BagWriter:
     def __init__(self, path: Path, store: MessageStore | None = None) -> None:
         self.path = path
         self.store = store or MessageStore(Flavor.ROS2)
-        self._writer = _FastRos2Writer(path, version=ROS2_BAG_VERSION, storage_plugin=StoragePlugin.MCAP)
+        self._writer = _FastRos2Writer(
+            path, version=ROS2_BAG_VERSION, storage_plugin=StoragePlugin.MCAP
+        )
         self._writer.open()
         self._conns: dict[str, Connection] = {}
 
@@ -295,7 +313,11 @@ class MultiBagWriter:
     """
 
     def __init__(
-        self, outdir: Path, formats: Iterable[str], topics: Sequence[BagTopic], compression: str = "lz4"
+        self,
+        outdir: Path,
+        formats: Iterable[str],
+        topics: Sequence[BagTopic],
+        compression: str = "lz4",
     ) -> None:
         self.writers: list[BagWriter] = []
         self.msgtypes = {t.topic: t.msgtype for t in topics}
@@ -305,7 +327,9 @@ class MultiBagWriter:
                 flavor = Flavor(fmt)
                 path = outdir / BAG_NAMES[flavor]
                 writer: BagWriter = (
-                    Ros1BagWriter(path, compression) if flavor is Flavor.ROS1 else Ros2BagWriter(path)
+                    Ros1BagWriter(path, compression)
+                    if flavor is Flavor.ROS1
+                    else Ros2BagWriter(path)
                 )
                 self.writers.append(writer)
                 writer.add_topics(topics)
@@ -354,7 +378,5 @@ class MultiBagWriter:
 
     def abort(self) -> None:
         for w in self.writers:
-            try:
+            with contextlib.suppress(Exception):  # best effort while already failing
                 w.abort()
-            except Exception:  # noqa: BLE001 - best effort while already failing
-                pass

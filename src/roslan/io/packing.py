@@ -27,7 +27,13 @@ Leaf = tuple[str, str, int]
 or ``('data', '<f8', 18)``. Paths use ``.`` between nested fields and integer indices into
 sequences of messages (``'transforms.0.transform.translation.x'``)."""
 
-_PROBE = {"f8": 1.2345678912345679e-123, "u4": 0x01020304, "i4": 0x01020304, "u8": 0x0102030405060708, "f4": 1.2345678e-12}
+_PROBE = {
+    "f8": 1.2345678912345679e-123,
+    "u4": 0x01020304,
+    "i4": 0x01020304,
+    "u8": 0x0102030405060708,
+    "f4": 1.2345678e-12,
+}
 
 
 def set_path(msg: Any, path: str, value: Any) -> Any:
@@ -54,7 +60,9 @@ class FixedLayout:
         leaves: the varying numeric leaves.
     """
 
-    def __init__(self, store: MessageStore, msgtype: str, template: Any, leaves: Sequence[Leaf]) -> None:
+    def __init__(
+        self, store: MessageStore, msgtype: str, template: Any, leaves: Sequence[Leaf]
+    ) -> None:
         self.store = store
         self.msgtype = msgtype
         zeroed = template
@@ -66,8 +74,10 @@ class FixedLayout:
         self.offsets: dict[str, tuple[int, np.dtype[Any], int]] = {}
         for path, dtype, count in leaves:
             try:
-                raw = store.serialize(set_path(zeroed, path, self._value(dtype, count, probe=True)), msgtype)
-            except Exception as err:  # noqa: BLE001 - the serializer's own error types vary
+                raw = store.serialize(
+                    set_path(zeroed, path, self._value(dtype, count, probe=True)), msgtype
+                )
+            except Exception as err:
                 msg = f"{msgtype}.{path}: leaf {dtype} x {count} does not fit the field ({err})"
                 raise ValueError(msg) from err
             probed = np.frombuffer(raw, dtype=np.uint8)
@@ -78,7 +88,10 @@ class FixedLayout:
                 raise ValueError(msg)
             diff = np.flatnonzero(probed != base)
             if diff.size != width or diff[-1] - diff[0] + 1 != width:
-                msg = f"{msgtype}.{path}: could not locate the leaf ({diff.size} bytes differ, {width} expected)"
+                msg = (
+                    f"{msgtype}.{path}: could not locate the leaf "
+                    f"({diff.size} bytes differ, {width} expected)"
+                )
                 raise ValueError(msg)
             self.offsets[path] = (int(diff[0]), dt, count)
 
@@ -100,8 +113,12 @@ class FixedLayout:
         out[:] = self.template
         for path, values in columns.items():
             off, dt, count = self.offsets[path]
-            arr = np.ascontiguousarray(np.broadcast_to(np.asarray(values), (n, count) if count > 1 else (n,)), dtype=dt)
-            out[:, off : off + dt.itemsize * count] = arr.reshape(n, -1).view(np.uint8).reshape(n, -1)
+            arr = np.ascontiguousarray(
+                np.broadcast_to(np.asarray(values), (n, count) if count > 1 else (n,)), dtype=dt
+            )
+            out[:, off : off + dt.itemsize * count] = (
+                arr.reshape(n, -1).view(np.uint8).reshape(n, -1)
+            )
         return out
 
 
@@ -119,7 +136,7 @@ class PackedBatch:
         self._rows: dict[int, NDArray[np.uint8]] = {}
 
     def rows(self, store: MessageStore) -> NDArray[np.uint8]:
-        """The packed rows of ``store``'s flavour (keyed by store identity: one store per flavour)."""
+        """The packed rows of ``store``'s flavour (keyed by store identity)."""
         rows = self._rows.get(id(store))
         if rows is None:
             rows = self._rows[id(store)] = self._packer(store)
@@ -132,6 +149,6 @@ class PackedBatch:
             rows = cache.get(id(store))
             if rows is None:
                 rows = self.rows(store)
-            return rows[i].tobytes()
+            return bytes(rows[i].tobytes())
 
         return _build

@@ -29,7 +29,11 @@ def _simulate(args: argparse.Namespace) -> int:
     config, path = load_config(args.config)
     if args.seed is not None:
         config = config.model_copy(update={"seed": args.seed})
-    formats = None if args.format is None else (("ros1", "ros2") if args.format == "both" else (args.format,))
+    formats = (
+        None
+        if args.format is None
+        else (("ros1", "ros2") if args.format == "both" else (args.format,))
+    )
     run: dict[str, Any] = run_simulation(
         config,
         args.outdir,
@@ -60,13 +64,19 @@ def register(subparsers: Any) -> None:
         ),
     )
     p.add_argument("config", nargs="?", type=Path, default=None, metavar="CONFIG", help="job YAML")
-    p.add_argument("-o", "--outdir", type=Path, required=True, metavar="OUTDIR", help="output folder")
+    p.add_argument(
+        "-o", "--outdir", type=Path, required=True, metavar="OUTDIR", help="output folder"
+    )
     p.add_argument("--seed", type=int, default=None, help="override the config's seed (>= 0)")
     p.add_argument("--format", choices=("ros1", "ros2", "both"), default=None, help="bag format(s)")
-    p.add_argument("--overwrite", action="store_true", help="replace an existing OUTDIR (after success)")
+    p.add_argument(
+        "--overwrite", action="store_true", help="replace an existing OUTDIR (after success)"
+    )
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.add_argument("--profile", action="store_true", help="print time spent per sensor and writer")
     p.add_argument(
-        "--allow-collision", action="store_true", help="skip the check that the path clears the scene"
+        "--allow-collision",
+        action="store_true",
+        help="skip the check that the path clears the scene",
     )
     p.set_defaults(func=_simulate)

@@ -31,7 +31,8 @@ class Context:
     Args:
         trajectory: the landing.
         outdir: the (temporary) output folder dataset files go to.
-        seed: run seed; ``rng(name)`` = ``Generator(PCG64(SeedSequence([seed, stream_key(name)])))``,
+        seed: run seed;
+            ``rng(name)`` = ``Generator(PCG64(SeedSequence([seed, stream_key(name)])))``,
             so each component's stream depends only on the seed and its name (adding a sensor
             never changes another sensor's noise).
         start_time_ns: absolute stamp of trajectory time 0.
@@ -55,7 +56,7 @@ class Context:
         self.outdir = Path(outdir)
         self.seed = int(seed)
         self.start_time_ns = int(start_time_ns)
-        self.sensors = tuple(sensors)
+        self.sensors: Sequence[SensorConfig] = tuple(sensors)
         self.scene_spec = scene_spec
         self.base_dir = base_dir
         self._scene = scene
@@ -92,11 +93,14 @@ class Context:
             if self.scene_spec is None:
                 msg = (
                     "this sensor needs a scene but the config has none; add e.g. "
-                    "'scene: warehouse' (built-ins: warehouse, refinery, empty) or a scene YAML path"
+                    "'scene: warehouse' (built-ins: warehouse, refinery, empty) "
+                    "or a scene YAML path"
                 )
                 raise ConfigError(msg)
             scene_mod = importlib.import_module("roslan.scene")
-            self._scene = scene_mod.load_scene(self.scene_spec, base_dir=self.base_dir, seed=self.seed)
+            self._scene = scene_mod.load_scene(
+                self.scene_spec, base_dir=self.base_dir, seed=self.seed
+            )
         return self._scene
 
     def renderer(self) -> Any:

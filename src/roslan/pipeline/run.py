@@ -78,14 +78,18 @@ def static_transforms(sensors: Sequence[Sensor]) -> list[StaticTransform]:
     sensor's own ``static_transforms()`` (a returned child frame replaces the default one)."""
     by_child: dict[str, StaticTransform] = {}
     for s in sensors:
-        by_child[s.config.frame] = StaticTransform(BASE_FRAME, s.config.frame, s.config.pose.matrix())
+        by_child[s.config.frame] = StaticTransform(
+            BASE_FRAME, s.config.frame, s.config.pose.matrix()
+        )
         for tf in s.static_transforms():
-            by_child[tf.child] = StaticTransform(tf.parent, tf.child, np.asarray(tf.T, dtype=np.float64))
+            by_child[tf.child] = StaticTransform(
+                tf.parent, tf.child, np.asarray(tf.T, dtype=np.float64)
+            )
     return list(by_child.values())
 
 
 class _Stream:
-    """One sensor's message generator, checked (time order, declared topics) and optionally timed."""
+    """One sensor's message generator, checked (time order, declared topics), optionally timed."""
 
     def __init__(self, name: str, gen: Iterator[Message], topics: set[str], profile: bool) -> None:
         self.name = name
@@ -110,10 +114,16 @@ class _Stream:
             if msg is None:
                 return
             if msg.t_ns < last or msg.t_ns < 0:
-                err = f"sensor {self.name!r} yielded t_ns={msg.t_ns} after {last}: streams must be time-ordered"
+                err = (
+                    f"sensor {self.name!r} yielded t_ns={msg.t_ns} after {last}: "
+                    "streams must be time-ordered"
+                )
                 raise SensorError(err)
             if msg.topic not in topics:
-                err = f"sensor {self.name!r} yielded topic {msg.topic!r} not declared in its topics(): {sorted(topics)}"
+                err = (
+                    f"sensor {self.name!r} yielded topic {msg.topic!r} not declared in "
+                    f"its topics(): {sorted(topics)}"
+                )
                 raise SensorError(err)
             last = msg.t_ns
             self.count += 1
@@ -183,7 +193,8 @@ def _check_outdir(outdir: Path, overwrite: bool) -> None:
             raise OutputError(msg)
         if any(outdir.iterdir()) and not (outdir / RUN_FILE).exists():
             msg = (
-                f"output folder {outdir} is not empty and holds no {RUN_FILE} (not a roslan output); "
+                f"output folder {outdir} is not empty and holds no {RUN_FILE} "
+                "(not a roslan output); "
                 "refusing to replace it even with --overwrite"
             )
             raise OutputError(msg)
@@ -242,13 +253,19 @@ def _extrinsics(sensors: Sequence[Sensor], static: Sequence[StaticTransform]) ->
             "quaternion_xyzw": [float(v) for v in matrix_to_quat_xyzw(T[:3, :3])],
         }
     out["static_transforms"] = [
-        {"parent": t.parent, "child": t.child, "T": [[float(v) for v in row] for row in np.asarray(t.T)]}
+        {
+            "parent": t.parent,
+            "child": t.child,
+            "T": [[float(v) for v in row] for row in np.asarray(t.T)],
+        }
         for t in static
     ]
     return out
 
 
-def _playback(duration_s: float, wall_s: float, formats: Sequence[str], topics: dict[str, int]) -> str:
+def _playback(
+    duration_s: float, wall_s: float, formats: Sequence[str], topics: dict[str, int]
+) -> str:
     rtf = duration_s / wall_s if wall_s > 0 else float("inf")
     lines = [
         "# Playing this landing",
@@ -263,7 +280,7 @@ def _playback(duration_s: float, wall_s: float, formats: Sequence[str], topics: 
             "",
             "```bash",
             "rosbag info landing.bag",
-            "rosparam set use_sim_time true   # stamps are simulated time (start_time + trajectory time)",
+            "rosparam set use_sim_time true   # stamps = start_time + trajectory time",
             "rosbag play --clock landing.bag             # real time",
             f"rosbag play --clock landing.bag -r {rtf:.2f}   # at the pace this simulation ran",
             "```",
@@ -351,7 +368,8 @@ def run_simulation(
         for t in s.topics():
             if t.topic in owners:
                 msg = (
-                    f"sensors: topic {t.topic!r} of sensor {s.config.name!r} is already published by "
+                    f"sensors: topic {t.topic!r} of sensor {s.config.name!r} "
+                    "is already published by "
                     f"{owners[t.topic]!r}; every topic must be unique"
                 )
                 raise ConfigError(msg)
@@ -365,7 +383,10 @@ def run_simulation(
         if not allow_collision:
             hit = scene_mod.check_clearance(scene, traj)
             if hit is not None:
-                msg = f"scene {config.scene!r}: {hit}; change the trajectory or pass --allow-collision"
+                msg = (
+                    f"scene {config.scene!r}: {hit}; "
+                    "change the trajectory or pass --allow-collision"
+                )
                 raise ConfigError(msg)
 
     # ---- 2. write into a temporary sibling
@@ -394,12 +415,17 @@ def run_simulation(
             )
             writers = MultiBagWriter(tmp, fmts, bag_topics, config.output.compression)
             t_stream = time.perf_counter()
-            streams = [_Stream("ground_truth", gt.messages(ctx), {t.topic for t in gt.topics()}, profile)]
+            streams = [
+                _Stream("ground_truth", gt.messages(ctx), {t.topic for t in gt.topics()}, profile)
+            ]
             streams += [
-                _Stream(s.config.name, s.messages(ctx), {t.topic for t in s.topics()}, profile) for s in sensors
+                _Stream(s.config.name, s.messages(ctx), {t.topic for t in s.topics()}, profile)
+                for s in sensors
             ]
             progress = _Progress(traj.duration, quiet)
-            write_seconds, build_seconds = _pump(streams, writers, ctx.start_time_ns, progress, profile, owners)
+            write_seconds, build_seconds = _pump(
+                streams, writers, ctx.start_time_ns, progress, profile, owners
+            )
             progress.update(traj.duration)
             progress.stop()
             progress = None
@@ -417,7 +443,7 @@ def run_simulation(
             calib = tmp / "calib"
             calib.mkdir(exist_ok=True)
             with (calib / "extrinsics.yaml").open("w", encoding="utf-8") as fh:
-                fh.write("# T_base_link_sensor of every sensor (and the /tf_static tree), written by roslan\n")
+                fh.write("# T_base_link_sensor of every sensor and the /tf_static tree (roslan)\n")
                 yaml.safe_dump(_extrinsics(sensors, gt.static), fh, sort_keys=False)
             counts = dict(writers_counts)
             run = {
@@ -427,7 +453,7 @@ def run_simulation(
                 "seed": config.seed,
                 "start_time_ns": config.output.start_time,
                 "start_time_utc": _dt.datetime.fromtimestamp(
-                    config.output.start_time / 1e9, tz=_dt.timezone.utc
+                    config.output.start_time / 1e9, tz=_dt.UTC
                 ).isoformat(),
                 "time_offset_note": "bag stamps = start_time_ns + trajectory time; text files use "
                 "seconds since the trajectory start",
@@ -436,7 +462,11 @@ def run_simulation(
                 "formats": list(fmts),
                 "bags": {f: BAG_NAMES[Flavor(f)] for f in fmts},
                 "topics": {
-                    t.topic: {"type": t.msgtype, "messages": counts[t.topic], "publisher": owners[t.topic]}
+                    t.topic: {
+                        "type": t.msgtype,
+                        "messages": counts[t.topic],
+                        "publisher": owners[t.topic],
+                    }
                     for t in bag_topics
                 },
                 "messages_total": sum(counts.values()),
@@ -452,7 +482,9 @@ def run_simulation(
                 "setup_s": t_stream - t_setup,
                 "stream_s": t_done - t_stream,
                 "real_time_factor": traj.duration / wall if wall > 0 else None,
-                "stream_real_time_factor": traj.duration / (t_done - t_stream) if t_done > t_stream else None,
+                "stream_real_time_factor": traj.duration / (t_done - t_stream)
+                if t_done > t_stream
+                else None,
             }
             if profile:
                 per = {
@@ -468,7 +500,9 @@ def run_simulation(
                 if not quiet:
                     _print_profile(per, write_seconds)
             _write_json(tmp / TIMING_FILE, timing)
-            (tmp / "PLAYBACK.md").write_text(_playback(traj.duration, wall, fmts, counts), encoding="utf-8")
+            (tmp / "PLAYBACK.md").write_text(
+                _playback(traj.duration, wall, fmts, counts), encoding="utf-8"
+            )
             _write_json(tmp / RUN_FILE, run)  # last: its presence marks a complete folder
             _finalize(tmp, outdir)
     except BaseException:
@@ -541,4 +575,3 @@ def _pump(
 
 def _t_ns(msg: Message) -> int:
     return msg.t_ns
-

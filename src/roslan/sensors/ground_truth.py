@@ -55,14 +55,15 @@ CHUNK_S = 1.0
 """Trajectory seconds evaluated per vectorized step."""
 
 TAU_LAYOUT = (("derivative(gap,rate,accel)", 3, 18), ("axis(" + ",".join(GAPS) + ")", 6, 6))
-"""``/tau/state`` layout: (label, size, stride) per dimension; data[6*i + j] = COMPONENTS[6*i + j]."""
+"""``/tau/state`` layout: (label, size, stride) per dimension;
+data[6 i + j] = COMPONENTS[6 i + j]."""
 
 assert len(COMPONENTS) == 18
 
 F64 = NDArray[np.float64]
 
 
-def _vec(store: MessageStore, v: Sequence[float] = (0.0, 0.0, 0.0)) -> Any:
+def _vec(store: MessageStore, v: Sequence[float] | F64 = (0.0, 0.0, 0.0)) -> Any:
     return store.new("geometry_msgs/msg/Vector3", x=float(v[0]), y=float(v[1]), z=float(v[2]))
 
 
@@ -70,7 +71,7 @@ def _point(store: MessageStore) -> Any:
     return store.new("geometry_msgs/msg/Point", x=0.0, y=0.0, z=0.0)
 
 
-def _quat(store: MessageStore, q: Sequence[float] = (0.0, 0.0, 0.0, 1.0)) -> Any:
+def _quat(store: MessageStore, q: Sequence[float] | F64 = (0.0, 0.0, 0.0, 1.0)) -> Any:
     return store.new(
         "geometry_msgs/msg/Quaternion", x=float(q[0]), y=float(q[1]), z=float(q[2]), w=float(q[3])
     )
@@ -96,7 +97,9 @@ def static_transform_message(
     """One tf2_msgs/TFMessage holding every static transform, stamped ``stamp_ns``."""
     return store.new(
         "tf2_msgs/msg/TFMessage",
-        transforms=[_transform_stamped(store, stamp_ns, t.parent, t.child, t.T) for t in transforms],
+        transforms=[
+            _transform_stamped(store, stamp_ns, t.parent, t.child, t.T) for t in transforms
+        ],
     )
 
 
@@ -131,14 +134,18 @@ class _Layouts:
         self.pose = FixedLayout(
             store,
             "geometry_msgs/msg/PoseStamped",
-            store.new("geometry_msgs/msg/PoseStamped", header=store.header(0, WORLD_FRAME), pose=pose),
+            store.new(
+                "geometry_msgs/msg/PoseStamped", header=store.header(0, WORLD_FRAME), pose=pose
+            ),
             hdr + _pose_leaves("pose"),
         )
         odom = store.new(
             "nav_msgs/msg/Odometry",
             header=store.header(0, WORLD_FRAME),
             child_frame_id=BASE_FRAME,
-            pose=store.new("geometry_msgs/msg/PoseWithCovariance", pose=pose, covariance=np.zeros(36)),
+            pose=store.new(
+                "geometry_msgs/msg/PoseWithCovariance", pose=pose, covariance=np.zeros(36)
+            ),
             twist=store.new(
                 "geometry_msgs/msg/TwistWithCovariance",
                 twist=store.new("geometry_msgs/msg/Twist", linear=_vec(store), angular=_vec(store)),
@@ -242,7 +249,10 @@ class GroundTruth:
         comps = st.components()
 
         def header(store: MessageStore, prefix: str = "") -> dict[str, Any]:
-            cols: dict[str, Any] = {prefix + "header.stamp.sec": sec, prefix + "header.stamp.nanosec": nsec}
+            cols: dict[str, Any] = {
+                prefix + "header.stamp.sec": sec,
+                prefix + "header.stamp.nanosec": nsec,
+            }
             if store.is_ros1:
                 cols[prefix + "header.seq"] = seq
             return cols
@@ -258,7 +268,9 @@ class GroundTruth:
         def tf(store: MessageStore) -> NDArray[np.uint8]:
             cols = header(store, "transforms.0.")
             cols.update(vec_cols("transforms.0.transform.translation", pos))
-            cols.update({f"transforms.0.transform.rotation.{a}": q[:, i] for i, a in enumerate("xyzw")})
+            cols.update(
+                {f"transforms.0.transform.rotation.{a}": q[:, i] for i, a in enumerate("xyzw")}
+            )
             return self._lay(store).tf.pack(cols, n)
 
         def pose(store: MessageStore) -> NDArray[np.uint8]:

@@ -55,7 +55,7 @@ CHUNK_S = 1.0
 
 
 class ImuConfig(SensorConfig):
-    """``type: imu``. Noise parameters are Kalibr's continuous-time densities; defaults are ESIM's."""
+    """``type: imu``. Noise: Kalibr's continuous-time densities; defaults are ESIM's."""
 
     type: Literal["imu"] = "imu"
     rate: Annotated[FiniteFloat, Field(gt=0)] = 1000.0
@@ -143,10 +143,13 @@ class Imu:
         dt = 1.0 / c.rate
         rw_a = c.accelerometer_random_walk * math.sqrt(dt)
         rw_g = c.gyroscope_random_walk * math.sqrt(dt)
-        rng = {k: ctx.rng(f"{c.name}/{k}") for k in ("acc_noise", "gyro_noise", "acc_walk", "gyro_walk", "turn_on")}
-        b_a = np.asarray(c.accelerometer_bias, dtype=float) + c.accelerometer_turn_on_bias_sigma * rng[
-            "turn_on"
-        ].standard_normal(3)
+        rng = {
+            k: ctx.rng(f"{c.name}/{k}")
+            for k in ("acc_noise", "gyro_noise", "acc_walk", "gyro_walk", "turn_on")
+        }
+        b_a = np.asarray(
+            c.accelerometer_bias, dtype=float
+        ) + c.accelerometer_turn_on_bias_sigma * rng["turn_on"].standard_normal(3)
         b_g = np.asarray(c.gyroscope_bias, dtype=float) + c.gyroscope_turn_on_bias_sigma * rng[
             "turn_on"
         ].standard_normal(3)
@@ -154,7 +157,7 @@ class Imu:
         fh = ctx.path(self._file_stem(ctx) + ".txt").open("w", encoding="utf-8", newline="\n")
         self._fh = fh
         try:
-            fh.write("# t ax ay az gx gy gz  (s since trajectory start; m/s^2 and rad/s in the IMU frame)\n")
+            fh.write("# t ax ay az gx gy gz  (s since trajectory start; m/s^2, rad/s; IMU frame)\n")
             for i0 in range(0, times.size, per_chunk):
                 t = times[i0 : i0 + per_chunk]
                 n = t.size
@@ -197,7 +200,9 @@ class Imu:
     def _layout(self, store: MessageStore) -> FixedLayout:
         key = store.flavor.value
         if key not in self._layouts:
-            self._layouts[key] = FixedLayout(store, "sensor_msgs/msg/Imu", self.template(store), self._leaves(store))
+            self._layouts[key] = FixedLayout(
+                store, "sensor_msgs/msg/Imu", self.template(store), self._leaves(store)
+            )
         return self._layouts[key]
 
     def _leaves(self, store: MessageStore) -> list[Leaf]:
@@ -252,5 +257,7 @@ class Imu:
             self._fh.close()
         path = ctx.path(f"calib/{self._file_stem(ctx)}.yaml")
         with path.open("w", encoding="utf-8") as fh:
-            fh.write(f"# Kalibr IMU configuration of sensor '{self.config.name}' (written by roslan)\n")
+            fh.write(
+                f"# Kalibr IMU configuration of sensor '{self.config.name}' (written by roslan)\n"
+            )
             yaml.safe_dump(self.kalibr(), fh, sort_keys=False, default_flow_style=None)
