@@ -405,33 +405,38 @@ def plot_trajectories(runs: Sequence[DatasetRun], path: Path) -> None:
     axs = fig.add_subplot(1, 3, 3)
     cmap = plt.get_cmap("tab10")
     colors = [cmap(i) for i in range(10)]
-    for n, run in enumerate(runs):
-        traj = Trajectory(TrajectoryConfig.model_validate(run.config["trajectory"]), warn=False)
-        t = np.append(np.arange(0.0, traj.T, SAMPLE_DT), traj.T)
-        st = traj.state(t)
-        p, v = st.gaps[:, :3], st.rates[:, :3]
+    trajs = [
+        Trajectory(TrajectoryConfig.model_validate(r.config["trajectory"]), warn=False)
+        for r in runs
+    ]
+    # arrows: velocity scaled so the fastest start spans 15% of the largest start distance
+    extent = max((float(np.linalg.norm(tr.initial_gaps[:3])) for tr in trajs), default=1.0)
+    vmax = max((float(np.linalg.norm(tr.state([0.0]).rates[0, :3])) for tr in trajs), default=1.0)
+    scale = 0.15 * extent / vmax
+    for n, (run, traj) in enumerate(zip(runs, trajs, strict=True)):
+        st = traj.state(np.linspace(0.0, traj.T, 400))
+        p = st.gaps[:, :3]
+        # vectors at the table instants (every 0.1 s), at most ~12 per landing
+        ta = np.arange(0.0, traj.T, SAMPLE_DT)
+        ta = ta[:: max(1, len(ta) // 12)]
+        sa = traj.state(ta)
+        pa, va = sa.gaps[:, :3], sa.rates[:, :3] * scale
         c = colors[n % len(colors)]
         label = (
             f"{run.number}: $\\kappa_x$={run.kappa_x:g}, $\\kappa_y$={run.kappa_y:g}, "
             f"{run.speed:g} m/s"
         )
-        ax3.plot(p[:, 0], p[:, 1], p[:, 2], color=c, lw=1.5, label=label)
-        every = slice(None, None, max(1, len(t) // 12))
+        # the vectors are tangent to the path: thin paths, bold arrows
+        ax3.plot(p[:, 0], p[:, 1], p[:, 2], color=c, lw=0.8, alpha=0.6, label=label)
         ax3.quiver(
-            p[every, 0],
-            p[every, 1],
-            p[every, 2],
-            v[every, 0],
-            v[every, 1],
-            v[every, 2],
-            length=0.25,
-            color=c,
-            linewidth=0.8,
-        )
-        axt.plot(p[:, 0], p[:, 1], color=c, lw=1.5)
+            pa[:, 0], pa[:, 1], pa[:, 2], va[:, 0], va[:, 1], va[:, 2],
+            color=c, linewidth=1.6, arrow_length_ratio=0.35,
+        )  # fmt: skip
+        axt.plot(p[:, 0], p[:, 1], color=c, lw=0.8, alpha=0.6)
         axt.quiver(
-            p[every, 0], p[every, 1], v[every, 0], v[every, 1], color=c, width=0.004, alpha=0.7
-        )
+            pa[:, 0], pa[:, 1], va[:, 0], va[:, 1], color=c, angles="xy", scale_units="xy",
+            scale=1.0, width=0.007, headwidth=3.5, headlength=4.0, headaxislength=3.5,
+        )  # fmt: skip
         axs.plot(np.hypot(p[:, 0], p[:, 1]), p[:, 2], color=c, lw=1.5)
     for ax in (axt, axs):
         ax.plot([0], [0], "k*", ms=10)
