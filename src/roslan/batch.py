@@ -997,7 +997,11 @@ def print_summary(report: BatchReport, *, max_rows: int = 50) -> None:
         if len(report.results) > len(rows)
         else ""
     )
-    console.print(f"{counts} in {report.wall_s:.1f} s on {report.workers} worker(s){more}")
+    w = report.workers
+    where = (
+        f"scheduler {w}" if isinstance(w, str) else f"{w} local worker(s)" if w else "this process"
+    )
+    console.print(f"{counts or 'nothing to do'} in {report.wall_s:.1f} s on {where}{more}")
     console.print(f"status of every task: {report.outdir / 'batch.json'}")
 
 
