@@ -4,7 +4,7 @@ and the preview video draw a placeholder panel for what is absent."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -64,6 +64,10 @@ class RunMedia:
             seqs = find_images(outdir)
         except PlotError as err:
             problems.append(str(err))
+
+        cams = [str(c.get("name")) for c in sensor_configs(outdir, "camera")]
+        if len(cams) == 1:  # the top-level images.txt is the one camera's
+            seqs = [replace(s, name=cams[0]) if s.name == "images" else s for s in seqs]
 
         def is_event_cam(s: ImageSequence) -> bool:
             return s.name in event_names
