@@ -15,6 +15,10 @@ __all__ = ["PLOT_COMMANDS", "register"]
 
 PLOT_COMMANDS: tuple[str, ...] = (
     "roslan.plots.tau_family",
+    "roslan.plots.trajectory",
+    "roslan.plots.lidar",
+    "roslan.plots.imu",
+    "roslan.plots.overview",
 )  # fmt: skip
 
 
