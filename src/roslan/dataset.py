@@ -171,18 +171,24 @@ def _touchdown(block: Mapping[str, Any]) -> float:
     return float(Trajectory(TrajectoryConfig.model_validate(block), warn=False).T)
 
 
-def _scene_goal(name: str) -> tuple[dict[str, Any], Any]:
-    """The scene's landing marker as a ``goal`` block, and the scene (None if unavailable)."""
+def _load(name: str, seed: int) -> Any:
     try:
         from roslan.scene import load_scene
-    except ImportError:  # scenes not installed in this build: land at the origin
-        return {"position": [0.0, 0.0, 0.0], "rpy": [0.0, 0.0, 0.0]}, None
-    scene = load_scene(name)
+    except ImportError:  # scenes not installed in this build
+        return None
+    return load_scene(name, seed=seed)
+
+
+def _scene_goal(name: str) -> dict[str, Any]:
+    """The scene's landing marker as a ``goal`` block (the origin if scenes are unavailable)."""
+    scene = _load(name, 0)
+    if scene is None:
+        return {"position": [0.0, 0.0, 0.0], "rpy": [0.0, 0.0, 0.0]}
     goal = {
         "position": [float(v) for v in scene.goal_position],
         "rpy": [float(v) for v in scene.goal_rpy],
     }
-    return goal, scene
+    return goal
 
 
 def _clear(scene: Any, block: Mapping[str, Any]) -> bool:
@@ -217,7 +223,8 @@ def dataset_plan(
         duration: touchdown time (s) of every landing, reached by scaling its start
             distance (speeds, angle and kappas kept); None: :data:`APPROACH_DISTANCE`.
         formats: bag formats (``ros1``, ``ros2``); None: the config default (both).
-        check_clearance: turn a blocked heading until the path is clear.
+        check_clearance: turn a blocked heading until the path is clear in the scene as
+            the simulation will build it (with its seed; ~1-4 s per built-in scene load).
     """
     if not scenes:
         msg = "--scenes: give at least one scene"
@@ -234,7 +241,7 @@ def dataset_plan(
     suite = [dict(s) for s in (sensors if sensors is not None else default_sensor_suite())]
     runs = []
     for j, scene_name in enumerate(scenes):
-        goal, scene = _scene_goal(scene_name)
+        goal = _scene_goal(scene_name)
         label = Path(scene_name).stem if scene_name.endswith((".yaml", ".yml")) else scene_name
         for i, (kx, ky, speed, heading_deg) in enumerate(PAPER_TRAJECTORIES):
             assert PAPER_K * max(kx, ky) < 0.5  # bounded deceleration on every gap
@@ -244,6 +251,9 @@ def dataset_plan(
                 t0 = _touchdown(_trajectory_block(kx, ky, speed, heading, distance, goal))
                 distance *= duration / t0
             block = _trajectory_block(kx, ky, speed, heading, distance, goal)
+            sim_seed = int(np.random.SeedSequence([seed, j, i]).generate_state(1, np.uint32)[0])
+            # the simulation builds its scene with its own seed (clutter moves): check that one
+            scene = _load(scene_name, sim_seed) if check_clearance else None
             if check_clearance and not _clear(scene, block):
                 for step in _HEADING_STEPS_DEG:
                     h = math.radians(heading_deg + step)
@@ -257,7 +267,6 @@ def dataset_plan(
                         "hits scene objects for every heading tried; use another scene"
                     )
                     raise ConfigError(msg)
-            sim_seed = int(np.random.SeedSequence([seed, j, i]).generate_state(1, np.uint32)[0])
             config: dict[str, Any] = {
                 "trajectory": block,
                 "scene": scene_name,
