@@ -54,7 +54,7 @@ def test_output_folder_contract(out: Path) -> None:
     names = {p.name for p in out.iterdir()}
     expected = {
         "landing.bag", "landing_ros2", "trajectory.csv", "groundtruth.txt", "summary.json",
-        "imu.txt",
+        "imu.txt", "trajectory.png",
         "calib", "PLAYBACK.md", "run.json", "timing.json",
     }  # fmt: skip
     assert expected <= names
@@ -76,6 +76,7 @@ def test_output_folder_contract(out: Path) -> None:
     assert run["topics"]["/tf"]["messages"] == 61
     assert run["topics"]["/tf_static"]["messages"] == 1
     assert run["config"]["sensors"][0]["rate"] == 200.0
+    assert not (out / ".plot").exists()  # the background plot's scratch folder is gone
     # no leftover temporary siblings
     assert not [p for p in out.parent.iterdir() if ".partial-" in p.name or ".old-" in p.name]
     timing = json.loads((out / "timing.json").read_text())

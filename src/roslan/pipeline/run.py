@@ -27,10 +27,13 @@ import contextlib
 import datetime as _dt
 import heapq
 import json
+import multiprocessing
+import multiprocessing.process
 import os
 import platform
 import shutil
 import signal
+import sys
 import tempfile
 import threading
 import time
@@ -164,6 +167,56 @@ class _Progress:
     def stop(self) -> None:
         if self._bar is not None:
             self._bar.stop()
+
+
+def _plot_child(traj: Trajectory, folder: Path) -> None:
+    # the parent handles Ctrl-C / SIGTERM and terminates this child: die quietly
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    from roslan.trajectory.export import write_trajectory_files
+
+    write_trajectory_files(traj, folder, plot=True)
+
+
+class _BackgroundPlot:
+    """Renders trajectory.png (about a second of matplotlib) in a forked child process while
+    the parent streams the sensors, so the one-off plot overlaps the simulation on a second
+    core. Where ``fork`` is not the safe default (non-Linux) it renders in-process."""
+
+    def __init__(self, traj: Trajectory, tmp: Path) -> None:
+        self.tmp = tmp
+        self.folder = tmp / ".plot"
+        self.proc: multiprocessing.process.BaseProcess | None = None
+        self.folder.mkdir()
+        if sys.platform.startswith("linux"):
+            mp = multiprocessing.get_context("fork")
+            self.proc = mp.Process(target=_plot_child, args=(traj, self.folder), daemon=True)
+            self.proc.start()
+        else:  # pragma: no cover - exercised on macOS / Windows only
+            _plot_child_inline(traj, self.folder)
+
+    def finish(self) -> None:
+        """Wait for the child; move its trajectory.png into place (OutputError if it failed)."""
+        if self.proc is not None:
+            self.proc.join()
+            if self.proc.exitcode != 0:
+                msg = f"rendering trajectory.png failed (child exit code {self.proc.exitcode})"
+                raise OutputError(msg)
+        png = self.folder / "trajectory.png"
+        if png.exists():
+            png.replace(self.tmp / "trajectory.png")
+        shutil.rmtree(self.folder, ignore_errors=True)
+
+    def kill(self) -> None:
+        if self.proc is not None and self.proc.is_alive():
+            self.proc.terminate()
+            self.proc.join(5)
+
+
+def _plot_child_inline(traj: Trajectory, folder: Path) -> None:  # pragma: no cover
+    from roslan.trajectory.export import write_trajectory_files
+
+    write_trajectory_files(traj, folder, plot=True)
 
 
 @contextlib.contextmanager
@@ -393,12 +446,14 @@ def run_simulation(
     tmp = _make_temp(outdir)
     writers: MultiBagWriter | None = None
     progress: _Progress | None = None
+    plot: _BackgroundPlot | None = None
     try:
         with _sigterm_as_interrupt():
             from roslan.trajectory.export import write_trajectory_files
 
             t_setup = time.perf_counter()
-            write_trajectory_files(traj, tmp, plot=True)
+            write_trajectory_files(traj, tmp, plot=False)
+            plot = _BackgroundPlot(traj, tmp)
             if scene is not None:
                 import roslan.scene as scene_mod
 
@@ -428,6 +483,7 @@ def run_simulation(
             )
             progress.update(traj.duration)
             progress.stop()
+            plot.finish()
             progress = None
             close_seconds: dict[str, float] = {}
             for s in sensors:
@@ -506,6 +562,8 @@ def run_simulation(
             _write_json(tmp / RUN_FILE, run)  # last: its presence marks a complete folder
             _finalize(tmp, outdir)
     except BaseException:
+        if plot is not None:
+            plot.kill()
         if progress is not None:
             progress.stop()
         if writers is not None:
