@@ -92,9 +92,13 @@ def scaling(n: int, duration: float, root: Path) -> dict[str, Any]:
     return out
 
 
-def dataset(root: Path, duration: float | None, workers: int) -> dict[str, Any]:
+def dataset(
+    root: Path, duration: float | None, workers: int, sensors: list[dict[str, Any]] | None
+) -> dict[str, Any]:
     t0 = time.perf_counter()
-    runs, report = build_dataset(root / "dataset", workers=workers, duration=duration)
+    runs, report = build_dataset(
+        root / "dataset", workers=workers, duration=duration, sensors=sensors, progress=False
+    )
     wall = time.perf_counter() - t0
     traj_s = sum(r.duration_s or 0.0 for r in report.results)
     size = sum(p.stat().st_size for p in (root / "dataset").rglob("*") if p.is_file())
@@ -120,6 +124,7 @@ def main() -> None:
     ap.add_argument("--dataset-duration", type=float, default=None)
     ap.add_argument("--workers", type=int, default=2, help="workers for the dataset run")
     ap.add_argument("--keep", metavar="DIR", help="write into DIR and keep it")
+    ap.add_argument("--sensors", metavar="YAML", help="replace the dataset's sensor suite")
     args = ap.parse_args()
     root = Path(args.keep) if args.keep else Path(tempfile.mkdtemp(prefix="bench_batch_"))
     root.mkdir(parents=True, exist_ok=True)
@@ -133,7 +138,11 @@ def main() -> None:
             result["scaling"] = scaling(args.tasks, args.duration, root)
             print(json.dumps(result["scaling"], indent=2))
         if not args.no_dataset:
-            result["dataset"] = dataset(root, args.dataset_duration, args.workers)
+            import yaml
+
+            sensors = yaml.safe_load(Path(args.sensors).read_text()) if args.sensors else None
+            result["dataset"] = dataset(root, args.dataset_duration, args.workers, sensors)
+            result["dataset"]["sensors"] = args.sensors or "paper suite"
             print(json.dumps(result["dataset"], indent=2))
         result["load_average_at_end"] = os.getloadavg()
         print(json.dumps(result, indent=2))

@@ -709,21 +709,15 @@ def _cluster(workers: int | None, scheduler: str | None) -> tuple[Any, Any, int 
             msg = f"--scheduler {scheduler}: cannot connect to a Dask scheduler there ({err})"
             raise ConfigError(msg) from None
         return client, None, scheduler
-    import dask
-
     n = workers if workers is not None else (os.cpu_count() or 1)
-    # A simulation can keep its worker's event loop starved for minutes on a loaded
-    # machine (GIL-holding rendering); the nanny already reports real process deaths, so
-    # the scheduler must not also expel "silent" workers (worker-ttl) and rerun their tasks.
-    with dask.config.set({"distributed.scheduler.worker-ttl": None}):
-        cluster = LocalCluster(
-            n_workers=n,
-            threads_per_worker=1,
-            processes=True,
-            host="127.0.0.1",
-            dashboard_address=None,
-            silence_logs=logging.ERROR,
-        )
+    cluster = LocalCluster(
+        n_workers=n,
+        threads_per_worker=1,
+        processes=True,
+        host="127.0.0.1",
+        dashboard_address=None,
+        silence_logs=logging.CRITICAL,  # task errors are reported per task
+    )
     return Client(cluster), cluster, n
 
 
@@ -868,12 +862,41 @@ def _run_dask(
     record: Callable[[Task, Mapping[str, Any] | BaseException, int], None],
     advance: Callable[[str], None],
 ) -> int | str:
-    import distributed
+    import dask
 
-    as_completed: Any = distributed.as_completed
     if workers is not None and workers < 1:
         msg = f"--workers = {workers}: must be >= 1 (or 0 to run in this process)"
         raise ConfigError(msg)
+
+    with dask.config.set(LOCAL_CLUSTER_CONFIG):
+        # held for the cluster's lifetime: the nanny reads it again when it restarts a
+        # worker that died
+        return _run_on_cluster(todo, out, workers, scheduler, retries, runner, record, advance)
+
+
+LOCAL_CLUSTER_CONFIG: dict[str, Any] = {
+    # A simulation can starve its worker's event loop for minutes on a loaded machine
+    # (GIL-holding rendering); the nanny already reports real process deaths, so the
+    # scheduler must not also expel "silent" workers and rerun their tasks.
+    "distributed.scheduler.worker-ttl": None,
+    # A simulation may start helper processes, which daemonic workers cannot.
+    "distributed.worker.daemon": False,
+}
+
+
+def _run_on_cluster(
+    todo: Sequence[tuple[Task, bool]],
+    out: Path,
+    workers: int | None,
+    scheduler: str | None,
+    retries: int,
+    runner: Runner | None,
+    record: Callable[[Task, Mapping[str, Any] | BaseException, int], None],
+    advance: Callable[[str], None],
+) -> int | str:
+    import distributed
+
+    as_completed: Any = distributed.as_completed
     client, cluster, n = _cluster(min(workers or (os.cpu_count() or 1), len(todo)), scheduler)
     try:
         futures = {}
