@@ -93,7 +93,9 @@ def _dataset(args: argparse.Namespace) -> int:
                 f"{r.distance:.2f}",
                 str(r.seed),
             )
-        Console().print(table)
+        import sys
+
+        Console(width=None if sys.stdout.isatty() else 120).print(table)
         return 0
     _, report = build_dataset(
         args.output,
