@@ -315,6 +315,7 @@ class Renderer:
         max_size: largest image width/height the driver supports (pixels).
         samples: MSAA samples per pixel of the colour pass.
         near: near clipping distance (m), chosen from the scene size.
+        anisotropy: texture anisotropic filtering level (1 on llvmpipe: see below).
     """
 
     def __init__(self, scene: Scene, *, samples: int = MSAA_SAMPLES) -> None:
@@ -328,6 +329,10 @@ class Renderer:
             )
         )
         self.samples = max(1, min(samples, int(ctx.max_samples)))
+        # Mesa's llvmpipe (LLVM 15) stalls for minutes on anisotropic filtering of
+        # near-grazing, near-clipped ground planes: trilinear mip-mapping + MSAA there.
+        software = "llvmpipe" in str(ctx.info.get("GL_RENDERER", "")).lower()
+        self.anisotropy = 1.0 if software else 16.0
         self._targets: dict[tuple[int, int], _Targets] = {}
         self._released = False
 
@@ -380,7 +385,7 @@ class Renderer:
         first = 0
         white = ctx.texture((1, 1), 3, bytes([255, 255, 255]), internal_format=_GL_SRGB8)
         self._textures.append(white)
-        aniso = float(min(16.0, ctx.max_anisotropy))
+        aniso = float(min(self.anisotropy, ctx.max_anisotropy))
         for key, members in groups.items():
             count = 0
             for i in members:

@@ -1,0 +1,591 @@
+"""Frame, depth and stereo cameras rendered with the shared OpenGL rasterizer.
+
+Every frame: the closed-form trajectory gives the body pose at the stamp (or at
+``exposure_samples`` instants spread over the exposure, averaged: motion blur);
+``T_world_optical = T_world_body @ T_body_sensor @ T_sensor_optical``; the renderer
+draws a pinhole view (larger than the image when the lens distorts: see
+:meth:`CameraModel.render_plan`) that ``cv2.remap`` turns into the distorted image.
+Linear radiance -> gain -> shot (Poisson) and read (Gaussian) noise -> gamma/sRGB
+encoding -> 8 bits.
+
+Topics (``<topic>`` = the sensor's topic): ``<topic>/image_raw`` (sensor_msgs/Image)
+and ``<topic>/camera_info`` (sensor_msgs/CameraInfo), frame ``<frame>_optical``.
+Stereo: ``<topic>/left/...`` and ``<topic>/right/...`` in ``<frame>_left_optical`` /
+``<frame>_right_optical``; the right camera sits ``baseline`` metres along the left
+camera's optical x axis (its CameraInfo ``P[0, 3] = -fx * baseline``, ROS convention).
+
+Image stamps are the middle of the exposure.
+
+Dataset files:
+
+* one ``camera`` and no stereo camera in the config: ``images/NNNNNNNN.png`` and
+  ``images.txt`` (``t images/NNNNNNNN.png``), Event Camera Dataset layout;
+* otherwise each camera (each stereo eye: ``<name>_left``, ``<name>_right``) writes
+  ``images/<name>/NNNNNNNN.png`` and ``images_<name>.txt``;
+* depth cameras: ``depth/<name>/NNNNNNNN.png`` (16-bit, millimetres, 0 = no
+  return) and ``depth_<name>.txt``;
+* ``calib/<name>.yaml`` (ROS camera_info), and from the first camera-like sensor
+  ``calib/camchain.yaml`` (Kalibr, ``T_cam_imu`` when an IMU is configured) and
+  ``calib.txt`` (``fx fy cx cy k1 k2 p1 p2 k3``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import IO, Annotated, Any, Literal
+
+import numpy as np
+from numpy.typing import NDArray
+from pydantic import Field, model_validator
+
+from roslan.config.base import FiniteFloat
+from roslan.errors import RenderError, SensorError
+from roslan.io.messages import MessageStore
+from roslan.io.text import format_seconds
+from roslan.sensors.base import (
+    Message,
+    SensorConfig,
+    SimContext,
+    StaticTransform,
+    TopicSpec,
+    sample_times_ns,
+)
+from roslan.sensors.camera_model import (
+    T_LINK_OPTICAL,
+    CalibCamera,
+    CameraIntrinsics,
+    CameraModel,
+    RenderPlan,
+    load_calibration,
+    write_calibration_files,
+)
+
+__all__ = [
+    "Camera",
+    "CameraConfig",
+    "DepthCamera",
+    "DepthCameraConfig",
+    "StereoCamera",
+    "StereoCameraConfig",
+    "encode_linear",
+    "srgb_lut",
+]
+
+F32 = NDArray[np.float32]
+F64 = NDArray[np.float64]
+U8 = NDArray[np.uint8]
+
+IMAGE = "sensor_msgs/msg/Image"
+CAMERA_INFO = "sensor_msgs/msg/CameraInfo"
+BASE_FRAME = "base_link"
+
+Positive = Annotated[FiniteFloat, Field(gt=0)]
+NonNegative = Annotated[FiniteFloat, Field(ge=0)]
+
+_LUT_SIZE = 16384  # linear quantization steps of the encoding LUT (< 1 code in the darks)
+
+
+# --------------------------------------------------------------------- configs
+class _ImagingConfig(SensorConfig, CameraIntrinsics):
+    """Keys shared by the colour cameras."""
+
+    encoding: Literal["mono8", "rgb8", "bgr8"] = "rgb8"
+    exposure_time: NonNegative = 0.0
+    """Exposure (s); > 0 averages ``exposure_samples`` renders over it (motion blur)."""
+    exposure_samples: Annotated[int, Field(ge=1, le=64)] = 8
+    gain: NonNegative = 1.0
+    """Multiplies the linear radiance before noise and encoding."""
+    gamma: Literal["srgb"] | Positive = "srgb"
+    """``srgb`` (the sRGB transfer curve) or a power ``v = linear ** (1 / gamma)``; 1 = linear."""
+    noise_std: NonNegative = 0.0
+    """Gaussian read noise, standard deviation in linear units (full scale = 1)."""
+    full_well: Positive | None = None
+    """Photo-electrons at full scale; set to add Poisson shot noise."""
+    write_images: bool = True
+    """Write the PNG files and their index (``images.txt``)."""
+
+
+class CameraConfig(_ImagingConfig):
+    """``type: camera``: a frame camera (mono8/rgb8/bgr8)."""
+
+    type: Literal["camera"] = "camera"
+
+
+class StereoCameraConfig(_ImagingConfig):
+    """``type: stereo_camera``: two identical, rectified (parallel) cameras.
+
+    ``calibration`` / inline keys describe the left camera; the right one uses
+    ``calibration_right`` if given, else ``cam1`` of the same file when it is a Kalibr
+    camchain with two cameras, else the left intrinsics. The right camera sits
+    ``baseline`` m along the left optical x axis.
+    """
+
+    type: Literal["stereo_camera"] = "stereo_camera"
+    baseline: Positive = 0.12
+    calibration_right: Path | None = None
+
+    @model_validator(mode="after")
+    def _right(self) -> StereoCameraConfig:
+        if self.calibration_right is not None and not self.calibration_right.is_absolute():
+            base = self.calibration.parent if self.calibration is not None else None
+            if base is not None and (base / self.calibration_right).exists():
+                object.__setattr__(self, "calibration_right", base / self.calibration_right)
+        return self
+
+    def right_model(self) -> CameraModel:
+        name = f"{self.name}_right"
+        if self.calibration_right is not None:
+            return load_calibration(self.calibration_right, name=name)
+        if self.calibration is not None and self.calibration_camera is None:
+            try:
+                return load_calibration(self.calibration, camera="cam1", name=name)
+            except SensorError:
+                pass
+        return CameraModel.from_config(self, name=name, source=self._source())
+
+    def calibration_cameras(self) -> list[CalibCamera]:
+        try:
+            left = self.camera_model()
+            right = self.right_model()
+        except SensorError as err:
+            raise ValueError(str(err)) from None
+        left = _renamed(left, f"{self.name}_left")
+        T_left = self.base_T_optical()
+        T_lr = np.eye(4)
+        T_lr[0, 3] = self.baseline
+        topic = self.topic
+        return [
+            CalibCamera(f"{self.name}_left", left, T_left, f"{topic}/left/image_raw"),
+            CalibCamera(
+                f"{self.name}_right",
+                right,
+                T_left @ T_lr,
+                f"{topic}/right/image_raw",
+                -right.fx * self.baseline,
+            ),
+        ]
+
+
+class DepthCameraConfig(SensorConfig, CameraIntrinsics):
+    """``type: depth_camera``: 32FC1 z-depth in metres, NaN where nothing is measured (REP 118)."""
+
+    type: Literal["depth_camera"] = "depth_camera"
+    min_range: NonNegative = 0.0
+    """Closer returns are NaN (m)."""
+    max_range: Positive | None = None
+    """Farther returns are NaN (m); unset: unlimited."""
+    noise_std: NonNegative = 0.0
+    """Gaussian depth noise, m."""
+    noise_quadratic: NonNegative = 0.0
+    """Extra noise standard deviation per m^2 of depth (structured-light/stereo-like)."""
+    write_images: bool = True
+    """Write ``depth/<name>/NNNNNNNN.png`` (16-bit mm) and ``depth_<name>.txt``."""
+
+    @model_validator(mode="after")
+    def _ranges(self) -> DepthCameraConfig:
+        if self.max_range is not None and self.max_range <= self.min_range:
+            msg = f"max_range = {self.max_range}: must be greater than min_range = {self.min_range}"
+            raise ValueError(msg)
+        return self
+
+
+def _renamed(m: CameraModel, name: str) -> CameraModel:
+    return CameraModel(m.width, m.height, m.K, m.D, m.distortion_model, name, m.source)
+
+
+# --------------------------------------------------------------------- encoding
+def srgb_lut(gamma: str | float) -> U8:
+    """(_LUT_SIZE,) uint8 codes of linear values ``i / (_LUT_SIZE - 1)``."""
+    x = np.linspace(0.0, 1.0, _LUT_SIZE)
+    if gamma == "srgb":
+        v = np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1 / 2.4) - 0.055)
+    else:
+        v = np.power(x, 1.0 / float(gamma))
+    return np.clip(np.round(v * 255.0), 0, 255).astype(np.uint8)
+
+
+def encode_linear(img: F32, lut: U8) -> U8:
+    """Linear float image (any shape, values clipped to [0, 1]) -> uint8 codes via ``lut``."""
+    idx = np.clip(img, 0.0, 1.0)
+    idx *= _LUT_SIZE - 1
+    idx += 0.5
+    out: U8 = lut[idx.astype(np.intp)]
+    return out
+
+
+_LUMA = np.array([0.2126, 0.7152, 0.0722], dtype=np.float32)  # Rec. 709, linear
+
+
+# --------------------------------------------------------------------- helpers
+@dataclass
+class _Eye:
+    """One physical camera of a sensor: intrinsics, extrinsics, render plan, outputs."""
+
+    suffix: str  # '' or 'left' / 'right'
+    model: CameraModel
+    T_sensor_optical: F64  # pose of the optical frame in the sensor link frame
+    topic: str  # prefix: <topic>[/left]
+    frame: str  # optical frame id
+    Tx: float = 0.0
+    plan: RenderPlan | None = None
+    files: str = ""  # dataset file stem ('' = images/NNNNNNNN.png, images.txt)
+    index_fh: IO[str] | None = None
+
+
+def _camera_info(store: MessageStore, eye: _Eye, stamp: int, seq: int) -> Any:
+    m = eye.model
+    header = store.header(stamp, eye.frame, seq)
+    D = np.asarray(m.ros_D(), dtype=np.float64)
+    K = m.K.ravel().astype(np.float64)
+    R = np.eye(3).ravel()
+    P = m.projection_matrix(eye.Tx).ravel()
+    roi = store.new(
+        "sensor_msgs/msg/RegionOfInterest",
+        x_offset=0,
+        y_offset=0,
+        height=0,
+        width=0,
+        do_rectify=False,
+    )
+    common = {
+        "header": header,
+        "height": m.height,
+        "width": m.width,
+        "distortion_model": m.ros_distortion_model(),
+        "binning_x": 0,
+        "binning_y": 0,
+        "roi": roi,
+    }
+    if store.is_ros1:
+        return store.new(CAMERA_INFO, D=D, K=K, R=R, P=P, **common)
+    return store.new(CAMERA_INFO, d=D, k=K, r=R, p=P, **common)
+
+
+def _image(
+    store: MessageStore, frame: str, stamp: int, seq: int, data: NDArray[Any], encoding: str
+) -> Any:
+    h, w = data.shape[:2]
+    flat = np.ascontiguousarray(data).view(np.uint8).reshape(-1)
+    return store.new(
+        IMAGE,
+        header=store.header(stamp, frame, seq),
+        height=h,
+        width=w,
+        encoding=encoding,
+        is_bigendian=0,
+        step=flat.size // h,
+        data=flat,
+    )
+
+
+def _pose_matrices(ctx: SimContext, t_ns: NDArray[np.int64]) -> F64:
+    """(N, 4, 4) ``T_world_body`` at trajectory times ``t_ns``."""
+    st = ctx.trajectory.state(t_ns.astype(np.float64) * 1e-9)
+    T = np.zeros((len(t_ns), 4, 4))
+    T[:, :3, :3] = st.R_world_body
+    T[:, :3, 3] = st.position
+    T[:, 3, 3] = 1.0
+    return T
+
+
+class _CameraBase:
+    """Shared machinery of the three camera sensors."""
+
+    config: Any
+    _eyes: list[_Eye]
+
+    def _setup_eyes(self, eyes: list[_Eye]) -> None:
+        self._eyes = eyes
+        self._T_body_sensor = self.config.pose.matrix()
+
+    def topics(self) -> list[TopicSpec]:
+        out = []
+        for e in self._eyes:
+            out += [
+                TopicSpec(f"{e.topic}/image_raw", IMAGE),
+                TopicSpec(f"{e.topic}/camera_info", CAMERA_INFO),
+            ]
+        return out
+
+    def static_transforms(self) -> list[StaticTransform]:
+        c = self.config
+        out = [StaticTransform(BASE_FRAME, c.frame, self._T_body_sensor.copy())]
+        out += [StaticTransform(c.frame, e.frame, e.T_sensor_optical.copy()) for e in self._eyes]
+        return out
+
+    def _plans(self, ctx: SimContext) -> Any:
+        renderer = ctx.renderer()
+        for e in self._eyes:
+            if e.plan is None:
+                try:
+                    e.plan = e.model.render_plan(renderer.max_size)
+                except SensorError as err:
+                    msg = f"sensors: {self.config.name}: {err}"
+                    raise SensorError(msg) from None
+                try:
+                    renderer.check_size(e.plan.width, e.plan.height)
+                except RenderError as err:
+                    msg = f"sensor {self.config.name!r}: resolution: {err}"
+                    raise SensorError(msg) from None
+        return renderer
+
+    def _stamps(self, ctx: SimContext) -> NDArray[np.int64]:
+        return sample_times_ns(self.config.rate, int(ctx.trajectory.duration_ns))
+
+    def _open_index(self, ctx: SimContext, e: _Eye, kind: str) -> None:
+        if kind == "depth":
+            e.files = f"depth/{self.config.name}"
+            e.index_fh = ctx.path(f"depth_{self.config.name}.txt").open(
+                "w", encoding="utf-8", newline="\n"
+            )
+            return
+        cams = [s for s in ctx.sensors if s.type in ("camera", "stereo_camera")]
+        single = len(cams) == 1 and cams[0].type == "camera"
+        if single:
+            e.files = "images"
+            e.index_fh = ctx.path("images.txt").open("w", encoding="utf-8", newline="\n")
+        else:
+            name = f"{self.config.name}_{e.suffix}" if e.suffix else self.config.name
+            e.files = f"images/{name}"
+            e.index_fh = ctx.path(f"images_{name}.txt").open("w", encoding="utf-8", newline="\n")
+
+    def _write_png(
+        self, ctx: SimContext, e: _Eye, index: int, t_ns: int, img: NDArray[Any]
+    ) -> None:
+        import cv2
+
+        rel = f"{e.files}/{index:08d}.png"
+        path = ctx.path(rel)
+        if img.ndim == 3:
+            img = img[..., ::-1]  # OpenCV writes BGR
+        if not cv2.imwrite(str(path), img, [cv2.IMWRITE_PNG_COMPRESSION, 1]):
+            msg = f"{path}: cannot write image"
+            raise SensorError(msg)
+        assert e.index_fh is not None
+        e.index_fh.write(f"{format_seconds(np.array([t_ns]))[0]} {rel}\n")
+
+    def close(self, ctx: SimContext) -> None:
+        for e in self._eyes:
+            if e.index_fh is not None and not e.index_fh.closed:
+                e.index_fh.close()
+        write_calibration_files(ctx, self.config)
+
+    def _messages(
+        self, ctx: SimContext, t_ns: int, seq: int, e: _Eye, data: NDArray[Any], encoding: str
+    ) -> list[Message]:
+        stamp = ctx.stamp(t_ns)
+        frame = e.frame
+
+        def build_image(store: MessageStore) -> Any:
+            return _image(store, frame, stamp, seq, data, encoding)
+
+        def build_info(store: MessageStore) -> Any:
+            return _camera_info(store, e, stamp, seq)
+
+        return [
+            Message(t_ns, f"{e.topic}/image_raw", IMAGE, build_image),
+            Message(t_ns, f"{e.topic}/camera_info", CAMERA_INFO, build_info),
+        ]
+
+
+class _ImagingCamera(_CameraBase):
+    """Colour/mono camera pipeline (frame and stereo cameras)."""
+
+    config: _ImagingConfig
+
+    def _init_imaging(self) -> None:
+        self._lut = srgb_lut(self.config.gamma)
+
+    def _sub_times(self, t_ns: int) -> NDArray[np.int64]:
+        c = self.config
+        if c.exposure_time <= 0:
+            return np.array([t_ns], dtype=np.int64)
+        n = c.exposure_samples
+        exp_ns = c.exposure_time * 1e9
+        offs = ((np.arange(n) + 0.5) / n - 0.5) * exp_ns
+        return (t_ns + np.round(offs)).astype(np.int64)
+
+    def render_linear(self, renderer: Any, e: _Eye, T_world_body: F64) -> F32:
+        """(H, W, 3) linear radiance of eye ``e`` averaged over the body poses (N, 4, 4)."""
+        assert e.plan is not None
+        acc: F32 | None = None
+        for T_wb in T_world_body:
+            T = T_wb @ self._T_body_sensor @ e.T_sensor_optical
+            col = renderer.render(
+                T, e.plan.K, e.plan.width, e.plan.height, color=True, depth=False
+            ).color
+            if acc is None:
+                acc = col
+            else:
+                acc += col
+        assert acc is not None
+        if len(T_world_body) > 1:
+            acc *= np.float32(1.0 / len(T_world_body))
+        if not e.plan.identity:
+            import cv2
+
+            acc = cv2.remap(  # type: ignore[assignment]
+                acc, e.plan.map1, e.plan.map2, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE
+            )
+        return acc
+
+    def finish_image(self, lin: F32, rng: np.random.Generator) -> U8:
+        """Gain, noise and encoding of a linear image (H, W, 3) -> uint8 (H, W[, 3])."""
+        c = self.config
+        if c.encoding == "mono8":
+            lin = lin @ _LUMA
+        if c.gain != 1.0:
+            lin *= np.float32(c.gain)
+        if c.full_well is not None:
+            fw = float(c.full_well)
+            lin = (rng.poisson(np.clip(lin, 0.0, None) * fw) / fw).astype(np.float32)
+        if c.noise_std > 0:
+            lin += rng.normal(0.0, c.noise_std, size=lin.shape).astype(np.float32)
+        img = encode_linear(lin, self._lut)
+        if c.encoding == "bgr8":
+            img = np.ascontiguousarray(img[..., ::-1])
+        return img
+
+    def _stream(
+        self, ctx: SimContext, per_frame: Callable[[int, int, Any, F64], list[Message]]
+    ) -> Iterator[Message]:
+        renderer = self._plans(ctx)
+        stamps = self._stamps(ctx)
+        if self.config.write_images:
+            for e in self._eyes:
+                self._open_index(ctx, e, "image")
+        for i, t in enumerate(stamps.tolist()):
+            T_wb = _pose_matrices(ctx, self._sub_times(t))
+            yield from per_frame(i, t, renderer, T_wb)
+
+
+class Camera(_ImagingCamera):
+    """``type: camera``."""
+
+    def __init__(self, config: CameraConfig) -> None:
+        self.config = config
+        model = config.camera_model()
+        c = config
+        self._setup_eyes([_Eye("", model, T_LINK_OPTICAL.copy(), c.topic, f"{c.frame}_optical")])
+        self._init_imaging()
+
+    def messages(self, ctx: SimContext) -> Iterator[Message]:
+        rng = ctx.rng(f"camera/{self.config.name}")
+        e = self._eyes[0]
+        enc = self.config.encoding
+
+        def frame(i: int, t: int, renderer: Any, T_wb: F64) -> list[Message]:
+            img = self.finish_image(self.render_linear(renderer, e, T_wb), rng)
+            if self.config.write_images:
+                self._write_png(ctx, e, i, t, img)
+            return self._messages(ctx, t, i, e, img, enc)
+
+        yield from self._stream(ctx, frame)
+
+
+class StereoCamera(_ImagingCamera):
+    """``type: stereo_camera``: left and right images of the same instant."""
+
+    def __init__(self, config: StereoCameraConfig) -> None:
+        self.config = config
+        cams = config.calibration_cameras()
+        c = config
+        T_lr = np.eye(4)
+        T_lr[0, 3] = c.baseline
+        self._setup_eyes(
+            [
+                _Eye(
+                    "left",
+                    cams[0].model,
+                    T_LINK_OPTICAL.copy(),
+                    f"{c.topic}/left",
+                    f"{c.frame}_left_optical",
+                ),
+                _Eye(
+                    "right",
+                    cams[1].model,
+                    T_LINK_OPTICAL @ T_lr,
+                    f"{c.topic}/right",
+                    f"{c.frame}_right_optical",
+                    cams[1].Tx,
+                ),
+            ]
+        )
+        self._init_imaging()
+
+    def messages(self, ctx: SimContext) -> Iterator[Message]:
+        rng = ctx.rng(f"stereo_camera/{self.config.name}")
+        enc = self.config.encoding
+
+        def frame(i: int, t: int, renderer: Any, T_wb: F64) -> list[Message]:
+            out: list[Message] = []
+            for e in self._eyes:
+                img = self.finish_image(self.render_linear(renderer, e, T_wb), rng)
+                if self.config.write_images:
+                    self._write_png(ctx, e, i, t, img)
+                out += self._messages(ctx, t, i, e, img, enc)
+            return out
+
+        yield from self._stream(ctx, frame)
+
+
+class DepthCamera(_CameraBase):
+    """``type: depth_camera``: 32FC1 metres, NaN where nothing is measured (REP 118)."""
+
+    config: DepthCameraConfig
+
+    def __init__(self, config: DepthCameraConfig) -> None:
+        self.config = config
+        c = config
+        self._setup_eyes(
+            [_Eye("", config.camera_model(), T_LINK_OPTICAL.copy(), c.topic, f"{c.frame}_optical")]
+        )
+
+    def render_depth(self, renderer: Any, e: _Eye, T_world_body: F64) -> F32:
+        """(H, W) float32 metric z-depth (inf: nothing hit) of eye ``e`` at one body pose (4, 4)."""
+        assert e.plan is not None
+        T = T_world_body @ self._T_body_sensor @ e.T_sensor_optical
+        z = renderer.render(T, e.plan.K, e.plan.width, e.plan.height, color=False, depth=True).depth
+        if e.plan.identity:
+            return np.asarray(z, dtype=np.float32)
+        import cv2
+
+        # Inverse depth is affine in the image on planes, so bilinear interpolation of
+        # 1/z is exact there; at depth edges (neighbours disagree) take the nearest sample.
+        with np.errstate(divide="ignore"):
+            inv = np.reciprocal(z)
+        lin = cv2.remap(
+            inv, e.plan.map1, e.plan.map2, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE
+        )
+        near = cv2.remap(
+            inv, e.plan.mapx, e.plan.mapy, cv2.INTER_NEAREST, borderMode=cv2.BORDER_REPLICATE
+        )
+        edge = np.abs(lin - near) > 0.05 * np.maximum(near, 1e-12)
+        lin[edge] = near[edge]
+        with np.errstate(divide="ignore"):
+            out: F32 = np.reciprocal(lin)
+        return out
+
+    def messages(self, ctx: SimContext) -> Iterator[Message]:
+        c = self.config
+        rng = ctx.rng(f"depth_camera/{c.name}")
+        renderer = self._plans(ctx)
+        e = self._eyes[0]
+        if c.write_images:
+            self._open_index(ctx, e, "depth")
+        for i, t in enumerate(self._stamps(ctx).tolist()):
+            T_wb = _pose_matrices(ctx, np.array([t], dtype=np.int64))[0]
+            z = self.render_depth(renderer, e, T_wb)
+            if c.noise_std > 0 or c.noise_quadratic > 0:
+                sigma = c.noise_std + c.noise_quadratic * np.where(np.isfinite(z), z, 0.0) ** 2
+                z = (z + rng.normal(0.0, 1.0, size=z.shape) * sigma).astype(np.float32)
+            bad = ~np.isfinite(z) | (z < c.min_range)
+            if c.max_range is not None:
+                bad |= z > c.max_range
+            z[bad] = np.nan
+            if c.write_images:
+                mm = np.where(bad, 0.0, np.round(np.clip(z, 0.0, 65.535) * 1000.0))
+                self._write_png(ctx, e, i, t, np.nan_to_num(mm).astype(np.uint16))
+            yield from self._messages(ctx, t, i, e, z.astype("<f4"), "32FC1")

@@ -1,0 +1,738 @@
+"""Camera intrinsics, lens distortion and calibration files.
+
+:class:`CameraModel` is the pinhole ``K`` plus a distortion model in OpenCV's
+conventions (pixel centres at integer coordinates):
+
+* ``plumb_bob`` (ROS name; Kalibr calls it ``radtan``): ``k1 k2 p1 p2 [k3]``,
+  ``cv2.projectPoints``;
+* ``equidistant`` (fisheye): ``k1 k2 k3 k4``, ``cv2.fisheye.projectPoints``;
+* ``none``: an ideal pinhole.
+
+Distortion is applied exactly: :meth:`CameraModel.render_plan` inverts the lens
+model for every output pixel (Newton iterations to 1e-12, verified by projecting
+back with OpenCV), sizes a larger virtual pinhole image that contains every
+undistorted ray (plus interpolation margin) and precomputes ``cv2.remap`` maps,
+once per camera.
+
+Calibration files read and written: ROS ``camera_info`` YAML
+(camera_calibration_parsers keys) and Kalibr camchain YAML (``camN`` entries).
+:class:`CameraIntrinsics` is the config mixin every camera-like sensor (frame,
+depth, stereo, event camera) inherits for its intrinsics keys.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Annotated, Any
+
+import numpy as np
+from numpy.typing import NDArray
+from pydantic import Field, ValidationInfo, field_validator, model_validator
+
+from roslan.config.base import FiniteFloat, StrictModel, load_yaml
+from roslan.errors import ConfigError, SensorError
+from roslan.trajectory.frames import OPTICAL_FROM_BODY
+
+if TYPE_CHECKING:
+    from roslan.sensors.base import SensorConfig, SimContext
+
+__all__ = [
+    "DISTORTION_MODELS",
+    "T_LINK_OPTICAL",
+    "CalibCamera",
+    "CameraIntrinsics",
+    "CameraModel",
+    "RenderPlan",
+    "load_calibration",
+    "write_calibration_files",
+]
+
+F32 = NDArray[np.float32]
+F64 = NDArray[np.float64]
+
+DISTORTION_MODELS = ("plumb_bob", "radtan", "equidistant", "fisheye", "none")
+"""Accepted names; ``radtan`` = ``plumb_bob``, ``fisheye`` = ``equidistant``."""
+_CANONICAL = {
+    "plumb_bob": "plumb_bob",
+    "radtan": "plumb_bob",
+    "equidistant": "equidistant",
+    "fisheye": "equidistant",
+    "none": "none",
+}
+_N_COEFFS = {"plumb_bob": (4, 5), "equidistant": (4,), "none": (0,)}
+_KALIBR_NAME = {"plumb_bob": "radtan", "equidistant": "equidistant", "none": "none"}
+
+T_LINK_OPTICAL: F64 = np.eye(4)
+T_LINK_OPTICAL[:3, :3] = OPTICAL_FROM_BODY.T
+"""Pose of a camera's optical frame (z forward, x right, y down) in its link frame
+(x forward, y left, z up)."""
+
+DEFAULT_RESOLUTION = (640, 480)
+DEFAULT_HFOV_DEG = 90.0
+
+
+@dataclass(frozen=True)
+class RenderPlan:
+    """How to render a (distorted) camera: a virtual pinhole view, then a remap.
+
+    Attributes:
+        K: (3, 3) virtual pinhole intrinsics to render with.
+        width, height: virtual image size (pixels).
+        map1, map2: ``cv2.remap`` maps (fixed-point ``CV_16SC2`` + ``CV_16UC1``) from
+            the output image into the virtual image, or None for an ideal pinhole (no
+            remap needed: the virtual view is the output).
+        mapx, mapy: the same maps as (H, W) float32 virtual pixel coordinates.
+    """
+
+    K: F64
+    width: int
+    height: int
+    map1: Any = None
+    map2: Any = None
+    mapx: Any = None
+    mapy: Any = None
+
+    @property
+    def identity(self) -> bool:
+        return self.map1 is None
+
+
+@dataclass(frozen=True, eq=False)
+class CameraModel:
+    """A calibrated camera.
+
+    Attributes:
+        width, height: image size (pixels).
+        K: (3, 3) float64 camera matrix (fx, fy, cx, cy; OpenCV convention).
+        D: (n,) float64 distortion coefficients of ``distortion_model``.
+        distortion_model: ``plumb_bob`` (k1 k2 p1 p2 k3), ``equidistant`` (k1..k4) or ``none``.
+        name: camera name (written to the calibration files).
+        source: where it came from (file name or ``config``), for error messages.
+    """
+
+    width: int
+    height: int
+    K: F64
+    D: F64 = field(default_factory=lambda: np.zeros(0))
+    distortion_model: str = "none"
+    name: str = "camera"
+    source: str = "config"
+
+    # ---------------------------------------------------------------- construct
+    @classmethod
+    def create(
+        cls,
+        width: int,
+        height: int,
+        fx: float,
+        fy: float,
+        cx: float,
+        cy: float,
+        distortion_model: str = "none",
+        coeffs: Any = (),
+        *,
+        name: str = "camera",
+        source: str = "config",
+        keys: dict[str, str] | None = None,
+    ) -> CameraModel:
+        """Validated model. ``keys`` maps the parameter names (``fx``, ``cx``,
+        ``distortion_model``, ``distortion_coeffs``, ``resolution``) to the key paths
+        used in error messages (``camera_matrix.data[0]``...).
+
+        Raises:
+            SensorError: naming ``source``, the key, the value and what is allowed.
+        """
+        k = {
+            "fx": "fx",
+            "fy": "fy",
+            "cx": "cx",
+            "cy": "cy",
+            "distortion_model": "distortion_model",
+            "distortion_coeffs": "distortion_coeffs",
+            "resolution": "resolution",
+            **(keys or {}),
+        }
+
+        def bad(key: str, value: Any, allowed: str) -> SensorError:
+            return SensorError(f"{source}: {k[key]} = {value!r}: {allowed}")
+
+        for n in (width, height):
+            if not isinstance(n, (int, np.integer)) or isinstance(n, bool) or n < 1:
+                raise bad(
+                    "resolution", [width, height], "must be two positive integers [width, height]"
+                )
+        values = {"fx": fx, "fy": fy, "cx": cx, "cy": cy}
+        for key, v in values.items():
+            if (
+                isinstance(v, bool)
+                or not isinstance(v, (int, float, np.number))
+                or not math.isfinite(v)
+            ):
+                raise bad(key, v, "must be a finite number")
+        if fx <= 0:
+            raise bad("fx", fx, "focal length must be > 0 (pixels)")
+        if fy <= 0:
+            raise bad("fy", fy, "focal length must be > 0 (pixels)")
+        if not 0 <= cx <= width - 1:
+            raise bad(
+                "cx", cx, f"principal point must lie inside the image: 0 <= cx <= {width - 1}"
+            )
+        if not 0 <= cy <= height - 1:
+            raise bad(
+                "cy", cy, f"principal point must lie inside the image: 0 <= cy <= {height - 1}"
+            )
+        if not isinstance(distortion_model, str) or distortion_model not in _CANONICAL:
+            raise bad(
+                "distortion_model", distortion_model, f"allowed: {', '.join(DISTORTION_MODELS)}"
+            )
+        model = _CANONICAL[distortion_model]
+        try:
+            D = np.asarray(coeffs if coeffs is not None else (), dtype=np.float64).reshape(-1)
+        except (TypeError, ValueError):
+            raise bad("distortion_coeffs", coeffs, "must be a list of numbers") from None
+        if model == "none" and D.size and np.all(D == 0):
+            D = np.zeros(0)
+        allowed_n = _N_COEFFS[model]
+        if D.size not in allowed_n:
+            names = {
+                "plumb_bob": "k1 k2 p1 p2 [k3]",
+                "equidistant": "k1 k2 k3 k4",
+                "none": "none (empty list)",
+            }[model]
+            raise bad(
+                "distortion_coeffs",
+                D.tolist(),
+                f"{distortion_model} needs {' or '.join(map(str, allowed_n))} coefficients ({names}), "
+                f"got {D.size}",
+            )
+        if not np.all(np.isfinite(D)):
+            raise bad("distortion_coeffs", D.tolist(), "must be finite numbers")
+        if model == "plumb_bob" and D.size == 4:
+            D = np.append(D, 0.0)
+        K = np.array([[fx, 0.0, cx], [0.0, fy, cy], [0.0, 0.0, 1.0]], dtype=np.float64)
+        return cls(int(width), int(height), K, D, model, name, source)
+
+    @classmethod
+    def from_config(
+        cls, cfg: CameraIntrinsics, *, name: str = "camera", source: str = "config"
+    ) -> CameraModel:
+        """From a :class:`CameraIntrinsics` config (inline keys or its calibration file)."""
+        if cfg.calibration is not None:
+            model = load_calibration(cfg.calibration, camera=cfg.calibration_camera, name=name)
+            if cfg.resolution is not None and tuple(cfg.resolution) != (model.width, model.height):
+                msg = (
+                    f"{source}: resolution = {list(cfg.resolution)}: differs from the calibration "
+                    f"file {cfg.calibration} ({model.width}x{model.height}); omit it or make it match"
+                )
+                raise SensorError(msg)
+            return model
+        w, h = cfg.resolution or DEFAULT_RESOLUTION
+        f_default = 0.5 * w / math.tan(math.radians(DEFAULT_HFOV_DEG) / 2.0)
+        fx = cfg.fx if cfg.fx is not None else (cfg.fy if cfg.fy is not None else f_default)
+        fy = cfg.fy if cfg.fy is not None else fx
+        cx = cfg.cx if cfg.cx is not None else (w - 1) / 2.0
+        cy = cfg.cy if cfg.cy is not None else (h - 1) / 2.0
+        return cls.create(
+            w,
+            h,
+            fx,
+            fy,
+            cx,
+            cy,
+            cfg.distortion_model,
+            cfg.distortion_coeffs,
+            name=name,
+            source=source,
+        )
+
+    # ---------------------------------------------------------------- geometry
+    @property
+    def fx(self) -> float:
+        return float(self.K[0, 0])
+
+    @property
+    def fy(self) -> float:
+        return float(self.K[1, 1])
+
+    @property
+    def cx(self) -> float:
+        return float(self.K[0, 2])
+
+    @property
+    def cy(self) -> float:
+        return float(self.K[1, 2])
+
+    @property
+    def is_pinhole(self) -> bool:
+        return self.distortion_model == "none" or not np.any(self.D)
+
+    @property
+    def D_opencv(self) -> F64:
+        """Coefficients as OpenCV wants them (plumb_bob: 5, equidistant: 4, none: 0)."""
+        return self.D.copy()
+
+    def distort_normalized(self, xy: F64) -> F64:
+        """Lens model on normalized pinhole coordinates (N, 2) -> distorted normalized (N, 2)."""
+        x, y = xy[:, 0], xy[:, 1]
+        if self.distortion_model == "plumb_bob":
+            k1, k2, p1, p2, k3 = self.D
+            r2 = x * x + y * y
+            radial = 1 + r2 * (k1 + r2 * (k2 + r2 * k3))
+            xd = x * radial + 2 * p1 * x * y + p2 * (r2 + 2 * x * x)
+            yd = y * radial + p1 * (r2 + 2 * y * y) + 2 * p2 * x * y
+            return np.stack([xd, yd], axis=1)
+        if self.distortion_model == "equidistant":
+            k1, k2, k3, k4 = self.D
+            r = np.hypot(x, y)
+            th = np.arctan(r)
+            t2 = th * th
+            thd = th * (1 + t2 * (k1 + t2 * (k2 + t2 * (k3 + t2 * k4))))
+            scale = np.where(r > 1e-12, thd / np.maximum(r, 1e-300), 1.0)
+            return xy * scale[:, None]
+        return xy.copy()
+
+    def project(self, points_cam: F64) -> F64:
+        """Pixels (N, 2) of optical-frame points (N, 3) (z > 0), OpenCV conventions."""
+        p = np.asarray(points_cam, dtype=np.float64)
+        xy = p[:, :2] / p[:, 2:3]
+        d = self.distort_normalized(xy)
+        return np.stack(
+            [self.fx * d[:, 0] + self.K[0, 1] * d[:, 1] + self.cx, self.fy * d[:, 1] + self.cy], 1
+        )
+
+    def undistort_normalized(self, uv: F64) -> F64:
+        """Exact inverse of the lens model: pixels (N, 2) -> normalized pinhole (N, 2)."""
+        uv = np.asarray(uv, dtype=np.float64)
+        yd = (uv[:, 1] - self.cy) / self.fy
+        xd = (uv[:, 0] - self.cx - self.K[0, 1] * yd) / self.fx
+        target = np.stack([xd, yd], axis=1)
+        if self.is_pinhole:
+            return target
+        if self.distortion_model == "equidistant":
+            k1, k2, k3, k4 = self.D
+            thd = np.hypot(xd, yd)
+            th = thd.copy()
+            for _ in range(30):
+                t2 = th * th
+                f = th * (1 + t2 * (k1 + t2 * (k2 + t2 * (k3 + t2 * k4)))) - thd
+                df = 1 + t2 * (3 * k1 + t2 * (5 * k2 + t2 * (7 * k3 + t2 * 9 * k4)))
+                th = th - f / np.where(np.abs(df) > 1e-12, df, 1e-12)
+            th = np.clip(th, 0.0, math.pi / 2 - 1e-6)
+            scale = np.where(thd > 1e-12, np.tan(th) / np.maximum(thd, 1e-300), 1.0)
+            return target * scale[:, None]
+        # plumb_bob: Newton on the 2-D map, analytic Jacobian
+        k1, k2, p1, p2, k3 = self.D
+        xy = target.copy()
+        for _ in range(30):
+            x, y = xy[:, 0], xy[:, 1]
+            r2 = x * x + y * y
+            radial = 1 + r2 * (k1 + r2 * (k2 + r2 * k3))
+            drad = k1 + r2 * (2 * k2 + 3 * k3 * r2)  # d(radial)/d(r2)
+            fx_ = x * radial + 2 * p1 * x * y + p2 * (r2 + 2 * x * x) - target[:, 0]
+            fy_ = y * radial + p1 * (r2 + 2 * y * y) + 2 * p2 * x * y - target[:, 1]
+            j11 = radial + 2 * x * x * drad + 2 * p1 * y + 6 * p2 * x
+            j12 = 2 * x * y * drad + 2 * p1 * x + 2 * p2 * y
+            j21 = 2 * x * y * drad + 2 * p1 * x + 2 * p2 * y
+            j22 = radial + 2 * y * y * drad + 6 * p1 * y + 2 * p2 * x
+            det = j11 * j22 - j12 * j21
+            det = np.where(np.abs(det) > 1e-12, det, 1e-12)
+            xy[:, 0] -= (j22 * fx_ - j12 * fy_) / det
+            xy[:, 1] -= (-j21 * fx_ + j11 * fy_) / det
+        return xy
+
+    def render_plan(self, max_size: int | None = None, *, margin: int = 2) -> RenderPlan:
+        """Virtual pinhole view covering every output pixel's ray, and remap maps.
+
+        The virtual camera keeps fx, fy (same sampling density at the image centre);
+        its size is the bounding box of all undistorted pixel rays plus ``margin``
+        pixels for bilinear interpolation. Raises SensorError if the rays cannot be
+        covered (field of view >= 180 deg, a non-invertible lens) or the virtual image
+        exceeds ``max_size``.
+        """
+        if self.is_pinhole:
+            if max_size is not None and max(self.width, self.height) > max_size:
+                raise self._too_big(self.width, self.height, max_size)
+            return RenderPlan(self.K.copy(), self.width, self.height)
+        import cv2
+
+        u, v = np.meshgrid(
+            np.arange(self.width, dtype=np.float64), np.arange(self.height, dtype=np.float64)
+        )
+        uv = np.stack([u.ravel(), v.ravel()], axis=1)
+        xy = self.undistort_normalized(uv)
+        back = self.project(np.concatenate([xy, np.ones((xy.shape[0], 1))], axis=1))
+        err = np.abs(back - uv).max(axis=1)
+        if not np.all(np.isfinite(xy)) or float(err.max()) > 1e-3:
+            bad = int(np.argmax(err))
+            msg = (
+                f"{self.source}: distortion_coeffs = {self.D.tolist()}: the {self.distortion_model} "
+                f"lens model cannot be inverted at pixel ({uv[bad, 0]:.0f}, {uv[bad, 1]:.0f}) "
+                "(field of view too wide or coefficients not monotonic)"
+            )
+            raise SensorError(msg)
+        fx, fy = self.fx, self.fy
+        s = self.K[0, 1]
+        # virtual pixel coordinates before choosing the principal point
+        px = fx * xy[:, 0] + s * xy[:, 1]
+        py = fy * xy[:, 1]
+        x0 = math.floor(float(px.min())) - margin
+        y0 = math.floor(float(py.min())) - margin
+        W = math.ceil(float(px.max())) + margin - x0 + 1
+        H = math.ceil(float(py.max())) + margin - y0 + 1
+        if max_size is not None and max(W, H) > max_size:
+            raise self._too_big(W, H, max_size)
+        Kv = np.array([[fx, s, -x0], [0.0, fy, -y0], [0.0, 0.0, 1.0]])
+        mapx = (px - x0).astype(np.float32).reshape(self.height, self.width)
+        mapy = (py - y0).astype(np.float32).reshape(self.height, self.width)
+        m1, m2 = cv2.convertMaps(mapx, mapy, cv2.CV_16SC2)
+        return RenderPlan(Kv, int(W), int(H), m1, m2, mapx, mapy)
+
+    def _too_big(self, W: int, H: int, max_size: int) -> SensorError:
+        return SensorError(
+            f"{self.source}: resolution = [{self.width}, {self.height}]: the camera needs a "
+            f"{W}x{H} render, larger than the renderer's maximum {max_size}x{max_size}"
+            + ("" if self.is_pinhole else " (the margin needed to undistort the lens included)")
+        )
+
+    # ---------------------------------------------------------------- files
+    def projection_matrix(self, Tx: float = 0.0) -> F64:
+        """ROS CameraInfo P (3, 4): K with ``P[0, 3] = Tx`` (= -fx * baseline for a right camera)."""
+        P = np.zeros((3, 4))
+        P[:, :3] = self.K
+        P[0, 3] = Tx
+        return P
+
+    def ros_distortion_model(self) -> str:
+        """``plumb_bob`` or ``equidistant`` (ROS names; an ideal pinhole is plumb_bob with zeros)."""
+        return "equidistant" if self.distortion_model == "equidistant" else "plumb_bob"
+
+    def ros_D(self) -> list[float]:
+        if self.distortion_model == "none":
+            return [0.0] * 5
+        return [float(x) for x in self.D]
+
+    def to_camera_info_yaml(self, *, Tx: float = 0.0) -> dict[str, Any]:
+        """camera_calibration_parsers YAML content (a dict ready for ``yaml.safe_dump``)."""
+        D = self.ros_D()
+        return {
+            "image_width": self.width,
+            "image_height": self.height,
+            "camera_name": self.name,
+            "camera_matrix": {"rows": 3, "cols": 3, "data": [float(x) for x in self.K.ravel()]},
+            "distortion_model": self.ros_distortion_model(),
+            "distortion_coefficients": {"rows": 1, "cols": len(D), "data": D},
+            "rectification_matrix": {
+                "rows": 3,
+                "cols": 3,
+                "data": [float(x) for x in np.eye(3).ravel()],
+            },
+            "projection_matrix": {
+                "rows": 3,
+                "cols": 4,
+                "data": [float(x) for x in self.projection_matrix(Tx).ravel()],
+            },
+        }
+
+    def to_kalibr(
+        self,
+        *,
+        rostopic: str = "",
+        T_cam_imu: F64 | None = None,
+        T_cn_cnm1: F64 | None = None,
+    ) -> dict[str, Any]:
+        """One ``camN`` entry of a Kalibr camchain YAML."""
+        D = [float(x) for x in self.D]
+        if self.distortion_model == "plumb_bob" and D[4] == 0.0:
+            D = D[:4]  # Kalibr's radtan has 4 coefficients
+        out: dict[str, Any] = {
+            "camera_model": "pinhole",
+            "intrinsics": [self.fx, self.fy, self.cx, self.cy],
+            "distortion_model": _KALIBR_NAME[self.distortion_model],
+            "distortion_coeffs": D,
+            "resolution": [self.width, self.height],
+        }
+        if rostopic:
+            out["rostopic"] = rostopic
+        if T_cam_imu is not None:
+            out["T_cam_imu"] = [[float(x) for x in row] for row in T_cam_imu]
+        if T_cn_cnm1 is not None:
+            out["T_cn_cnm1"] = [[float(x) for x in row] for row in T_cn_cnm1]
+        return out
+
+
+# ---------------------------------------------------------------- calibration files
+def load_calibration(
+    path: str | Path, *, camera: str | None = None, name: str | None = None
+) -> CameraModel:
+    """A :class:`CameraModel` from a ROS camera_info YAML or a Kalibr camchain YAML.
+
+    Args:
+        path: the YAML file.
+        camera: Kalibr entry to use (``cam0``...); default the first (``cam0``).
+        name: camera name to use instead of the file's.
+    Raises:
+        SensorError: missing/malformed file or values, naming the file and the key.
+    """
+    p = Path(path)
+    try:
+        data = load_yaml(p)
+    except ConfigError as err:
+        raise SensorError(str(err)) from None
+    src = str(p)
+    if not isinstance(data, dict):
+        msg = f"{src}: expected a ROS camera_info YAML or a Kalibr camchain YAML (a mapping), got {type(data).__name__}"
+        raise SensorError(msg)
+    if "camera_matrix" in data or "image_width" in data:
+        if camera is not None:
+            msg = f"{src}: calibration_camera = {camera!r}: only Kalibr camchain files have several cameras"
+            raise SensorError(msg)
+        return _from_camera_info(data, src, name)
+    cams = sorted(k for k in data if isinstance(k, str) and k.startswith("cam"))
+    if cams:
+        key = camera or ("cam0" if "cam0" in data else cams[0])
+        if key not in data:
+            msg = f"{src}: calibration_camera = {key!r}: no such camera in the file; it has {', '.join(cams)}"
+            raise SensorError(msg)
+        return _from_kalibr(data[key], src, key, name)
+    msg = (
+        f"{src}: neither a ROS camera_info YAML (keys image_width, image_height, camera_matrix, "
+        "distortion_model, distortion_coefficients) nor a Kalibr camchain (keys cam0, cam1, ...)"
+    )
+    raise SensorError(msg)
+
+
+def _need(d: dict[str, Any], key: str, src: str, prefix: str = "") -> Any:
+    if not isinstance(d, dict) or key not in d:
+        msg = f"{src}: {prefix}{key}: missing key"
+        raise SensorError(msg)
+    return d[key]
+
+
+def _matrix(d: dict[str, Any], key: str, src: str, shape: tuple[int, int]) -> F64:
+    m = _need(d, key, src)
+    data = _need(m, "data", src, f"{key}.") if isinstance(m, dict) else m
+    try:
+        a = np.asarray(data, dtype=np.float64).reshape(-1)
+    except (TypeError, ValueError):
+        msg = f"{src}: {key}.data = {data!r}: must be a list of numbers"
+        raise SensorError(msg) from None
+    if a.size != shape[0] * shape[1]:
+        msg = f"{src}: {key}.data: needs {shape[0] * shape[1]} numbers ({shape[0]}x{shape[1]}), got {a.size}"
+        raise SensorError(msg)
+    return a.reshape(shape)
+
+
+def _from_camera_info(d: dict[str, Any], src: str, name: str | None) -> CameraModel:
+    w = _need(d, "image_width", src)
+    h = _need(d, "image_height", src)
+    if not isinstance(w, int) or not isinstance(h, int) or w < 1 or h < 1:
+        msg = f"{src}: image_width, image_height = {w!r}, {h!r}: must be positive integers"
+        raise SensorError(msg)
+    K = _matrix(d, "camera_matrix", src, (3, 3))
+    if K[0, 1] != 0 or K[1, 0] != 0 or K[2, 0] != 0 or K[2, 1] != 0 or K[2, 2] != 1:
+        msg = f"{src}: camera_matrix.data = {K.ravel().tolist()}: must be [fx 0 cx 0 fy cy 0 0 1]"
+        raise SensorError(msg)
+    model = _need(d, "distortion_model", src)
+    dist = d.get("distortion_coefficients", {"data": []})
+    coeffs = dist.get("data", []) if isinstance(dist, dict) else dist
+    keys = {
+        "fx": "camera_matrix.data[0] (fx)",
+        "fy": "camera_matrix.data[4] (fy)",
+        "cx": "camera_matrix.data[2] (cx)",
+        "cy": "camera_matrix.data[5] (cy)",
+        "distortion_coeffs": "distortion_coefficients.data",
+        "resolution": "image_width/image_height",
+    }
+    return CameraModel.create(
+        w,
+        h,
+        K[0, 0],
+        K[1, 1],
+        K[0, 2],
+        K[1, 2],
+        model,
+        coeffs,
+        name=name or str(d.get("camera_name") or "camera"),
+        source=src,
+        keys=keys,
+    )
+
+
+def _from_kalibr(d: Any, src: str, cam: str, name: str | None) -> CameraModel:
+    if not isinstance(d, dict):
+        msg = f"{src}: {cam}: must be a mapping (camera_model, intrinsics, ...)"
+        raise SensorError(msg)
+    cm = d.get("camera_model", "pinhole")
+    if cm != "pinhole":
+        msg = f"{src}: {cam}.camera_model = {cm!r}: only 'pinhole' is supported"
+        raise SensorError(msg)
+    intr = _need(d, "intrinsics", src, f"{cam}.")
+    res = _need(d, "resolution", src, f"{cam}.")
+    if not isinstance(intr, list) or len(intr) != 4:
+        msg = f"{src}: {cam}.intrinsics = {intr!r}: must be [fu, fv, pu, pv]"
+        raise SensorError(msg)
+    if not isinstance(res, list) or len(res) != 2:
+        msg = f"{src}: {cam}.resolution = {res!r}: must be [width, height]"
+        raise SensorError(msg)
+    keys = {
+        "fx": f"{cam}.intrinsics[0] (fu)",
+        "fy": f"{cam}.intrinsics[1] (fv)",
+        "cx": f"{cam}.intrinsics[2] (pu)",
+        "cy": f"{cam}.intrinsics[3] (pv)",
+        "distortion_model": f"{cam}.distortion_model",
+        "distortion_coeffs": f"{cam}.distortion_coeffs",
+        "resolution": f"{cam}.resolution",
+    }
+    return CameraModel.create(
+        res[0],
+        res[1],
+        intr[0],
+        intr[1],
+        intr[2],
+        intr[3],
+        d.get("distortion_model", "none"),
+        d.get("distortion_coeffs", []),
+        name=name or cam,
+        source=src,
+        keys=keys,
+    )
+
+
+# ---------------------------------------------------------------- config mixin
+class CameraIntrinsics(StrictModel):
+    """Intrinsics keys of every camera-like sensor config.
+
+    Either inline (``resolution``, ``fx``, ``fy``, ``cx``, ``cy``,
+    ``distortion_model``, ``distortion_coeffs``; defaults: 640x480, 90 deg horizontal
+    field of view, centred principal point, no distortion) or ``calibration``: a ROS
+    camera_info YAML or Kalibr camchain YAML (``calibration_camera`` picks ``camN``),
+    relative paths resolved against the config file's folder.
+    """
+
+    resolution: tuple[Annotated[int, Field(ge=1)], Annotated[int, Field(ge=1)]] | None = None
+    fx: FiniteFloat | None = None
+    fy: FiniteFloat | None = None
+    cx: FiniteFloat | None = None
+    cy: FiniteFloat | None = None
+    distortion_model: str = "none"
+    distortion_coeffs: tuple[FiniteFloat, ...] = ()
+    calibration: Path | None = None
+    calibration_camera: str | None = None
+
+    @field_validator("calibration", mode="after")
+    @classmethod
+    def _resolve(cls, v: Path | None, info: ValidationInfo) -> Path | None:
+        if v is None or v.is_absolute():
+            return v
+        base = (info.context or {}).get("base_dir")
+        return (Path(base) / v) if base is not None else v
+
+    @model_validator(mode="after")
+    def _check_intrinsics(self) -> CameraIntrinsics:
+        if self.calibration is not None:
+            inline = [k for k in ("fx", "fy", "cx", "cy") if getattr(self, k) is not None]
+            if inline or self.distortion_coeffs or self.distortion_model != "none":
+                keys = inline + (["distortion_model/distortion_coeffs"] if len(inline) < 4 else [])
+                msg = f"calibration = {self.calibration}: give either a calibration file or inline {', '.join(keys)}, not both"
+                raise ValueError(msg)
+        self.calibration_cameras()  # builds (validates) the models: SensorError -> ValueError
+        return self
+
+    def camera_model(self) -> CameraModel:
+        """The validated :class:`CameraModel` of this config."""
+        name = str(getattr(self, "name", "camera"))
+        return CameraModel.from_config(self, name=name, source=self._source())
+
+    def _source(self) -> str:
+        name = getattr(self, "name", None)
+        return f"sensor {name!r}" if name else "camera"
+
+    def calibration_cameras(self) -> list[CalibCamera]:
+        """The cameras this sensor contributes to calib/ and camchain.yaml (override for stereo)."""
+        try:
+            model = self.camera_model()
+        except SensorError as err:
+            raise ValueError(str(err)) from None
+        return [
+            CalibCamera(
+                name=str(getattr(self, "name", "camera")),
+                model=model,
+                T_base_optical=self.base_T_optical(),
+                rostopic=f"{getattr(self, 'topic', '')}/image_raw",
+            )
+        ]
+
+    def base_T_optical(self) -> F64:
+        """(4, 4) ``T_base_link_optical`` of the (first) camera."""
+        pose = getattr(self, "pose", None)
+        T = pose.matrix() if pose is not None else np.eye(4)
+        return np.asarray(T @ T_LINK_OPTICAL, dtype=np.float64)
+
+
+@dataclass(frozen=True, eq=False)
+class CalibCamera:
+    """One camera entry of the calibration files.
+
+    Attributes:
+        name: file stem of ``calib/<name>.yaml``.
+        model: its intrinsics.
+        T_base_optical: (4, 4) pose of its optical frame in base_link.
+        rostopic: image topic written into the camchain.
+        Tx: ROS CameraInfo ``P[0, 3]`` (``-fx * baseline`` for a right stereo camera).
+    """
+
+    name: str
+    model: CameraModel
+    T_base_optical: F64
+    rostopic: str = ""
+    Tx: float = 0.0
+
+
+def _is_camera_config(cfg: Any) -> bool:
+    return isinstance(cfg, CameraIntrinsics)
+
+
+def write_calibration_files(ctx: SimContext, config: SensorConfig) -> None:
+    """Write ``calib/<cam>.yaml`` for ``config``'s cameras; the first camera-like sensor of
+    ``ctx.sensors`` also writes ``calib/camchain.yaml`` (all cameras, ``T_cam_imu`` when an
+    IMU is configured, ``T_cn_cnm1`` between consecutive cameras) and ``calib.txt``
+    (``fx fy cx cy k1 k2 p1 p2 k3`` of the first camera; equidistant: ``fx fy cx cy k1..k4``)."""
+    import yaml
+
+    if not isinstance(config, CameraIntrinsics):
+        return
+    for cam in config.calibration_cameras():
+        text = yaml.safe_dump(
+            cam.model.to_camera_info_yaml(Tx=cam.Tx), sort_keys=False, default_flow_style=None
+        )
+        ctx.path(f"calib/{cam.name}.yaml").write_text(text, encoding="utf-8")
+    cams_cfgs = [s for s in ctx.sensors if _is_camera_config(s)]
+    if not cams_cfgs or cams_cfgs[0].name != config.name:
+        return
+    imu = next((s for s in ctx.sensors if s.type == "imu"), None)
+    T_base_imu = imu.pose.matrix() if imu is not None else None
+    chain: dict[str, Any] = {}
+    prev: F64 | None = None
+    all_cams = [
+        c for s in cams_cfgs if isinstance(s, CameraIntrinsics) for c in s.calibration_cameras()
+    ]
+    for i, cam in enumerate(all_cams):
+        T_cam_base = np.linalg.inv(cam.T_base_optical)
+        entry = cam.model.to_kalibr(
+            rostopic=cam.rostopic,
+            T_cam_imu=(T_cam_base @ T_base_imu) if T_base_imu is not None else None,
+            T_cn_cnm1=(T_cam_base @ prev) if prev is not None else None,
+        )
+        chain[f"cam{i}"] = entry
+        prev = cam.T_base_optical
+    ctx.path("calib/camchain.yaml").write_text(
+        yaml.safe_dump(chain, sort_keys=False, default_flow_style=None), encoding="utf-8"
+    )
+    m = all_cams[0].model
+    # Event Camera Dataset layout; an equidistant lens writes its four k1..k4 instead
+    D = list(m.D) if m.distortion_model == "equidistant" else (list(m.ros_D()) + [0.0] * 5)[:5]
+    ctx.path("calib.txt").write_text(
+        " ".join(repr(float(x)) for x in (m.fx, m.fy, m.cx, m.cy, *D)) + "\n", encoding="utf-8"
+    )
