@@ -15,6 +15,7 @@ __all__ = ["PLOT_COMMANDS", "register"]
 
 PLOT_COMMANDS: tuple[str, ...] = (
     "roslan.plots.tau_family",
+    "roslan.plots.events",
     "roslan.plots.trajectory",
     "roslan.plots.lidar",
     "roslan.plots.imu",
