@@ -14,6 +14,7 @@ Rendering dominates on a CPU machine: it covers a slice of the landing.
 from __future__ import annotations
 
 import argparse
+import itertools
 import tempfile
 import time
 from pathlib import Path
@@ -95,7 +96,7 @@ def main() -> None:
         for flavor in Flavor:
             a = time.perf_counter()
             total = 0
-            for i0, i1 in zip(cuts[:-1], cuts[1:], strict=True):
+            for i0, i1 in itertools.pairwise(cuts):
                 total += len(
                     pack_event_array(flavor, start + int(ev.t[i1 - 1]), "dvs_optical", 260, 346,
                                      ev.t[i0:i1] + start, ev.x[i0:i1], ev.y[i0:i1], ev.p[i0:i1])
