@@ -113,16 +113,15 @@ def main() -> None:
         times["h5"] = time.perf_counter() - a
 
     print(
-        f"scene {args.scene}, DAVIS346 346x260, realistic preset, slice {args.start:.2f}+{span:.3f} s of {traj.duration:.2f} s"
+        f"scene {args.scene}, DAVIS346 346x260, realistic preset, "
+        f"slice {args.start:.2f}+{span:.3f} s of {traj.duration:.2f} s"
     )
     print(f"rendered frames:      {n_frames} ({n_frames / span:.0f} per trajectory second)")
-    print(
-        f"render (lum+depth+flow): {n_frames / r_time:8.1f} frames/s  ({r_time / n_frames * 1e3:.2f} ms/frame)"
-    )
+    ms = r_time / n_frames * 1e3
+    print(f"render (lum+depth+flow): {n_frames / r_time:8.1f} frames/s  ({ms:.2f} ms/frame)")
     print(f"events:               {n_ev} ({n_ev / span / 1e6:.2f} M per trajectory second)")
-    print(
-        f"event generation:     {n_ev / g_time / 1e6:8.2f} M events/s  ({g_time / n_frames * 1e3:.2f} ms/frame)"
-    )
+    ms = g_time / n_frames * 1e3
+    print(f"event generation:     {n_ev / g_time / 1e6:8.2f} M events/s  ({ms:.2f} ms/frame)")
     for k, v in times.items():
         print(f"serialize {k:5s}:      {n_ev / v / 1e6:8.2f} M events/s")
     print(f"events.txt bytes/event: {len(txt) / max(n_ev, 1):.1f}")
