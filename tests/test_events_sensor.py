@@ -319,3 +319,31 @@ def test_packets_by_event_count(tmp_path: Path) -> None:
     assert all(s == 100 for s in sizes[:-1])
     assert 0 < sizes[-1] <= 100
     assert not (tmp_path / "events.h5").exists()
+
+
+def test_plot_events(run_dir: tuple[Path, Any, list[Any]], tmp_path: Path) -> None:
+    from roslan.cli import main
+    from roslan.plots.data import open_events
+    from roslan.plots.events import event_rate
+
+    tmp, sensor, _ = run_dir
+    assert main(["plot", "events", str(tmp), "-o", str(tmp_path / "plots"), "--frames", "2"]) == 0
+    names = sorted(p.name for p in (tmp_path / "plots").iterdir())
+    assert names == [
+        "event_frame_00.png",
+        "event_frame_01.png",
+        "event_frames.png",
+        "event_rate.png",
+    ]
+    with open_events(tmp, "test") as src:
+        _, on, off = event_rate(src, 0, 2_000_000_000, 10_000_000)
+    with h5py_file(tmp / "events.h5") as f:
+        p = f["events/p"][:]
+    assert int(on.sum()) == int((p == 1).sum())
+    assert int(off.sum()) == int((p == 0).sum())
+
+
+def h5py_file(path: Path) -> Any:
+    import h5py
+
+    return h5py.File(path, "r")
