@@ -326,7 +326,7 @@ def test_plot_events(run_dir: tuple[Path, Any, list[Any]], tmp_path: Path) -> No
     from roslan.plots.data import open_events
     from roslan.plots.events import event_rate
 
-    tmp, sensor, _ = run_dir
+    tmp, _, _ = run_dir
     assert main(["plot", "events", str(tmp), "-o", str(tmp_path / "plots"), "--frames", "2"]) == 0
     names = sorted(p.name for p in (tmp_path / "plots").iterdir())
     assert names == [
