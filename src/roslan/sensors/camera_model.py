@@ -156,6 +156,8 @@ class CameraModel:
         }
 
         def bad(key: str, value: Any, allowed: str) -> SensorError:
+            if isinstance(value, np.generic):
+                value = value.item()
             return SensorError(f"{source}: {k[key]} = {value!r}: {allowed}")
 
         for n in (width, height):

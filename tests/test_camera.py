@@ -1,0 +1,281 @@
+"""Camera sensors end to end: bags (rosbags), dataset files, calibration files, stereo
+disparity, noise determinism and the errors bad input gets."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+import pytest
+import yaml
+from rosbags.highlevel import AnyReader
+
+import roslan.render.gl as gl
+from camera_helpers import board_scene, detect_corners, look_down
+from pipeline_helpers import SHORT_TRAJECTORY
+from roslan.config.base import validate_model
+from roslan.config.sim import SimConfig
+from roslan.errors import ConfigError, SensorError
+from roslan.sensors.base import sample_times_ns
+from roslan.sensors.camera import StereoCamera, StereoCameraConfig
+from roslan.sensors.camera_model import T_LINK_OPTICAL, CameraModel, load_calibration
+from roslan.simulate import run_simulation
+from roslan.trajectory import Trajectory, TrajectoryConfig
+
+CAM = {"rate": 10.0, "resolution": [64, 48], "fx": 40.0, "pose": {"rpy": [0.0, 0.5, 0.0]}}
+
+
+def _config(sensors: list[dict[str, Any]], seed: int = 1) -> SimConfig:
+    return validate_model(
+        SimConfig,
+        {
+            "trajectory": SHORT_TRAJECTORY,
+            "scene": "empty",
+            "sensors": sensors,
+            "seed": seed,
+            "output": {"formats": ["ros1", "ros2"]},
+        },
+        "sim.yaml",
+    )
+
+
+def _read(bag: Path, topic: str) -> list[Any]:
+    with AnyReader([bag]) as r:
+        conns = [c for c in r.connections if c.topic == topic]
+        return [r.deserialize(raw, c.msgtype) for c, _, raw in r.messages(connections=conns)]
+
+
+def _n_frames(rate: float) -> int:
+    traj = Trajectory(TrajectoryConfig.model_validate(SHORT_TRAJECTORY))
+    return len(sample_times_ns(rate, traj.duration_ns))
+
+
+@pytest.fixture(scope="module")
+def run(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("cams") / "out"
+    cfg = _config(
+        [
+            {
+                "type": "imu",
+                "name": "imu",
+                "rate": 100.0,
+                "topic": "/imu",
+                "pose": {"position": [0.01, 0, 0]},
+            },
+            {"type": "camera", "name": "c_rgb", "topic": "/c_rgb", "encoding": "rgb8", **CAM},
+            {"type": "camera", "name": "c_bgr", "topic": "/c_bgr", "encoding": "bgr8", **CAM},
+            {"type": "camera", "name": "c_mono", "topic": "/c_mono", "encoding": "mono8", **CAM},
+            {"type": "depth_camera", "name": "d", "topic": "/d", **CAM},
+        ]
+    )
+    run_simulation(cfg, out, quiet=True)
+    return out
+
+
+def test_encodings_round_trip_through_bags(run: Path) -> None:
+    for bag in (run / "landing.bag", run / "landing_ros2"):
+        rgb = _read(bag, "/c_rgb/image_raw")
+        bgr = _read(bag, "/c_bgr/image_raw")
+        mono = _read(bag, "/c_mono/image_raw")
+        info = _read(bag, "/c_rgb/camera_info")
+        n = _n_frames(10.0)
+        assert len(rgb) == len(bgr) == len(mono) == len(info) == n
+        for a, b, m, i in zip(rgb, bgr, mono, info, strict=True):
+            assert (a.encoding, b.encoding, m.encoding) == ("rgb8", "bgr8", "mono8")
+            assert a.header.frame_id == "c_rgb_optical" and i.header.frame_id == "c_rgb_optical"
+            assert a.step == 64 * 3 and m.step == 64
+            img = a.data.reshape(48, 64, 3)
+            np.testing.assert_array_equal(b.data.reshape(48, 64, 3), img[..., ::-1])
+            # mono = sRGB(luma(linear)): compare with the rgb8 image decoded to linear
+            lin = np.where(
+                img / 255 <= 0.04045, img / 255 / 12.92, ((img / 255 + 0.055) / 1.055) ** 2.4
+            )
+            y = lin @ [0.2126, 0.7152, 0.0722]
+            ys = np.where(y <= 0.0031308, 12.92 * y, 1.055 * y ** (1 / 2.4) - 0.055) * 255
+            assert np.abs(m.data.reshape(48, 64) - ys).max() <= 3.0
+        assert rgb[0].data.std() > 1.0  # the ground texture is visible (not at touchdown)
+        k = info[0].K if hasattr(info[0], "K") else info[0].k
+        np.testing.assert_allclose(k, [40, 0, 31.5, 0, 40, 23.5, 0, 0, 1])
+
+
+def test_dataset_files_and_pngs(run: Path) -> None:
+    lines = (run / "images_c_rgb.txt").read_text().splitlines()
+    assert len(lines) == _n_frames(10.0) and lines[1].startswith(
+        "0.100000000 images/c_rgb/00000001.png"
+    )
+    png = cv2.imread(str(run / "images/c_rgb/00000003.png"))[..., ::-1]
+    msg = _read(run / "landing.bag", "/c_rgb/image_raw")[3]
+    np.testing.assert_array_equal(png, msg.data.reshape(48, 64, 3))
+    cal = load_calibration(run / "calib/c_rgb.yaml")
+    np.testing.assert_allclose(cal.K, [[40, 0, 31.5], [0, 40, 23.5], [0, 0, 1]])
+    chain = yaml.safe_load((run / "calib/camchain.yaml").read_text())
+    assert list(chain) == ["cam0", "cam1", "cam2", "cam3"]
+    T_cam_imu = np.array(chain["cam0"]["T_cam_imu"])
+    # IMU 1 cm forward of base_link, seen from a camera pitched down 0.5 rad: ahead and up (-y)
+    np.testing.assert_allclose(
+        T_cam_imu[:3, 3], [0, -0.01 * np.sin(0.5), 0.01 * np.cos(0.5)], atol=1e-12
+    )
+    assert (run / "calib.txt").read_text().split()[:4] == ["40.0", "40.0", "31.5", "23.5"]
+    depth = _read(run / "landing_ros2", "/d/image_raw")
+    z = np.frombuffer(depth[0].data.tobytes(), "<f4").reshape(48, 64)
+    assert depth[0].encoding == "32FC1"
+    assert np.isnan(z).any() or np.isfinite(z).all()
+    assert np.nanmin(z) > 0
+
+
+def test_noise_is_seeded(tmp_path: Path) -> None:
+    cam = {
+        "type": "camera",
+        "name": "c",
+        "topic": "/c",
+        **CAM,
+        "noise_std": 0.02,
+        "full_well": 2000.0,
+    }
+    cam["rate"] = 5.0
+    outs = []
+    for i, seed in enumerate((4, 4, 5)):
+        out = tmp_path / f"o{i}"
+        run_simulation(_config([cam], seed=seed), out, quiet=True)
+        outs.append([m.data.tobytes() for m in _read(out / "landing.bag", "/c/image_raw")])
+    assert outs[0] == outs[1]
+    assert outs[0] != outs[2]
+
+
+class _Ctx:
+    def __init__(self, scene: Any) -> None:
+        self._r = gl.get_renderer(scene)
+
+    def renderer(self) -> Any:
+        return self._r
+
+
+def test_stereo_disparity_is_fb_over_z() -> None:
+    scene = board_scene()
+    cfg = StereoCameraConfig.model_validate(
+        {
+            "type": "stereo_camera",
+            "name": "s",
+            "rate": 1.0,
+            "topic": "/s",
+            "resolution": [320, 240],
+            "fx": 200.0,
+            "baseline": 0.3,
+            "encoding": "mono8",
+        }
+    )
+    cam = StereoCamera(cfg)
+    cam._plans(_Ctx(scene))  # type: ignore[arg-type]
+    Z = 6.0
+    T_wb = look_down(-0.15, 0.0, Z) @ np.linalg.inv(T_LINK_OPTICAL)
+    rng = np.random.default_rng(0)
+    corners = []
+    for e in cam._eyes:
+        img = cam.finish_image(cam.render_linear(gl.get_renderer(scene), e, T_wb[None]), rng)
+        c = detect_corners(img)
+        assert c is not None
+        corners.append(c)
+    left, right = corners
+    np.testing.assert_allclose(left[:, 1], right[:, 1], atol=0.2)  # rectified rows
+    np.testing.assert_allclose(left[:, 0] - right[:, 0], 200.0 * 0.3 / Z, atol=0.3)
+    tf = {t.child: t for t in cam.static_transforms()}
+    np.testing.assert_allclose(tf["s_right_optical"].T[:3, 3], [0, -0.3, 0], atol=1e-12)
+
+
+def test_calibration_round_trip(tmp_path: Path) -> None:
+    m = CameraModel.create(
+        640, 480, 400.5, 401.0, 320.2, 239.9, "equidistant", [0.1, -0.01, 0.002, 0.0]
+    )
+    p = tmp_path / "cam.yaml"
+    p.write_text(yaml.safe_dump(m.to_camera_info_yaml()))
+    a = load_calibration(p)
+    k = tmp_path / "chain.yaml"
+    k.write_text(yaml.safe_dump({"cam0": m.to_kalibr(rostopic="/c"), "cam1": m.to_kalibr()}))
+    b = load_calibration(k, camera="cam1")
+    for x in (a, b):
+        np.testing.assert_array_equal(x.K, m.K)
+        np.testing.assert_array_equal(x.D, m.D)
+        assert x.distortion_model == "equidistant" and (x.width, x.height) == (640, 480)
+    # a plumb_bob lens inverts exactly
+    r = CameraModel.create(320, 240, 200, 200, 160, 120, "radtan", [-0.3, 0.1, 0.001, 0.002])
+    uv = np.array([[0.0, 0.0], [319.0, 239.0], [100.5, 30.25]])
+    xy = r.undistort_normalized(uv)
+    np.testing.assert_allclose(r.project(np.c_[xy, np.ones(3)]), uv, atol=1e-9)
+
+
+@pytest.mark.parametrize(
+    ("keys", "match"),
+    [
+        ({"cx": 80.0}, r"cx = 80.0: principal point must lie inside the image"),
+        ({"cy": -1.0}, r"cy = -1.0"),
+        ({"fx": 0.0}, r"fx = 0.0: focal length must be > 0"),
+        ({"distortion_model": "fisheye62"}, r"distortion_model = 'fisheye62': allowed"),
+        (
+            {"distortion_model": "plumb_bob", "distortion_coeffs": [0.1, 0.2]},
+            r"needs 4 or 5 coefficients",
+        ),
+        (
+            {"distortion_model": "equidistant", "distortion_coeffs": [0.1] * 5},
+            r"needs 4 coefficients",
+        ),
+        ({"calibration": "nope.yaml"}, r"nope.yaml: file not found"),
+    ],
+)
+def test_bad_intrinsics(keys: dict[str, Any], match: str) -> None:
+    with pytest.raises(ConfigError, match=match):
+        _config(
+            [
+                {
+                    "type": "camera",
+                    "name": "c",
+                    "rate": 1.0,
+                    "topic": "/c",
+                    "resolution": [64, 48],
+                    **keys,
+                }
+            ]
+        )
+
+
+def test_bad_calibration_files(tmp_path: Path) -> None:
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("image_width: 64\nimage_height: [\n")
+    with pytest.raises(SensorError, match=r"bad.yaml: malformed YAML"):
+        load_calibration(bad)
+    info = CameraModel.create(64, 48, 40, 40, 31.5, 23.5).to_camera_info_yaml()
+    info["camera_matrix"]["data"][2] = 99.0
+    f = tmp_path / "cx.yaml"
+    f.write_text(yaml.safe_dump(info))
+    with pytest.raises(SensorError, match=r"cx.yaml: camera_matrix.data\[2\] \(cx\) = 99.0"):
+        load_calibration(f)
+    del info["camera_matrix"]
+    f.write_text(yaml.safe_dump(info))
+    with pytest.raises(SensorError, match=r"cx.yaml: camera_matrix: missing key"):
+        load_calibration(f)
+    chain = tmp_path / "chain.yaml"
+    chain.write_text(yaml.safe_dump({"cam0": {"intrinsics": [1, 1, 1], "resolution": [4, 4]}}))
+    with pytest.raises(SensorError, match=r"chain.yaml: cam0.intrinsics"):
+        load_calibration(chain)
+    with pytest.raises(SensorError, match=r"calibration_camera = 'cam3'"):
+        load_calibration(chain, camera="cam3")
+
+
+def test_resolution_larger_than_renderer(tmp_path: Path) -> None:
+    big = gl.get_renderer(board_scene()).max_size + 8
+    cfg = _config(
+        [
+            {
+                "type": "camera",
+                "name": "c",
+                "rate": 1.0,
+                "topic": "/c",
+                "resolution": [big, 4],
+                "cx": 1.0,
+                "cy": 1.0,
+            }
+        ]
+    )
+    with pytest.raises(SensorError, match=r"resolution"):
+        run_simulation(cfg, tmp_path / "o", quiet=True)

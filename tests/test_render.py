@@ -1,0 +1,128 @@
+"""Renderer geometry: projection with distortion (checkerboard corners vs OpenCV), metric
+depth, shading and the errors it raises."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+
+import roslan.render.gl as gl
+from camera_helpers import board_corners, board_scene, detect_corners, look_down, match_error
+from roslan.errors import RenderError
+from roslan.scene.model import Lights, Material, Scene, SceneObject
+from roslan.sensors.camera_model import CameraModel
+
+
+@pytest.fixture(scope="module")
+def board() -> Scene:
+    return board_scene()
+
+
+def _render_model(scene: Scene, model: CameraModel, T: np.ndarray) -> np.ndarray:
+    r = gl.get_renderer(scene)
+    plan = model.render_plan(r.max_size)
+    col = r.render(T, plan.K, plan.width, plan.height, depth=False).color
+    assert col is not None
+    if not plan.identity:
+        col = cv2.remap(col, plan.map1, plan.map2, cv2.INTER_LINEAR)
+    return (np.clip(col.mean(axis=2), 0, 1) ** (1 / 2.2) * 255).round().astype(np.uint8)
+
+
+@pytest.mark.parametrize(
+    ("model_name", "coeffs"),
+    [
+        ("none", ()),
+        ("plumb_bob", (-0.25, 0.08, 0.002, -0.001, -0.01)),
+        ("equidistant", (0.05, -0.02, 0.01, -0.003)),
+    ],
+)
+def test_projection_matches_opencv(
+    board: Scene, model_name: str, coeffs: tuple[float, ...]
+) -> None:
+    model = CameraModel.create(320, 240, 210.0, 215.0, 161.3, 118.7, model_name, coeffs)
+    T = look_down(0.13, -0.07, 5.0, tilt=0.2)
+    img = _render_model(board, model, T)
+    found = detect_corners(img)
+    assert found is not None, "checkerboard not detected"
+    T_cw = np.linalg.inv(T)
+    P = board_corners()
+    rvec, _ = cv2.Rodrigues(T_cw[:3, :3])
+    tvec = T_cw[:3, 3]
+    if model_name == "equidistant":
+        exp = cv2.fisheye.projectPoints(P[:, None, :], rvec, tvec, model.K, model.D)[0]
+    else:
+        D = model.D if model.D.size else np.zeros(5)
+        exp = cv2.projectPoints(P, rvec, tvec, model.K, D)[0]
+    exp = exp.reshape(-1, 2)
+    assert match_error(found, exp) < 0.5
+    # the lens really moved the corners (the test would catch a missing remap)
+    if model_name != "none":
+        pin = cv2.projectPoints(P, rvec, tvec, model.K, np.zeros(5))[0].reshape(-1, 2)
+        assert np.abs(pin - exp).max() > 2.0
+
+
+def test_depth_of_tilted_plane_is_analytic(board: Scene) -> None:
+    r = gl.get_renderer(board)
+    K = np.array([[90.0, 0, 40.2], [0, 92.0, 29.7], [0, 0, 1]])
+    T = look_down(0.1, 0.2, 2.5, tilt=0.3)
+    res = r.render(T, K, 80, 60, color=True, depth=True)
+    res_d = r.render(T, K, 80, 60, color=False, depth=True)
+    # analytic: ray through pixel (u, v) in the optical frame, hit plane z = 0 in the world
+    u, v = np.meshgrid(np.arange(80.0), np.arange(60.0))
+    rays = np.stack([(u - K[0, 2]) / K[0, 0], (v - K[1, 2]) / K[1, 1], np.ones_like(u)], -1)
+    d_world = rays @ T[:3, :3].T
+    s = -T[2, 3] / d_world[..., 2]  # z-depth = s since the ray's optical z is 1
+    hit = T[:3, 3] + s[..., None] * d_world
+    half = np.array([(7 + 3) * 0.25, (5 + 3) * 0.25])
+    inside = (np.abs(hit[..., 0]) < half[0] - 0.05) & (np.abs(hit[..., 1]) < half[1] - 0.05)
+    outside = (np.abs(hit[..., 0]) > half[0] + 0.05) | (np.abs(hit[..., 1]) > half[1] + 0.05)
+    assert inside.sum() > 1000
+    for depth in (res.depth, res_d.depth):
+        assert depth is not None and depth.dtype == np.float32
+        np.testing.assert_allclose(depth[inside], s[inside], rtol=1e-4)
+        assert np.all(np.isinf(depth[outside]))
+
+
+def test_lambert_shading_is_linear() -> None:
+    v = np.array([[-5, -5, 0], [5, -5, 0], [5, 5, 0], [-5, 5, 0]], np.float32)
+    obj = SceneObject(
+        "p",
+        v,
+        np.tile(np.array([0, 0, 1], np.float32), (4, 1)),
+        np.zeros((4, 2), np.float32),
+        np.array([[0, 1, 2], [0, 2, 3]], np.int32),
+        Material(color=(0.5, 0.25, 1.0)),
+    )
+    angle = 0.6
+    sun = (np.sin(angle), 0.0, -np.cos(angle))
+    scene = Scene("shade", (obj,), Lights(sun_direction=sun, sun_intensity=0.5, ambient=0.2))
+    res = gl.get_renderer(scene).render(
+        look_down(0, 0, 2.0),
+        np.diag([40.0, 40.0, 1.0]) + [[0, 0, 15.5], [0, 0, 11.5], [0, 0, 0]],
+        32,
+        24,
+    )
+    assert res.color is not None
+    expected = np.array([0.5, 0.25, 1.0]) * (0.2 + 0.5 * np.cos(angle))
+    np.testing.assert_allclose(res.color[12, 16], expected, atol=2e-3)
+
+
+def test_too_large_resolution(board: Scene) -> None:
+    r = gl.get_renderer(board)
+    with pytest.raises(RenderError, match=str(r.max_size)):
+        r.render(np.eye(4), np.eye(3), r.max_size + 1, 10)
+
+
+def test_missing_egl_names_debian_packages(monkeypatch: pytest.MonkeyPatch) -> None:
+    import moderngl
+
+    def fail(**_: object) -> None:
+        raise Exception("libEGL.so.1: cannot open shared object file")
+
+    monkeypatch.setattr(gl, "_context", None)
+    monkeypatch.setattr(moderngl, "create_standalone_context", fail)
+    with pytest.raises(RenderError) as err:
+        gl.create_context()
+    for pkg in ("libegl1", "libegl-mesa0", "libgl1-mesa-dri", "libEGL.so.1"):
+        assert pkg in str(err.value)
