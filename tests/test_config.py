@@ -113,3 +113,24 @@ def test_defaults_are_valid_and_frozen() -> None:
     assert cfg.k == 0.5
     with pytest.raises(Exception, match="frozen"):
         cfg.k = 0.3  # type: ignore[misc]
+
+
+@pytest.mark.parametrize(
+    "data",
+    [
+        {},
+        {"trajectory": {"approach": {"distance": 10.0, "angle": 0.5236, "speed": 4.0}}},
+        {
+            "trajectory": {
+                "initial": {"rpy": [0.1, 0.0, 0.2]},
+                "approach": {"distance": 9.0, "angle": 0.4, "heading": 0.3, "speed": 3.0},
+            }
+        },
+    ],
+)
+def test_resolved_config_validates_again(data: dict[str, object]) -> None:
+    """run.json stores the resolved config; it must load back to the same config."""
+    first = validate_model(SimConfig, data)
+    dumped = first.model_dump(mode="json")
+    again = validate_model(SimConfig, dumped)
+    assert again.model_dump(mode="json") == dumped

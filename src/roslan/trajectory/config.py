@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from typing import Annotated
+from typing import Annotated, Any
 
 from pydantic import Field, field_validator, model_validator
 
@@ -104,11 +104,25 @@ class TrajectoryConfig(StrictModel):
         assert self.initial.position is not None
         return float(self.initial.position[2])
 
+    @model_validator(mode="before")
+    @classmethod
+    def _approach_replaces_default_start(cls, data: Any) -> Any:
+        # With an approach block the default initial position/descent rate do not apply;
+        # start from an empty `initial` so the resolved (dumped) config says so.
+        if isinstance(data, dict) and data.get("approach") is not None and "initial" not in data:
+            data = {**data, "initial": {}}
+        return data
+
     @model_validator(mode="after")
     def _check(self) -> TrajectoryConfig:
         if self.approach is not None:
             given = self.initial.model_fields_set if "initial" in self.model_fields_set else set()
-            clash = [key for key in ("position", "descent_rate") if key in given]
+            # An explicit null (as in a saved, resolved config) does not count as given.
+            clash = [
+                key
+                for key in ("position", "descent_rate")
+                if key in given and getattr(self.initial, key) is not None
+            ]
             if clash:
                 keys = " and ".join(f"initial.{key}" for key in clash)
                 msg = f"give either 'approach' or {keys}, not both"
