@@ -84,8 +84,10 @@ def test_encodings_round_trip_through_bags(run: Path) -> None:
         assert len(rgb) == len(bgr) == len(mono) == len(info) == n
         for a, b, m, i in zip(rgb, bgr, mono, info, strict=True):
             assert (a.encoding, b.encoding, m.encoding) == ("rgb8", "bgr8", "mono8")
-            assert a.header.frame_id == "c_rgb_optical" and i.header.frame_id == "c_rgb_optical"
-            assert a.step == 64 * 3 and m.step == 64
+            assert a.header.frame_id == "c_rgb_optical"
+            assert i.header.frame_id == "c_rgb_optical"
+            assert a.step == 64 * 3
+            assert m.step == 64
             img = a.data.reshape(48, 64, 3)
             np.testing.assert_array_equal(b.data.reshape(48, 64, 3), img[..., ::-1])
             # mono = sRGB(luma(linear)): compare with the rgb8 image decoded to linear
@@ -102,9 +104,8 @@ def test_encodings_round_trip_through_bags(run: Path) -> None:
 
 def test_dataset_files_and_pngs(run: Path) -> None:
     lines = (run / "images_c_rgb.txt").read_text().splitlines()
-    assert len(lines) == _n_frames(10.0) and lines[1].startswith(
-        "0.100000000 images/c_rgb/00000001.png"
-    )
+    assert len(lines) == _n_frames(10.0)
+    assert lines[1].startswith("0.100000000 images/c_rgb/00000001.png")
     png = cv2.imread(str(run / "images/c_rgb/00000003.png"))[..., ::-1]
     msg = _read(run / "landing.bag", "/c_rgb/image_raw")[3]
     np.testing.assert_array_equal(png, msg.data.reshape(48, 64, 3))
@@ -197,7 +198,8 @@ def test_calibration_round_trip(tmp_path: Path) -> None:
     for x in (a, b):
         np.testing.assert_array_equal(x.K, m.K)
         np.testing.assert_array_equal(x.D, m.D)
-        assert x.distortion_model == "equidistant" and (x.width, x.height) == (640, 480)
+        assert x.distortion_model == "equidistant"
+        assert (x.width, x.height) == (640, 480)
     # a plumb_bob lens inverts exactly
     r = CameraModel.create(320, 240, 200, 200, 160, 120, "radtan", [-0.3, 0.1, 0.001, 0.002])
     uv = np.array([[0.0, 0.0], [319.0, 239.0], [100.5, 30.25]])

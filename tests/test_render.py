@@ -79,7 +79,8 @@ def test_depth_of_tilted_plane_is_analytic(board: Scene) -> None:
     outside = (np.abs(hit[..., 0]) > half[0] + 0.05) | (np.abs(hit[..., 1]) > half[1] + 0.05)
     assert inside.sum() > 1000
     for depth in (res.depth, res_d.depth):
-        assert depth is not None and depth.dtype == np.float32
+        assert depth is not None
+        assert depth.dtype == np.float32
         np.testing.assert_allclose(depth[inside], s[inside], rtol=1e-4)
         assert np.all(np.isinf(depth[outside]))
 
@@ -99,7 +100,7 @@ def test_lambert_shading_is_linear() -> None:
     scene = Scene("shade", (obj,), Lights(sun_direction=sun, sun_intensity=0.5, ambient=0.2))
     res = gl.get_renderer(scene).render(
         look_down(0, 0, 2.0),
-        np.diag([40.0, 40.0, 1.0]) + [[0, 0, 15.5], [0, 0, 11.5], [0, 0, 0]],
+        np.array([[40.0, 0, 15.5], [0, 40.0, 11.5], [0, 0, 1]]),
         32,
         24,
     )

@@ -206,8 +206,8 @@ class CameraModel:
             raise bad(
                 "distortion_coeffs",
                 D.tolist(),
-                f"{distortion_model} needs {' or '.join(map(str, allowed_n))} coefficients ({names}), "
-                f"got {D.size}",
+                f"{distortion_model} needs {' or '.join(map(str, allowed_n))} coefficients "
+                f"({names}), got {D.size}",
             )
         if not np.all(np.isfinite(D)):
             raise bad("distortion_coeffs", D.tolist(), "must be finite numbers")
@@ -226,7 +226,7 @@ class CameraModel:
             if cfg.resolution is not None and tuple(cfg.resolution) != (model.width, model.height):
                 msg = (
                     f"{source}: resolution = {list(cfg.resolution)}: differs from the calibration "
-                    f"file {cfg.calibration} ({model.width}x{model.height}); omit it or make it match"
+                    f"file {cfg.calibration} ({model.width}x{model.height}); omit it or match it"
                 )
                 raise SensorError(msg)
             return model
@@ -369,8 +369,9 @@ class CameraModel:
         if not np.all(np.isfinite(xy)) or float(err.max()) > 1e-3:
             bad = int(np.argmax(err))
             msg = (
-                f"{self.source}: distortion_coeffs = {self.D.tolist()}: the {self.distortion_model} "
-                f"lens model cannot be inverted at pixel ({uv[bad, 0]:.0f}, {uv[bad, 1]:.0f}) "
+                f"{self.source}: distortion_coeffs = {self.D.tolist()}: the "
+                f"{self.distortion_model} lens model cannot be inverted at pixel "
+                f"({uv[bad, 0]:.0f}, {uv[bad, 1]:.0f}) "
                 "(field of view too wide or coefficients not monotonic)"
             )
             raise SensorError(msg)
@@ -400,14 +401,14 @@ class CameraModel:
 
     # ---------------------------------------------------------------- files
     def projection_matrix(self, Tx: float = 0.0) -> F64:
-        """ROS CameraInfo P (3, 4): K with ``P[0, 3] = Tx`` (= -fx * baseline for a right camera)."""
+        """ROS CameraInfo P (3, 4): K with ``P[0, 3] = Tx`` (-fx * baseline: right camera)."""
         P = np.zeros((3, 4))
         P[:, :3] = self.K
         P[0, 3] = Tx
         return P
 
     def ros_distortion_model(self) -> str:
-        """``plumb_bob`` or ``equidistant`` (ROS names; an ideal pinhole is plumb_bob with zeros)."""
+        """``plumb_bob`` or ``equidistant`` (ROS names; a pinhole is plumb_bob with zeros)."""
         return "equidistant" if self.distortion_model == "equidistant" else "plumb_bob"
 
     def ros_D(self) -> list[float]:
@@ -484,18 +485,27 @@ def load_calibration(
         raise SensorError(str(err)) from None
     src = str(p)
     if not isinstance(data, dict):
-        msg = f"{src}: expected a ROS camera_info YAML or a Kalibr camchain YAML (a mapping), got {type(data).__name__}"
+        msg = (
+            f"{src}: expected a ROS camera_info YAML or a Kalibr camchain YAML (a mapping), "
+            f"got {type(data).__name__}"
+        )
         raise SensorError(msg)
     if "camera_matrix" in data or "image_width" in data:
         if camera is not None:
-            msg = f"{src}: calibration_camera = {camera!r}: only Kalibr camchain files have several cameras"
+            msg = (
+                f"{src}: calibration_camera = {camera!r}: "
+                "only Kalibr camchain files have several cameras"
+            )
             raise SensorError(msg)
         return _from_camera_info(data, src, name)
     cams = sorted(k for k in data if isinstance(k, str) and k.startswith("cam"))
     if cams:
         key = camera or ("cam0" if "cam0" in data else cams[0])
         if key not in data:
-            msg = f"{src}: calibration_camera = {key!r}: no such camera in the file; it has {', '.join(cams)}"
+            msg = (
+                f"{src}: calibration_camera = {key!r}: no such camera in the file; "
+                f"it has {', '.join(cams)}"
+            )
             raise SensorError(msg)
         return _from_kalibr(data[key], src, key, name)
     msg = (
@@ -521,7 +531,8 @@ def _matrix(d: dict[str, Any], key: str, src: str, shape: tuple[int, int]) -> F6
         msg = f"{src}: {key}.data = {data!r}: must be a list of numbers"
         raise SensorError(msg) from None
     if a.size != shape[0] * shape[1]:
-        msg = f"{src}: {key}.data: needs {shape[0] * shape[1]} numbers ({shape[0]}x{shape[1]}), got {a.size}"
+        n = shape[0] * shape[1]
+        msg = f"{src}: {key}.data: needs {n} numbers ({shape[0]}x{shape[1]}), got {a.size}"
         raise SensorError(msg)
     return a.reshape(shape)
 
@@ -637,7 +648,10 @@ class CameraIntrinsics(StrictModel):
             inline = [k for k in ("fx", "fy", "cx", "cy") if getattr(self, k) is not None]
             if inline or self.distortion_coeffs or self.distortion_model != "none":
                 keys = inline + (["distortion_model/distortion_coeffs"] if len(inline) < 4 else [])
-                msg = f"calibration = {self.calibration}: give either a calibration file or inline {', '.join(keys)}, not both"
+                msg = (
+                    f"calibration = {self.calibration}: give either a calibration file "
+                    f"or inline {', '.join(keys)}, not both"
+                )
                 raise ValueError(msg)
         self.calibration_cameras()  # builds (validates) the models: SensorError -> ValueError
         return self
