@@ -273,3 +273,33 @@ def test_ros1_native_reader(landing: Path, tmp_path: Path) -> None:
     assert {t: n for t, (_, n) in rows.items()} == {
         t: v["messages"] for t, v in run["topics"].items()
     }
+
+
+@pytest.mark.ros1
+@pytest.mark.parametrize("compression", ["none", "bz2", "lz4"])
+def test_ros1_native_reader_every_compression(tmp_path: Path, compression: str) -> None:
+    py = shutil.which("python3", path="/usr/bin")
+    probe = subprocess.run([py or "/usr/bin/python3", "-c", "import rosbag"], capture_output=True)
+    if py is None or probe.returncode != 0:
+        pytest.skip("Debian's python3-rosbag is not installed for /usr/bin/python3")
+    store = MessageStore(Flavor.ROS1)
+    topics = [BagTopic("/s", "std_msgs/msg/String")]
+    w = MultiBagWriter(tmp_path, ["ros1"], topics, compression=compression)
+    texts = [f"message {i} " * (i % 50) for i in range(4000)]  # > 1 MiB: several chunks
+    for i, text in enumerate(texts):
+        w.write("/s", 10**18 + i, lambda s, t=text: store.new("std_msgs/msg/String", data=t))
+    w.close()
+    script = (
+        "import sys, rosbag\n"
+        "with rosbag.Bag(sys.argv[1]) as b:\n"
+        "    for _, m, t in b.read_messages(): print(t.to_nsec(), len(m.data))\n"
+    )
+    proc = subprocess.run(
+        [py, "-c", script, str(tmp_path / "landing.bag")],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert proc.returncode == 0, proc.stderr
+    rows = [tuple(map(int, line.split())) for line in proc.stdout.splitlines()]
+    assert rows == [(10**18 + i, len(t)) for i, t in enumerate(texts)]
