@@ -19,7 +19,7 @@ def load_config(path: Path | None) -> tuple[SimConfig, Path | None]:
     """The validated config of ``path``, or of the packaged default job when None."""
     if path is not None:
         return load_yaml_model(SimConfig, path), path
-    with as_file(files("roslan.data").joinpath(DEFAULT_CONFIG)) as p:
+    with as_file(files("roslan").joinpath("data", DEFAULT_CONFIG)) as p:
         return load_yaml_model(SimConfig, p), None
 
 
