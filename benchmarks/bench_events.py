@@ -87,6 +87,23 @@ def main() -> None:
         g_time = time.perf_counter() - a
         ev = EventBatch.concatenate(batches)
         n_ev = ev.size
+        # event-dense input: every 8th frame (more change per step), and a synthetic
+        # pair of frames with ~4 crossings per pixel (the capacity of the expansion)
+        gen8 = EventGenerator(
+            cam.camera.width, cam.camera.height, cfg.model_params(), np.random.default_rng(0)
+        )
+        a = time.perf_counter()
+        n8 = sum(gen8.update(lum, tt).size for tt, lum in frames[::8])
+        g8_time = time.perf_counter() - a
+        rng = np.random.default_rng(1)
+        gens = EventGenerator(cam.camera.width, cam.camera.height, cfg.model_params(), rng)
+        base = rng.uniform(0.05, 0.9, (cam.camera.height, cam.camera.width)).astype(np.float32)
+        gens.update(base, 0)
+        a = time.perf_counter()
+        ns = sum(
+            gens.update(base * (2.5 if i % 2 else 1.0), i * 1_000_000).size for i in range(1, 21)
+        )
+        gs_time = time.perf_counter() - a
 
         # serialization: 1 ms packets, both flavours
         start = 1_700_000_000_000_000_000
@@ -122,6 +139,13 @@ def main() -> None:
     print(f"events:               {n_ev} ({n_ev / span / 1e6:.2f} M per trajectory second)")
     ms = g_time / n_frames * 1e3
     print(f"event generation:     {n_ev / g_time / 1e6:8.2f} M events/s  ({ms:.2f} ms/frame)")
+    print(
+        f"  every 8th frame:    {n8 / g8_time / 1e6:8.2f} M events/s  "
+        f"({n8 / max(len(frames[::8]), 1):.0f} events/frame)"
+    )
+    print(
+        f"  synthetic dense:    {ns / gs_time / 1e6:8.2f} M events/s  ({ns / 20:.0f} events/frame)"
+    )
     for k, v in times.items():
         print(f"serialize {k:5s}:      {n_ev / v / 1e6:8.2f} M events/s")
     print(f"events.txt bytes/event: {len(txt) / max(n_ev, 1):.1f}")

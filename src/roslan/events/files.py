@@ -26,13 +26,30 @@ __all__ = ["EventH5Writer", "EventTextWriter", "format_events_txt"]
 _NS = 1_000_000_000
 
 
-def _digits(v: NDArray[np.int64], width: int) -> tuple[NDArray[np.uint8], NDArray[np.bool_]]:
-    """ASCII digits (N, width) of non-negative ints, and a mask dropping leading zeros."""
-    pw = 10 ** np.arange(width - 1, -1, -1, dtype=np.int64)
-    d = (v[:, None] // pw) % 10
-    keep = v[:, None] >= pw
-    keep[:, -1] = True
-    return (d + 48).astype(np.uint8), keep
+_LUT3 = np.array([[ord(c) for c in f"{i:03d}"] for i in range(1000)], dtype=np.uint8)
+"""(1000, 3) ASCII digits of 000..999."""
+
+
+def _put(
+    buf: NDArray[np.uint8],
+    keep: NDArray[np.bool_] | None,
+    col: int,
+    v: NDArray[np.int64],
+    width: int,
+) -> None:
+    """Write ``v`` (N,) right-aligned in ``width`` columns from ``col``; mark leading zeros
+    (all but the last digit) as dropped in ``keep``."""
+    groups = -(-width // 3)
+    pad = groups * 3 - width
+    rest = v
+    digits = np.empty((v.shape[0], groups * 3), np.uint8)
+    for g in range(groups - 1, -1, -1):  # a few 3-digit groups, not a loop over events
+        digits[:, 3 * g : 3 * g + 3] = _LUT3[rest % 1000]
+        rest = rest // 1000
+    buf[:, col : col + width] = digits[:, pad:]
+    if keep is not None and width > 1:
+        pw = 10 ** np.arange(width - 1, 0, -1, dtype=np.int64)
+        keep[:, col : col + width - 1] = v[:, None] >= pw
 
 
 def format_events_txt(
@@ -44,37 +61,29 @@ def format_events_txt(
         return b""
     t = np.asarray(t_ns, dtype=np.int64)
     sec, frac = t // _NS, t % _NS
-    ws = max(1, len(str(int(sec.max()))))
     xs = np.asarray(x, dtype=np.int64)
     ys = np.asarray(y, dtype=np.int64)
-    wx = max(1, len(str(int(xs.max()))))
-    wy = max(1, len(str(int(ys.max()))))
-    cols: list[NDArray[np.uint8]] = []
-    masks: list[NDArray[np.bool_]] = []
-
-    def const(ch: str) -> None:
-        cols.append(np.full((n, 1), ord(ch), np.uint8))
-        masks.append(np.ones((n, 1), bool))
-
-    d, m = _digits(sec, ws)
-    cols.append(d)
-    masks.append(m)
-    const(".")
-    d, _ = _digits(frac, 9)
-    cols.append(d)
-    masks.append(np.ones((n, 9), bool))
-    const(" ")
+    ws = len(str(int(sec.max())))
+    wx = len(str(int(xs.max())))
+    wy = len(str(int(ys.max())))
+    width = ws + 1 + 9 + 1 + wx + 1 + wy + 1 + 1 + 1
+    buf = np.empty((n, width), np.uint8)
+    keep = np.ones((n, width), bool)
+    _put(buf, keep, 0, sec, ws)
+    c = ws
+    buf[:, c] = ord(".")
+    _put(buf, None, c + 1, frac, 9)  # fraction: all nine digits kept
+    c += 10
     for v, w in ((xs, wx), (ys, wy)):
-        d, m = _digits(v, w)
-        cols.append(d)
-        masks.append(m)
-        const(" ")
-    cols.append((np.asarray(p, dtype=np.int64) > 0).astype(np.uint8)[:, None] + 48)
-    masks.append(np.ones((n, 1), bool))
-    const("\n")
-    buf = np.concatenate(cols, axis=1)
-    mask = np.concatenate(masks, axis=1)
-    return buf[mask].tobytes()
+        buf[:, c] = ord(" ")
+        _put(buf, keep, c + 1, v, w)
+        c += 1 + w
+    buf[:, c] = ord(" ")
+    buf[:, c + 1] = np.where(np.asarray(p) > 0, ord("1"), ord("0"))
+    buf[:, c + 2] = ord("\n")
+    if keep.all():
+        return buf.tobytes()
+    return buf[keep].tobytes()
 
 
 class EventTextWriter:

@@ -246,34 +246,34 @@ class EventGenerator:
 
     def _crossings(self, S0: F64, S1: F64, t0: int, dt_ns: int) -> EventBatch:
         ref = self.ref
-        up = ref < S1
-        C = np.where(up, self.c_pos, self.c_neg)
-        d = np.abs(S1 - ref)
-        n = np.floor(d / C).astype(np.int64)
-        # make n agree exactly with the definition (level ref +- n*C reached, n+1 not)
-        sgn = np.where(up, 1.0, -1.0)
-        lvl = ref + sgn * (n * C)
-        n -= (n > 0) & ((lvl - S1) * sgn > 0)
-        lvl = ref + sgn * ((n + 1) * C)
-        n += (lvl - S1) * sgn <= 0
-        total = int(n.sum())
-        if total == 0:
+        # only pixels whose first level is reached do any further work (usually few)
+        pix = np.flatnonzero((ref + self.c_pos <= S1) | (ref - self.c_neg >= S1))
+        if pix.size == 0:
             return EventBatch.empty()
-        pix = np.flatnonzero(n)
-        cnt = n[pix]
-        idx = np.repeat(pix, cnt)
+        r, s1 = ref[pix], S1[pix]
+        up_p = s1 > r
+        Cp = np.where(up_p, self.c_pos[pix], self.c_neg[pix])
+        sg = np.where(up_p, 1.0, -1.0)
+        cnt = np.floor(np.abs(s1 - r) / Cp).astype(np.int64)
+        # make the count agree exactly with the definition (level r +- n*C reached, n+1 not)
+        cnt -= (cnt > 1) & ((r + sg * (cnt * Cp) - s1) * sg > 0)
+        cnt = np.maximum(cnt, 1)
+        cnt += (r + sg * ((cnt + 1) * Cp) - s1) * sg <= 0
+        total = int(cnt.sum())
+        rep = np.repeat(np.arange(pix.size), cnt)  # candidate of each crossing
+        idx = pix[rep]
         starts = np.cumsum(cnt) - cnt
-        k = np.arange(total, dtype=np.int64) - np.repeat(starts, cnt) + 1
-        level = ref[idx] + sgn[idx] * (k * C[idx])
+        k = np.arange(total, dtype=np.int64) - starts[rep] + 1
+        level = r[rep] + sg[rep] * (k * Cp[rep])
         # the reference moves to the last level crossed (dropped events included)
-        ref[pix] = ref[pix] + sgn[pix] * (cnt * C[pix])
+        ref[pix] = r + sg * (cnt * Cp)
         s0 = S0[idx]
-        ds = S1[idx] - s0
+        ds = s1[rep] - s0
         with np.errstate(divide="ignore", invalid="ignore"):
             frac = np.where(ds != 0, (level - s0) / ds, 1.0)
         frac = np.clip(frac, 0.0, 1.0)
         t = t0 + np.rint(frac * dt_ns).astype(np.int64)
-        pol = up[idx].astype(np.int8)
+        pol = up_p[rep].astype(np.int8)
         if self._refractory_ns > 0:
             keep = self._refractory(pix, cnt, starts, t)
             idx, t, pol = idx[keep], t[keep], pol[keep]
