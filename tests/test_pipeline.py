@@ -404,3 +404,19 @@ def test_two_imus_get_separate_files(tmp_path: Path, no_plot: None) -> None:
     assert (tmp_path / "o" / "imu_imu2.txt").is_file()
     assert (tmp_path / "o" / "calib" / "imu_imu2.yaml").is_file()
     assert isinstance(ImuConfig.model_validate(imu), ImuConfig)
+
+
+def test_plot_rendered_in_process_when_threads_run(tmp_path: Path) -> None:
+    """With another Python thread alive the plot is not forked but still written."""
+    import threading
+
+    stop = threading.Event()
+    th = threading.Thread(target=stop.wait)
+    th.start()
+    try:
+        run_simulation(short_config(), tmp_path / "o", quiet=True, formats=["ros2"])
+    finally:
+        stop.set()
+        th.join()
+    assert (tmp_path / "o" / "trajectory.png").stat().st_size > 1000
+    assert not (tmp_path / "o" / ".plot").exists()

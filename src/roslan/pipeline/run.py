@@ -62,6 +62,8 @@ __all__ = ["RUN_FILE", "TIMING_FILE", "run_simulation", "static_transforms"]
 
 RUN_FILE = "run.json"
 TIMING_FILE = "timing.json"
+PLOT_TIMEOUT_S = 300.0
+"""Longest wait for the background trajectory plot before rendering it in-process."""
 DEPENDENCIES = ("numpy", "scipy", "pydantic", "rosbags", "PyYAML", "trimesh", "moderngl", "embreex")
 
 
@@ -181,25 +183,32 @@ def _plot_child(traj: Trajectory, folder: Path) -> None:
 class _BackgroundPlot:
     """Renders trajectory.png (about a second of matplotlib) in a forked child process while
     the parent streams the sensors, so the one-off plot overlaps the simulation on a second
-    core. Where ``fork`` is not the safe default (non-Linux) it renders in-process."""
+    core. Where ``fork`` is not safe (non-Linux, or other Python threads running) it renders
+    in-process at :meth:`finish`."""
 
     def __init__(self, traj: Trajectory, tmp: Path) -> None:
         self.tmp = tmp
         self.folder = tmp / ".plot"
         self.proc: multiprocessing.process.BaseProcess | None = None
         self.folder.mkdir()
-        if sys.platform.startswith("linux"):
+        self.traj = traj
+        # fork only from a single-threaded process (a fork while another Python thread holds
+        # a lock can deadlock the child); otherwise render in-process at finish()
+        if sys.platform.startswith("linux") and threading.active_count() == 1:
             mp = multiprocessing.get_context("fork")
             self.proc = mp.Process(target=_plot_child, args=(traj, self.folder), daemon=True)
             self.proc.start()
-        else:  # pragma: no cover - exercised on macOS / Windows only
-            _plot_child_inline(traj, self.folder)
 
     def finish(self) -> None:
         """Wait for the child; move its trajectory.png into place (OutputError if it failed)."""
-        if self.proc is not None:
-            self.proc.join()
-            if self.proc.exitcode != 0:
+        if self.proc is None:
+            _plot_child_inline(self.traj, self.folder)
+        else:
+            self.proc.join(PLOT_TIMEOUT_S)
+            if self.proc.is_alive():  # pragma: no cover - a stuck child: render here instead
+                self.kill()
+                _plot_child_inline(self.traj, self.folder)
+            elif self.proc.exitcode != 0:
                 msg = f"rendering trajectory.png failed (child exit code {self.proc.exitcode})"
                 raise OutputError(msg)
         png = self.folder / "trajectory.png"
@@ -213,7 +222,7 @@ class _BackgroundPlot:
             self.proc.join(5)
 
 
-def _plot_child_inline(traj: Trajectory, folder: Path) -> None:  # pragma: no cover
+def _plot_child_inline(traj: Trajectory, folder: Path) -> None:
     from roslan.trajectory.export import write_trajectory_files
 
     write_trajectory_files(traj, folder, plot=True)
