@@ -42,6 +42,12 @@ __all__ = [
 F64 = NDArray[np.float64]
 I64 = NDArray[np.int64]
 
+_EMPTY: tuple[I64, I64, NDArray[np.int8]] = (
+    np.zeros(0, np.int64),
+    np.zeros(0, np.int64),
+    np.zeros(0, np.int8),
+)
+
 MIN_THRESHOLD = 0.01
 """Smallest contrast threshold a mismatched pixel may get (log units)."""
 
@@ -231,12 +237,34 @@ class EventGenerator:
         else:
             self.lp = L
         S1 = self._signal(self.lp, t_ns)
-        batch = self._crossings(self.signal, S1, t0, dt_ns)
+        parts = [self._crossings(self.signal, S1, t0, dt_ns)]
         if p.shot_noise_rate > 0:
-            batch = self._shot_noise(batch, t0, dt_ns)
+            parts.append(self._shot_noise(t0, dt_ns))
         self.signal = S1
         self.t_ns = t_ns
-        return batch
+        return self._sorted(parts, t0, dt_ns)
+
+    def _sorted(
+        self, parts: list[tuple[I64, I64, NDArray[np.int8]]], t0: int, dt_ns: int
+    ) -> EventBatch:
+        """One time sort of the interval's events; ties keep their order in ``parts``."""
+        idx = np.concatenate([q[0] for q in parts])
+        t = np.concatenate([q[1] for q in parts])
+        pol = np.concatenate([q[2] for q in parts])
+        n = int(t.shape[0])
+        if n == 0:
+            return EventBatch.empty()
+        if (dt_ns + 1) * n < 2**62:
+            # unique keys (time, position): an unstable sort of values is the stable order
+            key = (t - t0) * n + np.arange(n, dtype=np.int64)
+            key.sort()
+            order = key % n
+        else:  # pragma: no cover - intervals of years
+            order = np.argsort(t, kind="stable")
+        idx, t, pol = idx[order], t[order], pol[order]
+        return EventBatch(
+            t, (idx % self.width).astype(np.uint16), (idx // self.width).astype(np.uint16), pol
+        )
 
     # ------------------------------------------------------------------ internals
     def _signal(self, lp: F64, t_ns: int) -> F64:
@@ -244,12 +272,15 @@ class EventGenerator:
             return lp.copy() if lp.dtype == np.float64 else lp.astype(np.float64)
         return lp + self.leak_slope * (t_ns * 1e-9)
 
-    def _crossings(self, S0: F64, S1: F64, t0: int, dt_ns: int) -> EventBatch:
+    def _crossings(
+        self, S0: F64, S1: F64, t0: int, dt_ns: int
+    ) -> tuple[I64, I64, NDArray[np.int8]]:
+        """Unsorted (pixel-major) events: flat pixel index, time ns, polarity."""
         ref = self.ref
         # only pixels whose first level is reached do any further work (usually few)
         pix = np.flatnonzero((ref + self.c_pos <= S1) | (ref - self.c_neg >= S1))
         if pix.size == 0:
-            return EventBatch.empty()
+            return _EMPTY
         r, s1 = ref[pix], S1[pix]
         up_p = s1 > r
         Cp = np.where(up_p, self.c_pos[pix], self.c_neg[pix])
@@ -280,11 +311,7 @@ class EventGenerator:
         else:
             # last event of each pixel (they are in time order within a pixel)
             self.last_event_ns[pix] = t[starts + cnt - 1]
-        order = np.argsort(t, kind="stable")
-        idx, t, pol = idx[order], t[order], pol[order]
-        return EventBatch(
-            t, (idx % self.width).astype(np.uint16), (idx // self.width).astype(np.uint16), pol
-        )
+        return idx, t, pol
 
     def _refractory(self, pix: I64, cnt: I64, starts: I64, t: I64) -> NDArray[np.bool_]:
         """Keep mask over the pixel-major crossings; iterates over the crossing index only."""
@@ -302,12 +329,12 @@ class EventGenerator:
         self.n_dropped += int(keep.size - keep.sum())
         return keep
 
-    def _shot_noise(self, batch: EventBatch, t0: int, dt_ns: int) -> EventBatch:
+    def _shot_noise(self, t0: int, dt_ns: int) -> tuple[I64, I64, NDArray[np.int8]]:
         rng = self._rng
         lam = self.params.shot_noise_rate * self.n_pixels * dt_ns * 1e-9
         m = int(rng.poisson(lam))
         if m == 0:
-            return batch
+            return _EMPTY
         idx = np.sort(rng.integers(0, self.n_pixels, m))
         t = t0 + 1 + rng.integers(0, dt_ns, m)  # in (t0, t1]
         pol = (rng.random(m) < 0.5).astype(np.int8)
@@ -315,9 +342,4 @@ class EventGenerator:
         step = np.where(pol == 1, self.c_pos[idx], -self.c_neg[idx])
         np.add.at(self.ref, idx, step)
         np.maximum.at(self.last_event_ns, idx, t)
-        noise = EventBatch(
-            t, (idx % self.width).astype(np.uint16), (idx // self.width).astype(np.uint16), pol
-        )
-        merged = EventBatch.concatenate([batch, noise])
-        order = np.argsort(merged.t, kind="stable")
-        return EventBatch(merged.t[order], merged.x[order], merged.y[order], merged.p[order])
+        return idx, t, pol
