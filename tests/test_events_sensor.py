@@ -347,3 +347,54 @@ def h5py_file(path: Path) -> Any:
     import h5py
 
     return h5py.File(path, "r")
+
+
+def test_distorted_camera_flow_matches_projection() -> None:
+    from roslan.sensors.event_camera import EventCamera, EventCameraConfig
+
+    cfg = EventCameraConfig.model_validate(
+        {
+            "type": "event_camera",
+            "name": "dvs",
+            "rate": 25,
+            "topic": "/dvs",
+            "resolution": (60, 40),
+            "fx": 40.0,
+            "fy": 41.0,
+            "distortion_model": "plumb_bob",
+            "distortion_coeffs": (-0.25, 0.06, 0.001, -0.002),
+        }
+    )
+    cam = EventCamera(cfg).camera
+    rng = np.random.default_rng(0)
+    depth = rng.uniform(1.0, 6.0, (40, 60))
+    v, w = np.array([0.4, -0.2, 1.0]), np.array([0.3, 0.1, -0.2])
+    flow = cam.flow(depth, v, w)
+    x, y = cam.rays
+    P = np.stack([x * depth, y * depth, depth], -1).reshape(-1, 3)
+    h = 1e-6
+    P2 = P - (v + np.cross(w, P)) * h
+    uv1 = cam.model.project(P)
+    uv2 = cam.model.project(P2)
+    u, vv = np.meshgrid(np.arange(60.0), np.arange(40.0))
+    np.testing.assert_allclose(
+        uv1, np.stack([u.ravel(), vv.ravel()], 1), atol=1e-6
+    )  # rays are exact
+    np.testing.assert_allclose(flow.reshape(-1, 2), (uv2 - uv1) / h, rtol=1e-3, atol=1e-2)
+
+
+@pytest.mark.parametrize(
+    "over",
+    [
+        {"sampling": "brightness"},
+        {"distortion_model": "equidistant", "distortion_coeffs": (0.01, -0.005, 0.0, 0.0)},
+    ],
+)
+def test_sensor_variants_run(tmp_path: Path, over: dict[str, Any]) -> None:
+    pytest.importorskip("roslan.render.gl")
+    sensor, msgs = _run(tmp_path, 1, preset="clean", **over)
+    assert sensor.stats["events"] > 100
+    assert sensor.stats["frames"] <= 0.8 * 300 + 2
+    with __import__("h5py").File(tmp_path / "events.h5", "r") as f:
+        assert f["events/x"][:].max() < 40
+        assert f["events/y"][:].max() < 30
