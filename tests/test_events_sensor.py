@@ -392,7 +392,7 @@ def test_distorted_camera_flow_matches_projection() -> None:
 )
 def test_sensor_variants_run(tmp_path: Path, over: dict[str, Any]) -> None:
     pytest.importorskip("roslan.render.gl")
-    sensor, msgs = _run(tmp_path, 1, preset="clean", **over)
+    sensor, _ = _run(tmp_path, 1, preset="clean", **over)
     assert sensor.stats["events"] > 100
     assert sensor.stats["frames"] <= 0.8 * 300 + 2
     with __import__("h5py").File(tmp_path / "events.h5", "r") as f:
