@@ -43,6 +43,7 @@ def _simulate(args: argparse.Namespace) -> int:
         allow_collision=args.allow_collision,
         profile=args.profile,
         config_path=path,
+        overview=not args.no_overview,
     )
     if not args.quiet:
         print(
@@ -79,4 +80,5 @@ def register(subparsers: Any) -> None:
         action="store_true",
         help="skip the check that the path clears the scene",
     )
+    p.add_argument("--no-overview", action="store_true", help="do not draw overview.png at the end")
     p.set_defaults(func=_simulate)

@@ -163,7 +163,7 @@ class _Progress:
         if self._bar is None:
             return
         wall = time.perf_counter() - self._t0
-        rtf = f"{t_s / wall:.1f}x real time" if wall > 0 else ""
+        rtf = f"real-time factor {wall / t_s:.2f}" if t_s > 0 else ""
         self._bar.update(self._task, completed=min(t_s, self.total), rtf=rtf)
 
     def stop(self) -> None:
@@ -387,6 +387,7 @@ def run_simulation(
     allow_collision: bool = False,
     profile: bool = False,
     config_path: Path | None = None,
+    overview: bool = True,
 ) -> dict[str, Any]:
     """Simulate ``config`` into ``outdir`` atomically; returns the content of run.json.
 
@@ -398,6 +399,7 @@ def run_simulation(
         formats: bag flavours (``'ros1'``, ``'ros2'``); default ``config.output.formats``.
         allow_collision: skip the scene clearance check.
         profile: record (and print unless quiet) per-sensor time in timing.json.
+        overview: draw ``overview.png`` (trajectory, camera, events, scan) at the end.
         config_path: the YAML file the config came from (relative scene paths, run.json).
     Raises:
         ConfigError: invalid sensors/topics/scene, or a path that hits the scene.
@@ -546,10 +548,11 @@ def run_simulation(
                 "wall_time_s": wall,
                 "setup_s": t_stream - t_setup,
                 "stream_s": t_done - t_stream,
-                "real_time_factor": traj.duration / wall if wall > 0 else None,
-                "stream_real_time_factor": traj.duration / (t_done - t_stream)
-                if t_done > t_stream
-                else None,
+                # real-time factor = simulation wall time / trajectory time (<= 1: faster
+                # than real time); speedup is its inverse.
+                "real_time_factor": wall / traj.duration,
+                "stream_real_time_factor": (t_done - t_stream) / traj.duration,
+                "speedup": traj.duration / wall if wall > 0 else None,
             }
             if profile:
                 per = {
@@ -564,6 +567,13 @@ def run_simulation(
                 timing["profile"] = {"sensors": per, "writers_s": write_seconds}
                 if not quiet:
                     _print_profile(per, write_seconds)
+            if overview:
+                from roslan.plots.overview import write_overview
+
+                t0 = time.perf_counter()
+                scene_name = config.scene or "no scene"
+                write_overview(tmp, title=f"roslan run: {scene_name}, seed {config.seed}")
+                timing["overview_s"] = time.perf_counter() - t0
             _write_json(tmp / TIMING_FILE, timing)
             (tmp / "PLAYBACK.md").write_text(
                 _playback(traj.duration, wall, fmts, counts), encoding="utf-8"

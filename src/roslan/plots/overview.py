@@ -100,8 +100,11 @@ def _trajectory_panel(ax: Any, media: RunMedia, t_ns: int) -> None:
     ax.set_title(f"Trajectory (frame F), touchdown T = {s.touchdown:.2f} s")
 
 
-def write_overview(outdir: Path, out: Path | None = None) -> Path:
+def write_overview(outdir: Path, out: Path | None = None, *, title: str | None = None) -> Path:
     """Write ``OUTDIR/overview.png`` (or ``out``) for the run in ``outdir``; returns its path.
+
+    ``title`` defaults to the folder's name; ``roslan simulate`` passes a title that does
+    not depend on the folder, so identical runs give identical files.
 
     Frames are taken at the middle of the landing (half the touchdown time), where
     the robot moves; missing sensors get a "no ... configured" panel.
@@ -127,7 +130,7 @@ def write_overview(outdir: Path, out: Path | None = None) -> Path:
             _camera_panel(ax_c, media, t_ns)
             _event_panel(ax_e, media, t_ns)
             _lidar_panel(ax_l, media, t_ns)
-            fig.suptitle(f"roslan run: {outdir.name}", fontsize=11)
+            fig.suptitle(title if title is not None else f"roslan run: {outdir.name}", fontsize=11)
             return save_figure(fig, out)
     finally:
         media.close()
