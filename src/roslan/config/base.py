@@ -100,7 +100,8 @@ def format_validation_error(
         full = (*prefix, *loc)
         value = err.get("input")
         # A whole mapping (model-level check) is not worth echoing: its message names the keys.
-        shown = "" if err.get("type") == "missing" or isinstance(value, Mapping) else f" = {_short(value)}"
+        hide = err.get("type") == "missing" or isinstance(value, Mapping)
+        shown = "" if hide else f" = {_short(value)}"
         where = f"{_loc(full)}{shown}: " if full else ""
         lines.append(f"{src}{where}{_clean_message(err)}")
     return "\n".join(lines)
@@ -133,13 +134,17 @@ def load_yaml(path: str | Path) -> Any:
 
 
 def validate_model(
-    model: type[M], data: Any, source: str | Path | None = None, context: Mapping[str, Any] | None = None
+    model: type[M],
+    data: Any,
+    source: str | Path | None = None,
+    context: Mapping[str, Any] | None = None,
 ) -> M:
     """Validate ``data`` against ``model``, raising ConfigError with readable messages."""
     if data is None:
         data = {}
     if not isinstance(data, Mapping):
-        msg = f"{source or '<config>'}: expected a mapping of keys at the top level, got {type(data).__name__}"
+        where = source or "<config>"
+        msg = f"{where}: expected a mapping of keys at the top level, got {type(data).__name__}"
         raise ConfigError(msg)
     try:
         return model.model_validate(data, context=dict(context or {}))
@@ -150,5 +155,5 @@ def validate_model(
 def load_yaml_model(model: type[M], path: str | Path) -> M:
     """Load a YAML file and validate it; relative paths inside resolve against its folder."""
     p = Path(path)
-    return validate_model(model, load_yaml(p), p, context={"base_dir": p.parent.resolve(), "source": p})
-
+    context = {"base_dir": p.parent.resolve(), "source": p}
+    return validate_model(model, load_yaml(p), p, context=context)

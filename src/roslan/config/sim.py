@@ -77,7 +77,9 @@ class SimConfig(StrictModel):
     trajectory: TrajectoryConfig = TrajectoryConfig()
     scene: str | None = None
     """A built-in scene name (``warehouse``, ``refinery``, ``empty``) or a scene YAML path."""
-    sensors: list[Annotated[SerializeAsAny[SensorConfig], BeforeValidator(_sensor)]] = []
+    sensors: list[Annotated[SerializeAsAny[SensorConfig], BeforeValidator(_sensor)]] = Field(
+        default_factory=list
+    )
     seed: Annotated[int, Field(ge=0)] = 0
     output: OutputConfig = OutputConfig()
 
@@ -88,7 +90,10 @@ class SimConfig(StrictModel):
             for i, s in enumerate(self.sensors):
                 value = getattr(s, key)
                 if value in seen:
-                    msg = f"sensors[{i}].{key} = {value!r}: duplicate; every sensor {key} must be unique"
+                    msg = (
+                        f"sensors[{i}].{key} = {value!r}: duplicate; "
+                        f"every sensor {key} must be unique"
+                    )
                     raise ValueError(msg)
                 seen.add(value)
         return self

@@ -12,7 +12,7 @@ their ROS 1 md5sums match and every ROS tool decodes them.
 
 from __future__ import annotations
 
-from enum import Enum
+from enum import StrEnum
 from typing import Any
 
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
@@ -21,7 +21,7 @@ from rosbags.typesys.store import Typestore
 __all__ = ["EXTRA_MSGDEFS", "Flavor", "MessageStore"]
 
 
-class Flavor(str, Enum):
+class Flavor(StrEnum):
     """Which ROS generation a bag is written for."""
 
     ROS1 = "ros1"

@@ -31,8 +31,8 @@ if TYPE_CHECKING:
 
 __all__ = [
     "Message",
-    "SensorConfig",
     "Sensor",
+    "SensorConfig",
     "SimContext",
     "StaticTransform",
     "TopicSpec",

@@ -18,7 +18,11 @@ __all__ = ["SENSOR_TYPES", "config_class", "sensor_class"]
 SENSOR_TYPES: dict[str, tuple[str, str, str]] = {
     # type: (module, config class, sensor class)
     "lidar": ("roslan.sensors.lidar", "LidarConfig", "Lidar"),
-    "solid_state_lidar": ("roslan.sensors.solid_state_lidar", "SolidStateLidarConfig", "SolidStateLidar"),
+    "solid_state_lidar": (
+        "roslan.sensors.solid_state_lidar",
+        "SolidStateLidarConfig",
+        "SolidStateLidar",
+    ),
     "laser": ("roslan.sensors.laser", "LaserConfig", "Laser"),
     "sonar": ("roslan.sensors.range", "SonarConfig", "Sonar"),
     "altimeter": ("roslan.sensors.range", "AltimeterConfig", "Altimeter"),
