@@ -48,7 +48,7 @@ def main() -> None:
         [0, 1, 0],
         [-np.sin(pitch), 0, np.cos(pitch)],
     ]
-    print(f"scene warehouse: {scene.n_triangles} triangles, {len(r._draws)} draw calls")
+    print(f"scene warehouse: {scene.n_triangles} triangles, {r.n_clusters} culling clusters")
     for w, h, enc, dist in [(640, 480, "rgb8", True), (346, 260, "mono8", False)]:
         cfg = CameraConfig.model_validate(
             {

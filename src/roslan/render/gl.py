@@ -2,15 +2,25 @@
 
 One OpenGL context per process (``moderngl`` on EGL: Mesa's llvmpipe on a CPU
 machine, the GPU driver wherever there is one; same code). :func:`get_renderer`
-returns one :class:`Renderer` per scene: the scene is uploaded once, its
-triangles grouped by texture into a single vertex/index buffer drawn with one
-call per texture; the sun's shadow map is rendered once at upload (scene and sun
-are static).
+returns one :class:`Renderer` per scene: the scene is uploaded once into a single
+vertex/index buffer, its triangles grouped by texture and, inside each group, into
+spatial clusters (one object's triangles in one grid cell) with bounding boxes; every
+frame draws only the clusters whose box meets the view frustum, consecutive ones
+merged into one draw call. The sun's shadow map is rendered once at upload (scene and
+sun are static).
 
-Shading: textured Lambert, ``albedo * texture * (ambient + sun * max(0, n.l) *
-lit)`` in LINEAR radiance (textures are sRGB-decoded by the sampler), two-sided,
-4x MSAA resolved by averaging the samples, trilinear mip-mapped, anisotropic
-texture filtering (aliasing would turn into fake events in the event camera).
+Shading: textured Lambert, ``albedo * texture * (ambient + sun * max(0, n.l) * lit)``
+in LINEAR radiance (textures are sRGB-decoded by the sampler), two-sided (the side
+facing the camera is lit). The sun term ``n.l`` and the shadow-map bias are computed
+per vertex (exact for flat faces, whose normal is constant; Gouraud for smooth ones);
+``lit`` is one hardware-filtered (bilinear PCF) shadow-map lookup per fragment.
+Anti-aliasing: MSAA (:data:`MSAA_SAMPLES` per pixel, resolved by averaging the
+samples), trilinear mip-mapped textures, anisotropic filtering on GPUs (aliasing would
+turn into fake events in the event camera).
+
+Outputs (keywords of :meth:`Renderer.render`): linear RGB, Rec. 709 luminance (one
+channel: what grayscale and event cameras need, computed in the shader, a quarter of
+the readback), metric depth; each is computed and read back only when requested.
 
 Camera model: the pose ``T_world_cam`` of the OPTICAL frame (z forward, x right,
 y down) and a pinhole ``K``. The projection is built from ``K`` exactly with
@@ -19,9 +29,13 @@ image. The image is rendered upside down in GL's window coordinates (GL's first
 row = image row 0), so the readback needs no flip.
 
 Depth: the metric z-depth along the optical axis, written per fragment as 1/z
-interpolated exactly at the pixel centre (``interpolateAtOffset``), so it is
-independent of the depth-buffer precision; at silhouettes the nearest sample wins;
-``inf`` where nothing is hit. The depth buffer only resolves visibility.
+interpolated at the pixel centre (non-centroid interpolation), so it is independent of
+the depth-buffer precision; at silhouettes the nearest sample wins; ``inf`` where
+nothing is hit. The depth buffer only resolves visibility.
+
+Speed (llvmpipe, 2 cores): see ``benchmarks/profile_render.py`` and the "Cameras"
+section of docs/performance.md. llvmpipe shades on ``LP_NUM_THREADS`` threads (default:
+all cores); vertex processing runs on the calling thread, hence the culling.
 """
 
 from __future__ import annotations
@@ -56,7 +70,15 @@ EGL_PACKAGES = "libegl1, libegl-mesa0, libgl1-mesa-dri"
 """Debian packages that provide headless OpenGL through EGL (Mesa llvmpipe)."""
 
 MSAA_SAMPLES = 4
-"""Samples per pixel of the colour pass (clamped to what the driver supports)."""
+"""Default MSAA samples per pixel of the colour pass (clamped to what the driver
+supports; llvmpipe supports 4 and rounds 2 up to 4; 1 = no MSAA)."""
+
+LUMA = (0.2126, 0.7152, 0.0722)
+"""Rec. 709 luminance weights of linear RGB (the ``luminance`` output)."""
+
+CLUSTER_CELLS = 12
+"""Culling granularity: an object's triangles are split by a grid of cubic cells of
+``max(scene diagonal / CLUSTER_CELLS, 1 m)``."""
 
 _GL_SRGB8 = 0x8C41
 _INF_BITS = "uintBitsToFloat(0x7F800000u)"
@@ -74,10 +96,13 @@ class RenderResult:
         color: (H, W, 3) float32 linear radiance in [0, 1], or None if not requested.
         depth: (H, W) float32 metric z-depth along the optical axis (m), ``inf`` where
             nothing is hit, or None if not requested.
+        luminance: (H, W) float32 Rec. 709 luminance of the linear radiance in [0, 1]
+            (``0.2126 R + 0.7152 G + 0.0722 B``), or None if not requested.
     """
 
     color: F32 | None
     depth: F32 | None
+    luminance: F32 | None = None
 
 
 def create_context() -> Any:
@@ -142,73 +167,75 @@ def projection_from_K(K: F64, width: int, height: int, near: float, far: float) 
     return P
 
 
-_VERT = """
-#version 410
+_COLOR_VERT = """
 uniform mat4 u_mvp;          // clip from world
 uniform vec4 u_zrow;         // optical z from world (third row of T_cam_world)
 uniform mat4 u_light;        // shadow-map [0,1]^3 from world
+uniform vec3 u_cam_pos;
+uniform vec3 u_to_sun;       // unit vector towards the sun (world)
+uniform float u_sun;
+uniform float u_ambient;
+uniform float u_shadow_texel;  // shadow-map texel size in [0,1] units
 in vec3 in_pos;
 in vec3 in_normal;
 in vec2 in_uv;
 in vec3 in_albedo;
-out vec3 v_pos;
-out vec3 v_normal;
 out vec2 v_uv;
-out vec3 v_albedo;
+out vec3 v_amb;
+out vec3 v_sun;
+out vec3 v_light;
+#ifdef DEPTH
 out float v_z;
-out vec4 v_light;
+#endif
 void main() {
     vec4 p = vec4(in_pos, 1.0);
     gl_Position = u_mvp * p;
-    v_pos = in_pos;
-    v_normal = in_normal;
+    // Two-sided: light the side facing the camera. For a flat face the sign of
+    // dot(n, cam - p) is the camera's side of its plane: the same at every vertex.
+    vec3 n = in_normal;
+    if (dot(n, u_cam_pos - in_pos) < 0.0) n = -n;
+    float ndl = max(dot(n, u_to_sun), 0.0);
     v_uv = in_uv;
-    v_albedo = in_albedo;
+    v_amb = in_albedo * u_ambient;
+    v_sun = in_albedo * (u_sun * ndl);
+    // slope-scaled bias against acne; linear in the (orthographic) light frame
+    float bias = u_shadow_texel * (1.5 + 2.0 * sqrt(max(1.0 - ndl * ndl, 0.0)) / max(ndl, 0.05));
+    vec4 lp = u_light * p;
+    v_light = vec3(lp.xy, lp.z - bias);
+#ifdef DEPTH
     v_z = dot(u_zrow, p);
-    v_light = u_light * p;
+#endif
 }
 """
 
-_FRAG = """
-#version 410
+_COLOR_FRAG = """
 uniform sampler2D u_tex;
 uniform sampler2DShadow u_shadow;
-uniform vec3 u_cam_pos;
-uniform vec3 u_to_sun;        // unit vector towards the sun (world)
-uniform float u_sun;
-uniform float u_ambient;
-uniform float u_shadow_texel;  // shadow-map texel size in [0,1] units
-uniform bool u_shadows;
-in vec3 v_pos;
-in vec3 v_normal;
 in vec2 v_uv;
-in vec3 v_albedo;
+in vec3 v_amb;
+in vec3 v_sun;
+in vec3 v_light;
+#ifdef DEPTH
 in float v_z;
-in vec4 v_light;
-layout(location = 0) out vec4 o_color;
 layout(location = 1) out float o_invz;
+#endif
+#ifdef LUM
+layout(location = 0) out float o_color;
+#else
+layout(location = 0) out vec4 o_color;
+#endif
 void main() {
-    vec3 n = normalize(v_normal);
-    // Two-sided: light the side facing the camera (window y is flipped, so
-    // gl_FrontFacing is inverted; the geometric test needs no convention).
-    if (dot(n, u_cam_pos - v_pos) < 0.0) n = -n;
-    float ndl = max(dot(n, u_to_sun), 0.0);
-    float lit = 1.0;
-    if (u_shadows && ndl > 0.0) {
-        vec3 lp = v_light.xyz;
-        // slope-scaled bias against acne
-        float bias = u_shadow_texel * (1.5 + 2.0 * sqrt(1.0 - ndl * ndl) / max(ndl, 0.05));
-        lit = 0.0;
-        for (int i = -1; i <= 1; ++i)
-            for (int j = -1; j <= 1; ++j)
-                lit += texture(u_shadow, vec3(lp.xy + vec2(i, j) * u_shadow_texel, lp.z - bias));
-        lit /= 9.0;
-    }
-    vec3 albedo = v_albedo * texture(u_tex, v_uv).rgb;
-    o_color = vec4(clamp(albedo * (u_ambient + u_sun * ndl * lit), 0.0, 1.0), 1.0);
-    // exact optical z at the pixel centre, even for partially covered pixels
-    float z = max(interpolateAtOffset(v_z, vec2(0.0)), 1e-6);
-    o_invz = 1.0 / z;
+    float lit = texture(u_shadow, v_light);  // bilinear PCF (compare + LINEAR)
+    vec3 c = clamp(texture(u_tex, v_uv).rgb * (v_amb + v_sun * lit), 0.0, 1.0);
+#ifdef LUM
+    o_color = dot(c, LUMA);
+#else
+    o_color = vec4(c, 1.0);
+#endif
+#ifdef DEPTH
+    // optical z at the pixel centre (non-centroid), even for partially covered pixels
+    o_invz = 1.0 / max(v_z, 1e-6);
+#endif
 }
 """
 
@@ -254,54 +281,83 @@ void main() {
 """
 
 _FRAG_RESOLVE = f"""
-#version 410
 uniform sampler2DMS u_color;
-uniform sampler2DMS u_invz;
 uniform int u_samples;
+#ifdef LUM
+layout(location = 0) out float o_color;
+#else
 layout(location = 0) out vec4 o_color;
+#endif
+#ifdef DEPTH
+uniform sampler2DMS u_invz;
 layout(location = 1) out float o_depth;
+#endif
 void main() {{
     ivec2 p = ivec2(gl_FragCoord.xy);
-    vec3 c = vec3(0.0);
+    vec4 c = vec4(0.0);
     float m = 0.0;
     for (int i = 0; i < u_samples; ++i) {{
-        c += texelFetch(u_color, p, i).rgb;
+        c += texelFetch(u_color, p, i);
+#ifdef DEPTH
         m = max(m, texelFetch(u_invz, p, i).r);   // nearest surface wins
+#endif
     }}
-    o_color = vec4(c / float(u_samples), 1.0);
+    c /= float(u_samples);
+#ifdef LUM
+    o_color = c.r;
+#else
+    o_color = vec4(c.rgb, 1.0);
+#endif
+#ifdef DEPTH
     o_depth = m > 0.0 ? 1.0 / m : {_INF_BITS};
+#endif
 }}
 """
 
 
-class _Targets:
-    """Framebuffers of one resolution (created once, reused every frame)."""
+def _source(body: str, *, lum: bool, depth: bool) -> str:
+    defs = ["#version 410"]
+    if lum:
+        defs.append("#define LUM")
+    if depth:
+        defs.append("#define DEPTH")
+    defs.append("const vec3 LUMA = vec3({:.4f}, {:.4f}, {:.4f});".format(*LUMA))
+    return "\n".join(defs) + "\n" + body
 
-    def __init__(self, ctx: Any, width: int, height: int, samples: int) -> None:
+
+class _Targets:
+    """Framebuffers of one (size, samples, outputs) combination, created once, reused.
+
+    With MSAA the colour pass draws into ``ms_fbo`` and a resolve pass averages it into
+    ``out_fbo`` (attachment 0: RGBA or luminance, 1: depth in m); without MSAA the
+    colour pass draws into ``out_fbo`` directly (attachment 1: 1/z).
+    """
+
+    def __init__(
+        self, ctx: Any, width: int, height: int, samples: int, lum: bool, depth: bool
+    ) -> None:
         size = (width, height)
-        self.ms_color = ctx.texture(size, 4, samples=samples, dtype="f2")
-        self.ms_invz = ctx.texture(size, 1, samples=samples, dtype="f4")
-        self.ms_depth = ctx.depth_renderbuffer(size, samples=samples)
-        self.ms_fbo = ctx.framebuffer([self.ms_color, self.ms_invz], self.ms_depth)
-        self.out_color = ctx.texture(size, 4, dtype="f4")
-        self.out_depth = ctx.texture(size, 1, dtype="f4")
-        self.out_fbo = ctx.framebuffer([self.out_color, self.out_depth])
-        # depth-only path: no MSAA, fragments shaded at pixel centres
-        self.d_invz = ctx.texture(size, 1, dtype="f4")
-        self.d_depth = ctx.depth_renderbuffer(size)
-        self.d_fbo = ctx.framebuffer([self.d_invz], self.d_depth)
-        self._objs = [
-            self.ms_fbo,
-            self.out_fbo,
-            self.d_fbo,
-            self.ms_color,
-            self.ms_invz,
-            self.ms_depth,
-            self.out_color,
-            self.out_depth,
-            self.d_invz,
-            self.d_depth,
-        ]
+        ncomp = 1 if lum else 4
+        cdtype = "f4" if lum else "f2"
+        self._objs: list[Any] = []
+        self.ms_fbo: Any = None
+        self.ms_color: Any = None
+        self.ms_invz: Any = None
+        if samples > 1:
+            self.ms_color = ctx.texture(size, ncomp, samples=samples, dtype=cdtype)
+            atts = [self.ms_color]
+            if depth:
+                self.ms_invz = ctx.texture(size, 1, samples=samples, dtype="f4")
+                atts.append(self.ms_invz)
+            ms_depth = ctx.depth_renderbuffer(size, samples=samples)
+            self.ms_fbo = ctx.framebuffer(atts, ms_depth)
+            self._objs += [self.ms_fbo, *atts, ms_depth]
+        out = [ctx.texture(size, ncomp, dtype="f4")]
+        if depth:
+            out.append(ctx.texture(size, 1, dtype="f4"))
+        out_depth = None if samples > 1 else ctx.depth_renderbuffer(size)
+        self.out_fbo = ctx.framebuffer(out, out_depth)
+        self._objs += [self.out_fbo, *out] + ([out_depth] if out_depth is not None else [])
 
     def release(self) -> None:
         for o in self._objs:
@@ -313,9 +369,10 @@ class Renderer:
 
     Attributes:
         max_size: largest image width/height the driver supports (pixels).
-        samples: MSAA samples per pixel of the colour pass.
+        samples: default MSAA samples per pixel of the colour pass (1: no MSAA).
         near: near clipping distance (m), chosen from the scene size.
         anisotropy: texture anisotropic filtering level (1 on llvmpipe: see below).
+        software: True on Mesa's llvmpipe (CPU) renderer.
     """
 
     def __init__(self, scene: Scene, *, samples: int = MSAA_SAMPLES) -> None:
@@ -328,12 +385,15 @@ class Renderer:
                 *ctx.info["GL_MAX_VIEWPORT_DIMS"],
             )
         )
-        self.samples = max(1, min(samples, int(ctx.max_samples)))
+        self.samples = self._clamp_samples(samples)
         # Mesa's llvmpipe (LLVM 15) stalls for minutes on anisotropic filtering of
         # near-grazing, near-clipped ground planes: trilinear mip-mapping + MSAA there.
-        software = "llvmpipe" in str(ctx.info.get("GL_RENDERER", "")).lower()
-        self.anisotropy = 1.0 if software else 16.0
-        self._targets: dict[tuple[int, int], _Targets] = {}
+        self.software = "llvmpipe" in str(ctx.info.get("GL_RENDERER", "")).lower()
+        self.anisotropy = 1.0 if self.software else 16.0
+        self._targets: dict[tuple[int, int, int, bool, bool], _Targets] = {}
+        self._d_targets: dict[tuple[int, int], tuple[Any, Any, Any]] = {}
+        self._programs: dict[tuple[bool, bool], tuple[Any, Any]] = {}
+        self._resolves: dict[tuple[bool, bool], tuple[Any, Any]] = {}
         self._released = False
 
         lo, hi = scene.bounds
@@ -344,30 +404,20 @@ class Renderer:
         # 24-bit depth buffer: resolution ~ z^2 / (near * 2^24); 1 cm near gives
         # ~6 mm at 100 m, while cameras may still fly within centimetres of a perch.
         self.near = float(np.clip(1e-4 * diag, 0.005, 0.02))
+        self._cell = max(diag / CLUSTER_CELLS, 1.0)
 
-        self._prog = ctx.program(vertex_shader=_VERT, fragment_shader=_FRAG)
         self._prog_depth = ctx.program(vertex_shader=_VERT_DEPTH, fragment_shader=_FRAG_DEPTH)
         self._prog_shadow = ctx.program(vertex_shader=_VERT_SHADOW, fragment_shader=_FRAG_SHADOW)
-        self._prog_resolve = ctx.program(vertex_shader=_VERT_QUAD, fragment_shader=_FRAG_RESOLVE)
-        self._quad = ctx.vertex_array(self._prog_resolve, [])
         self._upload(scene)
         self._build_shadow_map(scene)
 
-        lights = scene.lights
-        d = np.asarray(lights.sun_direction, dtype=np.float64)
-        to_sun = -d / max(float(np.linalg.norm(d)), 1e-12)
-        self._prog["u_to_sun"].value = tuple(to_sun)
-        self._prog["u_sun"].value = float(lights.sun_intensity)
-        self._prog["u_ambient"].value = float(lights.ambient)
-        self._prog["u_tex"].value = 0
-        self._prog["u_shadow"].value = 1
-        self._prog_resolve["u_color"].value = 0
-        self._prog_resolve["u_invz"].value = 1
-        self._prog_resolve["u_samples"].value = self.samples
+    def _clamp_samples(self, samples: int) -> int:
+        return max(1, min(int(samples), int(self.ctx.max_samples)))
 
     # ----------------------------------------------------------------- upload
     def _upload(self, scene: Scene) -> None:
-        """One interleaved VBO + IBO for the whole scene, faces sorted by texture."""
+        """One interleaved VBO + IBO for the whole scene, faces sorted by texture, then by
+        object and grid cell (the culling clusters)."""
         ctx = self.ctx
         groups: dict[int, list[int]] = {}
         textures: dict[int, NDArray[np.uint8] | None] = {0: None}
@@ -379,27 +429,48 @@ class Renderer:
 
         parts: list[F32] = []
         faces: list[NDArray[np.int32]] = []
-        self._draws: list[tuple[Any, int, int]] = []  # (texture, first index, count)
+        self._group_tex: list[Any] = []
         self._textures: list[Any] = []
+        c_first: list[int] = []  # per cluster: first index, index count, group, box
+        c_count: list[int] = []
+        c_group: list[int] = []
+        c_lo: list[F32] = []
+        c_hi: list[F32] = []
         offset = 0
         first = 0
         white = ctx.texture((1, 1), 3, bytes([255, 255, 255]), internal_format=_GL_SRGB8)
         self._textures.append(white)
         aniso = float(min(self.anisotropy, ctx.max_anisotropy))
         for key, members in groups.items():
+            g = len(self._group_tex)
             count = 0
             for i in members:
                 o = scene.objects[i]
                 nv = o.vertices.shape[0]
+                nf = o.faces.shape[0]
+                if nf == 0:
+                    continue
                 attrs = np.empty((nv, 11), dtype=np.float32)
                 attrs[:, 0:3] = o.vertices
                 attrs[:, 3:6] = o.normals
                 attrs[:, 6:8] = o.uvs * np.float32(o.material.texture_scale)
                 attrs[:, 8:11] = np.asarray(o.material.color, dtype=np.float32)
                 parts.append(attrs)
-                faces.append(o.faces.astype(np.int32) + offset)
+                tri = o.vertices[o.faces]  # (F, 3, 3)
+                cells = np.floor(tri.mean(axis=1) / self._cell).astype(np.int64)
+                _, inv = np.unique(cells, axis=0, return_inverse=True)
+                inv = inv.reshape(-1)
+                order = np.argsort(inv, kind="stable")
+                faces.append(o.faces[order].astype(np.int32) + offset)
+                sizes = np.bincount(inv)
+                starts = np.concatenate([[0], np.cumsum(sizes)[:-1]])
+                c_lo.append(np.minimum.reduceat(tri.min(axis=1)[order], starts, axis=0))
+                c_hi.append(np.maximum.reduceat(tri.max(axis=1)[order], starts, axis=0))
+                c_first.extend((first + count + 3 * starts).tolist())
+                c_count.extend((3 * sizes).tolist())
+                c_group.extend([g] * sizes.size)
                 offset += nv
-                count += o.faces.size
+                count += 3 * nf
             if count == 0:
                 continue
             img = textures[key]
@@ -418,24 +489,25 @@ class Renderer:
                 tex.anisotropy = aniso
                 tex.repeat_x = tex.repeat_y = True
                 self._textures.append(tex)
-            self._draws.append((tex, first, count))
+            self._group_tex.append(tex)
             first += count
 
+        self._c_first = np.asarray(c_first, dtype=np.int64)
+        self._c_count = np.asarray(c_count, dtype=np.int64)
+        self._c_group = np.asarray(c_group, dtype=np.int64)
         if offset == 0:
-            self._vbo = None
-            self._vao = self._vao_depth = self._vao_shadow = None
+            self._vbo = self._ibo = None
+            self._vao_depth = self._vao_shadow = None
+            self._c_centre = self._c_half = np.zeros((0, 3))
             return
+        lo = np.concatenate(c_lo).astype(np.float64)
+        hi = np.concatenate(c_hi).astype(np.float64)
+        self._c_centre = 0.5 * (lo + hi)
+        self._c_half = 0.5 * (hi - lo) + 1e-4
         data = np.concatenate(parts)
         idx = np.concatenate(faces).reshape(-1)
         self._vbo = ctx.buffer(data.tobytes())
         self._ibo = ctx.buffer(idx.astype(np.uint32).tobytes())
-        fmt = "3f 3f 2f 3f"
-        self._vao = ctx.vertex_array(
-            self._prog,
-            [(self._vbo, fmt, "in_pos", "in_normal", "in_uv", "in_albedo")],
-            self._ibo,
-            index_element_size=4,
-        )
         self._vao_depth = ctx.vertex_array(
             self._prog_depth, [(self._vbo, "3f 32x", "in_pos")], self._ibo, index_element_size=4
         )
@@ -443,6 +515,11 @@ class Renderer:
             self._prog_shadow, [(self._vbo, "3f 32x", "in_pos")], self._ibo, index_element_size=4
         )
         self._n_index = int(idx.size)
+
+    @property
+    def n_clusters(self) -> int:
+        """Number of culling clusters of the scene."""
+        return int(self._c_first.size)
 
     def _build_shadow_map(self, scene: Scene) -> None:
         """Orthographic depth map along the sun over the scene's bounding sphere."""
@@ -480,18 +557,57 @@ class Renderer:
             ctx.depth_func = "<"
             self._prog_shadow["u_mvp"].write(_gl_mat(L))
             self._vao_shadow.render(ctx.TRIANGLES)
-        self._prog["u_light"].write(_gl_mat(to_unit @ L))
-        self._prog["u_shadow_texel"].value = 1.0 / size
-        self._prog["u_shadows"].value = self._vao_shadow is not None
+        self._light = _gl_mat(to_unit @ L)
+        self._shadow_texel = 1.0 / size
+
+    def _program(self, lum: bool, depth: bool) -> tuple[Any, Any]:
+        """(program, vertex array) of the colour pass variant (compiled on first use)."""
+        key = (lum, depth)
+        pv = self._programs.get(key)
+        if pv is None:
+            ctx = self.ctx
+            prog = ctx.program(
+                vertex_shader=_source(_COLOR_VERT, lum=lum, depth=depth),
+                fragment_shader=_source(_COLOR_FRAG, lum=lum, depth=depth),
+            )
+            lights = self.scene.lights
+            d = np.asarray(lights.sun_direction, dtype=np.float64)
+            to_sun = -d / max(float(np.linalg.norm(d)), 1e-12)
+            prog["u_to_sun"].value = tuple(float(x) for x in to_sun)
+            prog["u_sun"].value = float(lights.sun_intensity)
+            prog["u_ambient"].value = float(lights.ambient)
+            prog["u_tex"].value = 0
+            prog["u_shadow"].value = 1
+            prog["u_light"].write(self._light)
+            prog["u_shadow_texel"].value = self._shadow_texel
+            vao = None
+            if self._vbo is not None:
+                vao = ctx.vertex_array(
+                    prog,
+                    [(self._vbo, "3f 3f 2f 3f", "in_pos", "in_normal", "in_uv", "in_albedo")],
+                    self._ibo,
+                    index_element_size=4,
+                )
+            pv = (prog, vao)
+            self._programs[key] = pv
+        return pv
+
+    def _resolve(self, lum: bool, depth: bool) -> tuple[Any, Any]:
+        key = (lum, depth)
+        pv = self._resolves.get(key)
+        if pv is None:
+            prog = self.ctx.program(
+                vertex_shader=_VERT_QUAD,
+                fragment_shader=_source(_FRAG_RESOLVE, lum=lum, depth=depth),
+            )
+            prog["u_color"].value = 0
+            if depth:
+                prog["u_invz"].value = 1
+            pv = (prog, self.ctx.vertex_array(prog, []))
+            self._resolves[key] = pv
+        return pv
 
     # ----------------------------------------------------------------- render
-    def _targets_for(self, width: int, height: int) -> _Targets:
-        t = self._targets.get((width, height))
-        if t is None:
-            t = _Targets(self.ctx, width, height, self.samples)
-            self._targets[(width, height)] = t
-        return t
-
     def check_size(self, width: int, height: int) -> None:
         """Raise RenderError if the driver cannot render ``width`` x ``height``."""
         if not (1 <= width <= self.max_size and 1 <= height <= self.max_size):
@@ -500,6 +616,31 @@ class Renderer:
                 f"({self.ctx.info['GL_RENDERER']}): width and height must be 1..{self.max_size}"
             )
             raise RenderError(msg)
+
+    def visible_ranges(self, clip_from_world: F64) -> tuple[NDArray[np.int64], ...]:
+        """Index ranges to draw for a view: clusters whose box meets the frustum.
+
+        Args:
+            clip_from_world: (4, 4) clip matrix ``P @ T_cam_world``.
+        Returns:
+            ``(first, count, group)``: (R,) first index, index count and texture group of
+            each run of consecutive visible clusters (one draw call each).
+        """
+        M = np.asarray(clip_from_world, dtype=np.float64)
+        planes = np.stack([M[3] + M[0], M[3] - M[0], M[3] + M[1], M[3] - M[1], M[3] + M[2]])
+        # a box is outside if it lies wholly on the negative side of one plane
+        s = self._c_centre @ planes[:, :3].T + planes[:, 3]
+        r = self._c_half @ np.abs(planes[:, :3]).T
+        idx = np.flatnonzero(np.all(s + r >= 0.0, axis=1))
+        if idx.size == 0:
+            e = np.zeros(0, dtype=np.int64)
+            return e, e, e
+        brk = np.flatnonzero((np.diff(idx) != 1) | (np.diff(self._c_group[idx]) != 0)) + 1
+        starts = idx[np.concatenate([[0], brk])]
+        ends = idx[np.concatenate([brk - 1, [idx.size - 1]])]
+        first = self._c_first[starts]
+        count = self._c_first[ends] + self._c_count[ends] - first
+        return first, count, self._c_group[starts]
 
     def render(
         self,
@@ -510,24 +651,37 @@ class Renderer:
         *,
         color: bool = True,
         depth: bool = True,
+        luminance: bool = False,
+        samples: int | None = None,
     ) -> RenderResult:
         """Render the view of a pinhole camera.
+
+        Only the requested outputs are computed and read back: ``luminance=True,
+        color=False`` is the fast path of grayscale and event cameras (one float32
+        channel shaded, resolved and read back instead of RGB); ``color=False,
+        luminance=False`` runs a depth-only pass (no MSAA, no shading).
 
         Args:
             T_world_cam: (4, 4) pose of the camera OPTICAL frame (z forward, x right,
                 y down) in the world.
             K: (3, 3) intrinsic matrix (OpenCV convention, pixels).
             width, height: image size (pixels).
-            color, depth: which channels to compute and read back.
+            color: compute and return :attr:`RenderResult.color` (H, W, 3) linear RGB.
+            depth: compute and return :attr:`RenderResult.depth` (H, W) metric z-depth.
+            luminance: compute and return :attr:`RenderResult.luminance` (H, W), the Rec.
+                709 luminance of the linear RGB (with ``color`` too, derived from it).
+            samples: MSAA samples per pixel for this call (None: :attr:`samples`; 1: no
+                MSAA; clamped to what the driver supports).
         Returns:
-            :class:`RenderResult`; row 0 is the top of the image.
+            :class:`RenderResult`; row 0 is the top of the image. Arrays are fresh (the
+            caller may keep and modify them).
         """
         if self._released:
             msg = "renderer was released"
             raise RenderError(msg)
         width, height = int(width), int(height)
         self.check_size(width, height)
-        if not (color or depth):
+        if not (color or depth or luminance):
             return RenderResult(None, None)
         T = np.asarray(T_world_cam, dtype=np.float64)
         T_cam_world = np.linalg.inv(T)
@@ -535,54 +689,101 @@ class Renderer:
         far = float(np.max(np.linalg.norm(self._bounds_corners - cam_pos, axis=1))) * 1.01
         far = max(far, 2.0 * self.near)
         P = projection_from_K(np.asarray(K, dtype=np.float64), width, height, self.near, far)
-        mvp = _gl_mat(P @ T_cam_world)
+        clip = P @ T_cam_world
+        mvp = _gl_mat(clip)
         zrow = tuple(float(x) for x in T_cam_world[2])
-        t = self._targets_for(width, height)
+        first, count, group = self.visible_ranges(clip)
         ctx = self.ctx
         ctx.viewport = (0, 0, width, height)
 
-        if not color:
-            t.d_fbo.use()
-            t.d_fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
-            if self._vao_depth is not None:
-                ctx.enable_only(ctx.DEPTH_TEST)
-                ctx.depth_func = "<"
-                self._prog_depth["u_mvp"].write(mvp)
-                self._prog_depth["u_zrow"].value = zrow
-                self._vao_depth.render(ctx.TRIANGLES)
-            inv = np.empty((height, width), dtype=np.float32)
-            t.d_fbo.read_into(inv, components=1, dtype="f4", attachment=0)
-            with np.errstate(divide="ignore"):
-                np.reciprocal(inv, out=inv)  # 1/0 -> inf: nothing hit
-            return RenderResult(None, inv)
+        if not (color or luminance):
+            return RenderResult(None, self._render_depth(width, height, mvp, zrow, first, count))
 
-        t.ms_fbo.use()
-        t.ms_fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
-        if self._vao is not None:
+        lum = luminance and not color
+        ns = self.samples if samples is None else self._clamp_samples(samples)
+        key = (width, height, ns, lum, depth)
+        t = self._targets.get(key)
+        if t is None:
+            t = _Targets(ctx, width, height, ns, lum, depth)
+            self._targets[key] = t
+        fbo = t.ms_fbo if ns > 1 else t.out_fbo
+        fbo.use()
+        fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
+        if first.size:
+            prog, vao = self._program(lum, depth)
             ctx.enable_only(ctx.DEPTH_TEST)
             ctx.depth_func = "<"
-            prog = self._prog
             prog["u_mvp"].write(mvp)
-            prog["u_zrow"].value = zrow
+            if depth:
+                prog["u_zrow"].value = zrow
             prog["u_cam_pos"].value = tuple(float(x) for x in cam_pos)
             self._shadow_tex.use(1)
-            for tex, first, count in self._draws:
-                tex.use(0)
-                self._vao.render(ctx.TRIANGLES, vertices=count, first=first)
-        # resolve: average colour samples, nearest depth sample
-        t.out_fbo.use()
-        ctx.disable(ctx.DEPTH_TEST)
-        t.ms_color.use(0)
-        t.ms_invz.use(1)
-        self._quad.render(ctx.TRIANGLES, vertices=3)
-        col = dep = None
-        if color:
+            bound = -1
+            for f, n, g in zip(first.tolist(), count.tolist(), group.tolist(), strict=True):
+                if g != bound:
+                    self._group_tex[g].use(0)
+                    bound = g
+                vao.render(ctx.TRIANGLES, vertices=n, first=f)
+        if ns > 1:
+            # resolve: average colour samples, nearest depth sample
+            t.out_fbo.use()
+            ctx.disable(ctx.DEPTH_TEST)
+            rprog, quad = self._resolve(lum, depth)
+            rprog["u_samples"].value = ns
+            t.ms_color.use(0)
+            if depth:
+                t.ms_invz.use(1)
+            quad.render(ctx.TRIANGLES, vertices=3)
+        col = lum_out = dep = None
+        if lum:
+            lum_out = np.empty((height, width), dtype=np.float32)
+            t.out_fbo.read_into(lum_out, components=1, dtype="f4", attachment=0)
+        else:
             col = np.empty((height, width, 3), dtype=np.float32)
             t.out_fbo.read_into(col, components=3, dtype="f4", attachment=0)
+            if luminance:
+                lum_out = col @ np.asarray(LUMA, dtype=np.float32)
         if depth:
             dep = np.empty((height, width), dtype=np.float32)
             t.out_fbo.read_into(dep, components=1, dtype="f4", attachment=1)
-        return RenderResult(col, dep)
+            if ns == 1:
+                with np.errstate(divide="ignore"):
+                    np.reciprocal(dep, out=dep)  # 1/0 -> inf: nothing hit
+        return RenderResult(col, dep, lum_out)
+
+    def _render_depth(
+        self,
+        width: int,
+        height: int,
+        mvp: bytes,
+        zrow: tuple[float, ...],
+        first: NDArray[np.int64],
+        count: NDArray[np.int64],
+    ) -> F32:
+        """Depth-only pass (no MSAA, fragments at pixel centres): (H, W) z-depth, inf."""
+        ctx = self.ctx
+        d = self._d_targets.get((width, height))
+        if d is None:
+            invz = ctx.texture((width, height), 1, dtype="f4")
+            drb = ctx.depth_renderbuffer((width, height))
+            d = (ctx.framebuffer([invz], drb), invz, drb)
+            self._d_targets[(width, height)] = d
+        fbo = d[0]
+        fbo.use()
+        fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
+        if first.size and self._vao_depth is not None:
+            ctx.enable_only(ctx.DEPTH_TEST)
+            ctx.depth_func = "<"
+            self._prog_depth["u_mvp"].write(mvp)
+            self._prog_depth["u_zrow"].value = zrow
+            # one draw over the merged runs of all texture groups
+            for f, n in _merge_runs(first, count):
+                self._vao_depth.render(ctx.TRIANGLES, vertices=n, first=f)
+        inv = np.empty((height, width), dtype=np.float32)
+        fbo.read_into(inv, components=1, dtype="f4", attachment=0)
+        with np.errstate(divide="ignore"):
+            np.reciprocal(inv, out=inv)  # 1/0 -> inf: nothing hit
+        return inv
 
     def release(self) -> None:
         """Free the GPU objects of this renderer (the context stays for others)."""
@@ -593,17 +794,34 @@ class Renderer:
             for t in self._targets.values():
                 t.release()
             self._targets.clear()
+            for d in self._d_targets.values():
+                for o in d:
+                    o.release()
+            self._d_targets.clear()
             for tex in self._textures:
                 tex.release()
-            for o in (self._vao, self._vao_depth, self._vao_shadow, self._vbo):
+            for prog, vao in [*self._programs.values(), *self._resolves.values()]:
+                if vao is not None:
+                    vao.release()
+                prog.release()
+            for o in (self._vao_depth, self._vao_shadow, self._vbo, self._ibo):
                 if o is not None:
                     o.release()
-            if self._vbo is not None:
-                self._ibo.release()
             self._shadow_fbo.release()
             self._shadow_tex.release()
         except Exception:  # interpreter shutdown: the context may be gone already
             pass
+
+
+def _merge_runs(first: NDArray[np.int64], count: NDArray[np.int64]) -> list[tuple[int, int]]:
+    """Index ranges ``(first, count)`` with adjacent ones joined (texture-free passes)."""
+    out: list[tuple[int, int]] = []
+    for f, n in zip(first.tolist(), count.tolist(), strict=True):
+        if out and out[-1][0] + out[-1][1] == f:
+            out[-1] = (out[-1][0], out[-1][1] + n)
+        else:
+            out.append((f, n))
+    return out
 
 
 def _gl_mat(M: F64) -> bytes:
