@@ -127,3 +127,88 @@ def test_missing_egl_names_debian_packages(monkeypatch: pytest.MonkeyPatch) -> N
         gl.create_context()
     for pkg in ("libegl1", "libegl-mesa0", "libgl1-mesa-dri", "libEGL.so.1"):
         assert pkg in str(err.value)
+
+
+def _square_scene() -> Scene:
+    """A white unlit square (radiance exactly 1) rotated 20 deg on black background."""
+    a = np.deg2rad(20.0)
+    R = np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])
+    xy = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]], np.float64) @ R.T
+    v = np.c_[xy, np.zeros(4)].astype(np.float32)
+    obj = SceneObject(
+        "sq",
+        v,
+        np.tile(np.array([0, 0, 1], np.float32), (4, 1)),
+        np.zeros((4, 2), np.float32),
+        np.array([[0, 1, 2], [0, 2, 3]], np.int32),
+        Material(color=(1.0, 1.0, 1.0)),
+    )
+    return Scene("sq", (obj,), Lights(sun_direction=(0, 0, -1), sun_intensity=0.0, ambient=1.0))
+
+
+@pytest.mark.parametrize("samples", [1, 4])
+def test_edges_are_antialiased_and_luminance_matches(samples: int) -> None:
+    r = gl.get_renderer(_square_scene())
+    K = np.array([[30.0, 0, 31.5], [0, 30.0, 23.5], [0, 0, 1]])
+    T = look_down(0.0, 0.0, 4.0)
+    res = r.render(T, K, 64, 48, depth=False, samples=samples)
+    lum = r.render(T, K, 64, 48, color=False, depth=False, luminance=True, samples=samples)
+    assert res.depth is None and lum.color is None and lum.depth is None
+    assert res.color is not None and lum.luminance is not None
+    c = res.color
+    np.testing.assert_allclose(lum.luminance, c @ np.array(gl.LUMA, np.float32), atol=1e-3)
+    g = c.mean(axis=2)
+    # ~ perimeter 8 m * 30 px/4 m = 60 px of edge: most edge pixels are blended
+    partial = int(((g > 0.05) & (g < 0.95)).sum())
+    assert partial > 40, partial
+    assert np.all(g[20:28, 28:36] > 0.999)  # interior untouched
+    assert np.all(g[:3, :] < 1e-3) and np.all(g[-3:, :] < 1e-3)  # background untouched
+
+
+def test_culling_keeps_every_visible_triangle() -> None:
+    # 400 small quads over 60 m x 60 m: many culling clusters
+    rng = np.random.default_rng(3)
+    objs = []
+    for i, (x, y) in enumerate(rng.uniform(-30, 30, size=(400, 2))):
+        v = np.array([[x, y, 0], [x + 0.3, y, 0], [x + 0.3, y + 0.3, 0.2], [x, y + 0.3, 0.2]])
+        objs.append(
+            SceneObject(
+                f"q{i}",
+                v.astype(np.float32),
+                np.tile(np.array([0, 0, 1], np.float32), (4, 1)),
+                np.zeros((4, 2), np.float32),
+                np.array([[0, 1, 2], [0, 2, 3]], np.int32),
+            )
+        )
+    scene = Scene("quads", tuple(objs), Lights())
+    r = gl.get_renderer(scene)
+    assert r.n_clusters > 50
+    K = np.array([[50.0, 0, 40.0], [0, 50.0, 30.0], [0, 0, 1]])
+    tri = np.stack([o.vertices[o.faces] for o in objs]).reshape(-1, 3, 3).astype(np.float64)
+    for k in range(5):
+        T = look_down(*rng.uniform(-20, 20, size=2), 6.0 + 4 * k, tilt=0.3 * k)
+        P = gl.projection_from_K(K, 80, 60, r.near, 200.0) @ np.linalg.inv(T)
+        clip = np.c_[tri.reshape(-1, 3), np.ones(tri.shape[0] * 3)] @ P.T
+        w = clip[:, 3:4]
+        inside = np.all((np.abs(clip[:, :3]) < w) & (w > 0), axis=1).reshape(-1, 3).any(axis=1)
+        first, count, _ = r.visible_ranges(P)
+        seen = inside.reshape(len(objs), 2).any(axis=1)  # per quad
+        drawn = np.zeros(len(objs), bool)
+        # index position -> quad: the renderer reorders faces; read its index buffer
+        idx = np.frombuffer(r._ibo.read(), np.uint32)
+        for f, n in zip(first.tolist(), count.tolist(), strict=True):
+            drawn[idx[f : f + n] // 4] = True  # 4 vertices per quad, uploaded in order
+        assert seen.sum() > 0
+        assert np.all(drawn[seen]), "a visible triangle was culled"
+        assert drawn.sum() < drawn.size  # and culling did cull
+
+
+def test_bad_msaa_env(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv("ROSLAN_MSAA_SAMPLES", "many")
+    with pytest.raises(RenderError, match="ROSLAN_MSAA_SAMPLES"):
+        gl.default_samples(True)
+    monkeypatch.setenv("ROSLAN_MSAA_SAMPLES", "4")
+    assert gl.default_samples(True) == 4
+    monkeypatch.delenv("ROSLAN_MSAA_SAMPLES")
+    assert gl.default_samples(True) == gl.SOFTWARE_MSAA_SAMPLES
+    assert gl.default_samples(False) == gl.MSAA_SAMPLES

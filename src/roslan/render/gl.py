@@ -14,9 +14,13 @@ in LINEAR radiance (textures are sRGB-decoded by the sampler), two-sided (the si
 facing the camera is lit). The sun term ``n.l`` and the shadow-map bias are computed
 per vertex (exact for flat faces, whose normal is constant; Gouraud for smooth ones);
 ``lit`` is one hardware-filtered (bilinear PCF) shadow-map lookup per fragment.
-Anti-aliasing: MSAA (:data:`MSAA_SAMPLES` per pixel, resolved by averaging the
-samples), trilinear mip-mapped textures, anisotropic filtering on GPUs (aliasing would
-turn into fake events in the event camera).
+Anti-aliasing (aliasing would turn into fake events in the event camera): trilinear
+mip-mapped textures, anisotropic filtering on GPUs, and for geometric edges either
+MSAA (:data:`MSAA_SAMPLES` = 4 per pixel on a GPU, resolved by averaging the samples)
+or, with 1 sample (the default on llvmpipe, :data:`SOFTWARE_MSAA_SAMPLES`, where MSAA
+costs 2.4x the frame), an FXAA-style edge filter: where the local luma contrast is
+high, the pixel is resampled bilinearly across the edge by its sub-pixel coverage
+estimate; flat and textured-but-smooth regions are left untouched.
 
 Outputs (keywords of :meth:`Renderer.render`): linear RGB, Rec. 709 luminance (one
 channel: what grayscale and event cameras need, computed in the shader, a quarter of
@@ -41,6 +45,7 @@ all cores); vertex processing runs on the calling thread, hence the culling.
 from __future__ import annotations
 
 import math
+import os
 import threading
 import weakref
 from dataclasses import dataclass
@@ -59,6 +64,7 @@ __all__ = [
     "RenderResult",
     "Renderer",
     "create_context",
+    "default_samples",
     "get_renderer",
     "projection_from_K",
 ]
@@ -70,8 +76,12 @@ EGL_PACKAGES = "libegl1, libegl-mesa0, libgl1-mesa-dri"
 """Debian packages that provide headless OpenGL through EGL (Mesa llvmpipe)."""
 
 MSAA_SAMPLES = 4
-"""Default MSAA samples per pixel of the colour pass (clamped to what the driver
-supports; llvmpipe supports 4 and rounds 2 up to 4; 1 = no MSAA)."""
+"""MSAA samples per pixel of the colour pass on a GPU (clamped to what it supports)."""
+
+SOFTWARE_MSAA_SAMPLES = 1
+"""Default MSAA samples on Mesa's llvmpipe (CPU). There MSAA costs 2.4x the whole
+colour pass (2 samples cost as much as 4) while the edge filter costs ~10 %: see
+docs/performance.md. Override with ``ROSLAN_MSAA_SAMPLES`` or ``Renderer(samples=)``."""
 
 LUMA = (0.2126, 0.7152, 0.0722)
 """Rec. 709 luminance weights of linear RGB (the ``luminance`` output)."""
@@ -230,7 +240,7 @@ void main() {
 #ifdef LUM
     o_color = dot(c, LUMA);
 #else
-    o_color = vec4(c, 1.0);
+    o_color = vec4(c, sqrt(dot(c, LUMA)));  // alpha: ~perceptual luma for the edge filter
 #endif
 #ifdef DEPTH
     // optical z at the pixel centre (non-centroid), even for partially covered pixels
@@ -315,6 +325,54 @@ void main() {{
 """
 
 
+_FRAG_EDGE_AA = """
+uniform sampler2D u_color;   // single-sample colour, LINEAR filter; .a (LUM: .r) -> luma
+uniform vec2 u_texel;        // 1 / size
+#ifdef LUM
+layout(location = 0) out float o_color;
+#define CH 0
+#else
+layout(location = 0) out vec4 o_color;
+#define CH 3
+#endif
+void main() {
+    vec2 uv = gl_FragCoord.xy * u_texel;  // this pixel's centre
+    // two gathers cover the 3x3 neighbourhood but NW and SE: (w, m, s, sw), (n, ne, e, m)
+    vec4 a = textureGather(u_color, uv - 0.5 * u_texel, CH);
+    vec4 b = textureGather(u_color, uv + 0.5 * u_texel, CH);
+#ifdef LUM
+    a = sqrt(a);  // ~perceptual luma, like FXAA's
+    b = sqrt(b);
+#endif
+    float w = a.x, m = a.y, s = a.z, sw = a.w;
+    float n = b.x, ne = b.y, e = b.z;
+    float lo = min(m, min(min(n, s), min(e, w)));
+    float top = max(m, max(max(n, s), max(e, w)));
+    float range = top - lo;
+    vec2 off = vec2(0.0);
+    if (range >= max(0.0312, 0.125 * top)) {
+        float eh = 2.0 * abs(n + s - 2.0 * m) + abs(ne - e) + abs(sw - w);
+        float ev = 2.0 * abs(e + w - 2.0 * m) + abs(ne - n) + abs(sw - s);
+        bool horz = eh >= ev;  // the edge runs horizontally: step across it in y
+        float l1 = horz ? s : w;
+        float l2 = horz ? n : e;
+        vec2 dir = horz ? vec2(0.0, u_texel.y) : vec2(u_texel.x, 0.0);
+        if (abs(l1 - m) >= abs(l2 - m)) dir = -dir;
+        // sub-pixel coverage estimate from the neighbourhood (after FXAA 3.11)
+        float avg = (2.0 * (n + s + e + w) + ne + sw) / 10.0;
+        float sub = smoothstep(0.0, 1.0, clamp(abs(avg - m) / range, 0.0, 1.0));
+        off = dir * max(sub * sub * 0.75, 0.25);
+    }
+    vec4 c = texture(u_color, uv + off);
+#ifdef LUM
+    o_color = c.r;
+#else
+    o_color = vec4(c.rgb, 1.0);
+#endif
+}
+"""
+
+
 def _source(body: str, *, lum: bool, depth: bool) -> str:
     defs = ["#version 410"]
     if lum:
@@ -357,7 +415,15 @@ class _Targets:
             out.append(ctx.texture(size, 1, dtype="f4"))
         out_depth = None if samples > 1 else ctx.depth_renderbuffer(size)
         self.out_fbo = ctx.framebuffer(out, out_depth)
+        self.out_color = out[0]
         self._objs += [self.out_fbo, *out] + ([out_depth] if out_depth is not None else [])
+        self.aa_fbo: Any = None
+        if samples == 1:  # edge filter: out_color -> aa_fbo
+            self.out_color.filter = (ctx.LINEAR, ctx.LINEAR)
+            self.out_color.repeat_x = self.out_color.repeat_y = False
+            aa = ctx.texture(size, ncomp, dtype="f4")
+            self.aa_fbo = ctx.framebuffer([aa])
+            self._objs += [self.aa_fbo, aa]
 
     def release(self) -> None:
         for o in self._objs:
@@ -369,13 +435,14 @@ class Renderer:
 
     Attributes:
         max_size: largest image width/height the driver supports (pixels).
-        samples: default MSAA samples per pixel of the colour pass (1: no MSAA).
+        samples: default MSAA samples per pixel of the colour pass (1: no MSAA, the
+            edge filter instead); see :func:`default_samples`.
         near: near clipping distance (m), chosen from the scene size.
         anisotropy: texture anisotropic filtering level (1 on llvmpipe: see below).
         software: True on Mesa's llvmpipe (CPU) renderer.
     """
 
-    def __init__(self, scene: Scene, *, samples: int = MSAA_SAMPLES) -> None:
+    def __init__(self, scene: Scene, *, samples: int | None = None) -> None:
         self.scene = scene
         self.ctx = ctx = create_context()
         self.max_size = int(
@@ -385,15 +452,16 @@ class Renderer:
                 *ctx.info["GL_MAX_VIEWPORT_DIMS"],
             )
         )
-        self.samples = self._clamp_samples(samples)
         # Mesa's llvmpipe (LLVM 15) stalls for minutes on anisotropic filtering of
         # near-grazing, near-clipped ground planes: trilinear mip-mapping + MSAA there.
         self.software = "llvmpipe" in str(ctx.info.get("GL_RENDERER", "")).lower()
+        self.samples = self._clamp_samples(default_samples(self.software, samples))
         self.anisotropy = 1.0 if self.software else 16.0
         self._targets: dict[tuple[int, int, int, bool, bool], _Targets] = {}
         self._d_targets: dict[tuple[int, int], tuple[Any, Any, Any]] = {}
         self._programs: dict[tuple[bool, bool], tuple[Any, Any]] = {}
         self._resolves: dict[tuple[bool, bool], tuple[Any, Any]] = {}
+        self._edge_aa: dict[bool, tuple[Any, Any]] = {}
         self._released = False
 
         lo, hi = scene.bounds
@@ -607,6 +675,18 @@ class Renderer:
             self._resolves[key] = pv
         return pv
 
+    def _edge_filter(self, lum: bool) -> tuple[Any, Any]:
+        pv = self._edge_aa.get(lum)
+        if pv is None:
+            prog = self.ctx.program(
+                vertex_shader=_VERT_QUAD,
+                fragment_shader=_source(_FRAG_EDGE_AA, lum=lum, depth=False),
+            )
+            prog["u_color"].value = 0
+            pv = (prog, self.ctx.vertex_array(prog, []))
+            self._edge_aa[lum] = pv
+        return pv
+
     # ----------------------------------------------------------------- render
     def check_size(self, width: int, height: int) -> None:
         """Raise RenderError if the driver cannot render ``width`` x ``height``."""
@@ -671,7 +751,7 @@ class Renderer:
             luminance: compute and return :attr:`RenderResult.luminance` (H, W), the Rec.
                 709 luminance of the linear RGB (with ``color`` too, derived from it).
             samples: MSAA samples per pixel for this call (None: :attr:`samples`; 1: no
-                MSAA; clamped to what the driver supports).
+                MSAA, the edge filter instead; clamped to what the driver supports).
         Returns:
             :class:`RenderResult`; row 0 is the top of the image. Arrays are fresh (the
             caller may keep and modify them).
@@ -734,13 +814,23 @@ class Renderer:
             if depth:
                 t.ms_invz.use(1)
             quad.render(ctx.TRIANGLES, vertices=3)
+            src = t.out_fbo
+        else:
+            # edge filter (FXAA-style) in place of MSAA
+            t.aa_fbo.use()
+            ctx.disable(ctx.DEPTH_TEST)
+            aprog, quad = self._edge_filter(lum)
+            aprog["u_texel"].value = (1.0 / width, 1.0 / height)
+            t.out_color.use(0)
+            quad.render(ctx.TRIANGLES, vertices=3)
+            src = t.aa_fbo
         col = lum_out = dep = None
         if lum:
             lum_out = np.empty((height, width), dtype=np.float32)
-            t.out_fbo.read_into(lum_out, components=1, dtype="f4", attachment=0)
+            src.read_into(lum_out, components=1, dtype="f4", attachment=0)
         else:
             col = np.empty((height, width, 3), dtype=np.float32)
-            t.out_fbo.read_into(col, components=3, dtype="f4", attachment=0)
+            src.read_into(col, components=3, dtype="f4", attachment=0)
             if luminance:
                 lum_out = col @ np.asarray(LUMA, dtype=np.float32)
         if depth:
@@ -800,7 +890,11 @@ class Renderer:
             self._d_targets.clear()
             for tex in self._textures:
                 tex.release()
-            for prog, vao in [*self._programs.values(), *self._resolves.values()]:
+            for prog, vao in [
+                *self._programs.values(),
+                *self._resolves.values(),
+                *self._edge_aa.values(),
+            ]:
                 if vao is not None:
                     vao.release()
                 prog.release()
@@ -811,6 +905,21 @@ class Renderer:
             self._shadow_tex.release()
         except Exception:  # interpreter shutdown: the context may be gone already
             pass
+
+
+def default_samples(software: bool, samples: int | None = None) -> int:
+    """MSAA samples to use: ``samples`` if given, else ``$ROSLAN_MSAA_SAMPLES``, else
+    :data:`SOFTWARE_MSAA_SAMPLES` on llvmpipe and :data:`MSAA_SAMPLES` on a GPU."""
+    if samples is not None:
+        return int(samples)
+    env = os.environ.get("ROSLAN_MSAA_SAMPLES", "").strip()
+    if env:
+        try:
+            return int(env)
+        except ValueError:
+            msg = f"ROSLAN_MSAA_SAMPLES = {env!r}: must be an integer number of samples (1, 4)"
+            raise RenderError(msg) from None
+    return SOFTWARE_MSAA_SAMPLES if software else MSAA_SAMPLES
 
 
 def _merge_runs(first: NDArray[np.int64], count: NDArray[np.int64]) -> list[tuple[int, int]]:
