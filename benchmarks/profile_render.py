@@ -6,7 +6,8 @@ draw; shader without shadow lookup, without textures), MSAA resolve, readback pe
 channel, the depth-only pass, and ``Renderer.render`` end to end for each output
 combination, at 4 and 1 MSAA samples.
 
-Run by hand: ``.venv/bin/python benchmarks/profile_render.py [WIDTH HEIGHT]``; compare
+Run by hand: ``.venv/bin/python benchmarks/profile_render.py [WIDTH HEIGHT [FOCAL]]``
+(default: 805 605 320, the render of bench_camera's 640x480 plumb_bob frame); compare
 ``LP_NUM_THREADS=1`` to see that llvmpipe uses both cores.
 """
 
@@ -38,22 +39,25 @@ def _ms(f: Callable[[], object], n: int = REPS) -> float:
     return statistics.median(ts) * 1e3
 
 
-def view(scene: Any, w: int, h: int) -> tuple[np.ndarray, np.ndarray]:
+def view(scene: Any, w: int, h: int, f: float | None = None) -> tuple[np.ndarray, np.ndarray]:
     """The bench_camera.py view: 6 m before, 3 m above the landing marker, pitched
-    down 0.35 rad; K with fx = fy = 0.8 w (77 deg horizontal field of view)."""
+    down 0.35 rad; K with fx = fy = ``f`` (default w / 2: the cameras' default 90 deg
+    horizontal field of view; bench_camera's 640x480 plumb_bob camera renders 805x605
+    with f = 320)."""
     T_wb = np.eye(4)
     T_wb[:3, 3] = np.asarray(scene.goal_position) + np.array([-6.0, 1.0, 3.0])
     p = 0.35
     T_wb[:3, :3] = [[np.cos(p), 0, np.sin(p)], [0, 1, 0], [-np.sin(p), 0, np.cos(p)]]
     T_link_optical = np.array([[0, 0, 1, 0], [-1, 0, 0, 0], [0, -1, 0, 0], [0, 0, 0, 1.0]])
-    K = np.array([[0.8 * w, 0, (w - 1) / 2], [0, 0.8 * w, (h - 1) / 2], [0, 0, 1]])
+    f = w / 2 if f is None else f
+    K = np.array([[f, 0, (w - 1) / 2], [0, f, (h - 1) / 2], [0, 0, 1]])
     return T_wb @ T_link_optical, K
 
 
 def stages(r: gl.Renderer, T: np.ndarray, K: np.ndarray, w: int, h: int, ns: int) -> None:
     ctx = r.ctx
     T_cw = np.linalg.inv(T)
-    P = gl.projection_from_K(K, w, h, r.near, 80.0)
+    P = gl.projection_from_K(K, w, h, r.near, 80.0)  # (the far plane culls nothing here)
     clip = P @ T_cw
     first, count, group = r.visible_ranges(clip)
     all_first, all_count, all_group = r._c_first, r._c_count, r._c_group
@@ -156,7 +160,8 @@ def stages(r: gl.Renderer, T: np.ndarray, K: np.ndarray, w: int, h: int, ns: int
 
 
 def main() -> None:
-    w, h = (int(sys.argv[1]), int(sys.argv[2])) if len(sys.argv) > 2 else (640, 480)
+    w, h = (int(sys.argv[1]), int(sys.argv[2])) if len(sys.argv) > 2 else (805, 605)
+    f = float(sys.argv[3]) if len(sys.argv) > 3 else (320.0 if (w, h) == (805, 605) else None)
     scene = load_scene("warehouse")
     r = gl.get_renderer(scene)
     print(
@@ -164,7 +169,7 @@ def main() -> None:
         f"warehouse {scene.n_triangles} triangles; {w}x{h}; "
         f"load average {os.getloadavg()[0]:.2f}; median of {REPS}"
     )
-    T, K = view(scene, w, h)
+    T, K = view(scene, w, h, f)
     for ns in (4, 1):
         print(f"--- MSAA samples {ns}")
         for opts in (

@@ -83,6 +83,9 @@ SOFTWARE_MSAA_SAMPLES = 1
 colour pass (2 samples cost as much as 4) while the edge filter costs ~10 %: see
 docs/performance.md. Override with ``ROSLAN_MSAA_SAMPLES`` or ``Renderer(samples=)``."""
 
+SOFTWARE_SHADOW_MAP = 2048
+"""Largest shadow map (texels per side) on llvmpipe (4096 on a GPU)."""
+
 LUMA = (0.2126, 0.7152, 0.0722)
 """Rec. 709 luminance weights of linear RGB (the ``luminance`` output)."""
 
@@ -91,6 +94,7 @@ CLUSTER_CELLS = 12
 ``max(scene diagonal / CLUSTER_CELLS, 1 m)``."""
 
 _GL_SRGB8 = 0x8C41
+_GL_SRGB8_ALPHA8 = 0x8C43
 _INF_BITS = "uintBitsToFloat(0x7F800000u)"
 
 _context: Any = None
@@ -184,15 +188,14 @@ uniform mat4 u_light;        // shadow-map [0,1]^3 from world
 uniform vec3 u_cam_pos;
 uniform vec3 u_to_sun;       // unit vector towards the sun (world)
 uniform float u_sun;
-uniform float u_ambient;
 uniform float u_shadow_texel;  // shadow-map texel size in [0,1] units
 in vec3 in_pos;
 in vec3 in_normal;
 in vec2 in_uv;
 in vec3 in_albedo;
 out vec2 v_uv;
-out vec3 v_amb;
-out vec3 v_sun;
+out vec3 v_albedo;
+out float v_sun;
 out vec3 v_light;
 #ifdef DEPTH
 out float v_z;
@@ -206,8 +209,8 @@ void main() {
     if (dot(n, u_cam_pos - in_pos) < 0.0) n = -n;
     float ndl = max(dot(n, u_to_sun), 0.0);
     v_uv = in_uv;
-    v_amb = in_albedo * u_ambient;
-    v_sun = in_albedo * (u_sun * ndl);
+    v_albedo = in_albedo;
+    v_sun = u_sun * ndl;
     // slope-scaled bias against acne; linear in the (orthographic) light frame
     float bias = u_shadow_texel * (1.5 + 2.0 * sqrt(max(1.0 - ndl * ndl, 0.0)) / max(ndl, 0.05));
     vec4 lp = u_light * p;
@@ -222,8 +225,9 @@ _COLOR_FRAG = """
 uniform sampler2D u_tex;
 uniform sampler2DShadow u_shadow;
 in vec2 v_uv;
-in vec3 v_amb;
-in vec3 v_sun;
+uniform float u_ambient;
+in vec3 v_albedo;
+in float v_sun;
 in vec3 v_light;
 #ifdef DEPTH
 in float v_z;
@@ -236,7 +240,7 @@ layout(location = 0) out vec4 o_color;
 #endif
 void main() {
     float lit = texture(u_shadow, v_light);  // bilinear PCF (compare + LINEAR)
-    vec3 c = clamp(texture(u_tex, v_uv).rgb * (v_amb + v_sun * lit), 0.0, 1.0);
+    vec3 c = clamp(texture(u_tex, v_uv).rgb * v_albedo * (u_ambient + v_sun * lit), 0.0, 1.0);
 #ifdef LUM
     o_color = dot(c, LUMA);
 #else
@@ -545,13 +549,13 @@ class Renderer:
             if img is None:
                 tex = white
             else:
-                img = np.ascontiguousarray(img[..., :3], dtype=np.uint8)
                 h, w = img.shape[:2]
+                # RGBA: 4-byte texels sample ~10 % faster than RGB on llvmpipe.
                 # GL's first texture row is v = 0: flip so v = 0 is the image's bottom
                 # (the usual glTF/OBJ convention for UVs).
-                tex = ctx.texture(
-                    (w, h), 3, np.ascontiguousarray(img[::-1]).tobytes(), internal_format=_GL_SRGB8
-                )
+                rgba = np.full((h, w, 4), 255, dtype=np.uint8)
+                rgba[..., :3] = img[::-1, :, :3]
+                tex = ctx.texture((w, h), 4, rgba.tobytes(), internal_format=_GL_SRGB8_ALPHA8)
                 tex.build_mipmaps()
                 tex.filter = (ctx.LINEAR_MIPMAP_LINEAR, ctx.LINEAR)
                 tex.anisotropy = aniso
@@ -595,8 +599,10 @@ class Renderer:
         lo, hi = scene.bounds
         centre = 0.5 * (lo + hi)
         radius = max(0.5 * float(np.linalg.norm(hi - lo)), 1e-3)
-        # ~1 cm texels where affordable, 1024..4096 texels
-        size = int(np.clip(2 ** math.ceil(math.log2(max(2 * radius / 0.01, 1.0))), 1024, 4096))
+        # ~1 cm texels where affordable, 1024..4096 texels (2048 on llvmpipe: its
+        # lookups are memory bound; a 4096^2 map costs ~15 % more per frame)
+        cap = SOFTWARE_SHADOW_MAP if self.software else 4096
+        size = int(np.clip(2 ** math.ceil(math.log2(max(2 * radius / 0.01, 1.0))), 1024, cap))
         size = min(size, self.max_size)
         d = np.asarray(scene.lights.sun_direction, dtype=np.float64)
         fwd = d / max(float(np.linalg.norm(d)), 1e-12)
@@ -641,13 +647,19 @@ class Renderer:
             lights = self.scene.lights
             d = np.asarray(lights.sun_direction, dtype=np.float64)
             to_sun = -d / max(float(np.linalg.norm(d)), 1e-12)
-            prog["u_to_sun"].value = tuple(float(x) for x in to_sun)
-            prog["u_sun"].value = float(lights.sun_intensity)
-            prog["u_ambient"].value = float(lights.ambient)
-            prog["u_tex"].value = 0
-            prog["u_shadow"].value = 1
-            prog["u_light"].write(self._light)
-            prog["u_shadow_texel"].value = self._shadow_texel
+            consts: dict[str, Any] = {
+                "u_to_sun": tuple(float(x) for x in to_sun),
+                "u_sun": float(lights.sun_intensity),
+                "u_ambient": float(lights.ambient),
+                "u_tex": 0,
+                "u_shadow": 1,
+                "u_shadow_texel": self._shadow_texel,
+            }
+            for k, v in consts.items():
+                if k in prog:  # (a uniform the compiler optimised away is absent)
+                    prog[k].value = v
+            if "u_light" in prog:
+                prog["u_light"].write(self._light)
             vao = None
             if self._vbo is not None:
                 vao = ctx.vertex_array(

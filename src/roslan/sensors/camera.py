@@ -408,14 +408,23 @@ class _ImagingCamera(_CameraBase):
         return (t_ns + np.round(offs)).astype(np.int64)
 
     def render_linear(self, renderer: Any, e: _Eye, T_world_body: F64) -> F32:
-        """(H, W, 3) linear radiance of eye ``e`` averaged over the body poses (N, 4, 4)."""
+        """Linear radiance of eye ``e`` averaged over the body poses (N, 4, 4): (H, W, 3),
+        or (H, W) Rec. 709 luminance for ``mono8`` (the renderer's one-channel path)."""
         assert e.plan is not None
         acc: F32 | None = None
+        mono = self.config.encoding == "mono8"
         for T_wb in T_world_body:
             T = T_wb @ self._T_body_sensor @ e.T_sensor_optical
-            col = renderer.render(
-                T, e.plan.K, e.plan.width, e.plan.height, color=True, depth=False
-            ).color
+            res = renderer.render(
+                T,
+                e.plan.K,
+                e.plan.width,
+                e.plan.height,
+                color=not mono,
+                depth=False,
+                luminance=mono,
+            )
+            col = res.luminance if mono else res.color
             if acc is None:
                 acc = col
             else:
@@ -432,9 +441,10 @@ class _ImagingCamera(_CameraBase):
         return acc
 
     def finish_image(self, lin: F32, rng: np.random.Generator) -> U8:
-        """Gain, noise and encoding of a linear image (H, W, 3) -> uint8 (H, W[, 3])."""
+        """Gain, noise and encoding of a linear image (H, W, 3) or luminance (H, W) ->
+        uint8 (H, W[, 3])."""
         c = self.config
-        if c.encoding == "mono8":
+        if c.encoding == "mono8" and lin.ndim == 3:
             lin = lin @ _LUMA
         if c.gain != 1.0:
             lin *= np.float32(c.gain)
