@@ -148,6 +148,18 @@ def stages(r: gl.Renderer, T: np.ndarray, K: np.ndarray, w: int, h: int, ns: int
             ctx.finish()
 
         print(f"  resolve (RGB + depth): {_ms(resolve):.1f} ms")
+    else:
+        aprog, aquad = r._edge_filter(False)
+
+        def edge_filter() -> None:
+            t.aa_fbo.use()
+            ctx.disable(ctx.DEPTH_TEST)
+            aprog["u_texel"].value = (1.0 / w, 1.0 / h)
+            t.out_color.use(0)
+            aquad.render(ctx.TRIANGLES, vertices=3)
+            ctx.finish()
+
+        print(f"  edge filter (RGB): {_ms(edge_filter):.1f} ms")
     col = np.empty((h, w, 3), np.float32)
     dep = np.empty((h, w), np.float32)
     print(
