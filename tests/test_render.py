@@ -216,3 +216,18 @@ def test_bad_msaa_env(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.delenv("ROSLAN_MSAA_SAMPLES")
     assert gl.default_samples(True) == gl.SOFTWARE_MSAA_SAMPLES
     assert gl.default_samples(False) == gl.MSAA_SAMPLES
+
+
+def test_edge_filter_leaves_textures_on_planes_alone(board: Scene) -> None:
+    # Inside the board (one plane) 1-sample + edge filter must equal 4x MSAA: the filter
+    # acts on silhouettes and creases only, never on the (high-contrast) texture.
+    r = gl.get_renderer(board)
+    K = np.array([[60.0, 0, 39.5], [0, 60.0, 29.5], [0, 0, 1]])
+    T = look_down(0.1, 0.05, 2.0, tilt=0.15)
+    one = r.render(T, K, 80, 60, depth=False, samples=1).color
+    four = r.render(T, K, 80, 60, depth=False, samples=4).color
+    assert one is not None
+    assert four is not None
+    g = four.mean(axis=2)
+    assert g.max() - g.min() > 0.3  # the checkerboard is in view
+    np.testing.assert_allclose(one, four, atol=2e-3)

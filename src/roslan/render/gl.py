@@ -197,9 +197,7 @@ out vec2 v_uv;
 out vec3 v_albedo;
 out float v_sun;
 out vec3 v_light;
-#ifdef DEPTH
 out float v_z;
-#endif
 void main() {
     vec4 p = vec4(in_pos, 1.0);
     gl_Position = u_mvp * p;
@@ -215,9 +213,7 @@ void main() {
     float bias = u_shadow_texel * (1.5 + 2.0 * sqrt(max(1.0 - ndl * ndl, 0.0)) / max(ndl, 0.05));
     vec4 lp = u_light * p;
     v_light = vec3(lp.xy, lp.z - bias);
-#ifdef DEPTH
     v_z = dot(u_zrow, p);
-#endif
 }
 """
 
@@ -229,26 +225,28 @@ uniform float u_ambient;
 in vec3 v_albedo;
 in float v_sun;
 in vec3 v_light;
-#ifdef DEPTH
 in float v_z;
+#ifdef DEPTH
 layout(location = 1) out float o_invz;
 #endif
+// the last channel carries 1/z for the edge filter (ignored by 1-channel MSAA targets)
 #ifdef LUM
-layout(location = 0) out float o_color;
+layout(location = 0) out vec2 o_color;
 #else
 layout(location = 0) out vec4 o_color;
 #endif
 void main() {
     float lit = texture(u_shadow, v_light);  // bilinear PCF (compare + LINEAR)
     vec3 c = clamp(texture(u_tex, v_uv).rgb * v_albedo * (u_ambient + v_sun * lit), 0.0, 1.0);
+    // optical z at the pixel centre (non-centroid), even for partially covered pixels
+    float invz = 1.0 / max(v_z, 1e-6);
 #ifdef LUM
-    o_color = dot(c, LUMA);
+    o_color = vec2(dot(c, LUMA), invz);
 #else
-    o_color = vec4(c, sqrt(dot(c, LUMA)));  // alpha: ~perceptual luma for the edge filter
+    o_color = vec4(c, invz);
 #endif
 #ifdef DEPTH
-    // optical z at the pixel centre (non-centroid), even for partially covered pixels
-    o_invz = 1.0 / max(v_z, 1e-6);
+    o_invz = invz;
 #endif
 }
 """
@@ -330,44 +328,50 @@ void main() {{
 
 
 _FRAG_EDGE_AA = """
-uniform sampler2D u_color;   // single-sample colour, LINEAR filter; .a (LUM: .r) -> luma
+// Edge filter for 1-sample rendering (after FXAA 3.11, restricted to geometric edges).
+// u_color: RGB + 1/z in .a (LUM: luminance + 1/z in .rg), LINEAR filter, clamp to edge.
+uniform sampler2D u_color;
 uniform vec2 u_texel;        // 1 / size
 #ifdef LUM
 layout(location = 0) out float o_color;
-#define CH 0
+#define ZCH 1
+#define LCH 0
 #else
 layout(location = 0) out vec4 o_color;
-#define CH 3
+#define ZCH 3
+#define LCH 1
 #endif
 void main() {
     vec2 uv = gl_FragCoord.xy * u_texel;  // this pixel's centre
-    // two gathers cover the 3x3 neighbourhood but NW and SE: (w, m, s, sw), (n, ne, e, m)
-    vec4 a = textureGather(u_color, uv - 0.5 * u_texel, CH);
-    vec4 b = textureGather(u_color, uv + 0.5 * u_texel, CH);
-#ifdef LUM
-    a = sqrt(a);  // ~perceptual luma, like FXAA's
-    b = sqrt(b);
-#endif
-    float w = a.x, m = a.y, s = a.z, sw = a.w;
-    float n = b.x, ne = b.y, e = b.z;
-    float lo = min(m, min(min(n, s), min(e, w)));
-    float top = max(m, max(max(n, s), max(e, w)));
-    float range = top - lo;
-    vec2 off = vec2(0.0);
-    if (range >= max(0.0312, 0.125 * top)) {
-        float eh = 2.0 * abs(n + s - 2.0 * m) + abs(ne - e) + abs(sw - w);
-        float ev = 2.0 * abs(e + w - 2.0 * m) + abs(ne - n) + abs(sw - s);
-        bool horz = eh >= ev;  // the edge runs horizontally: step across it in y
-        float l1 = horz ? s : w;
-        float l2 = horz ? n : e;
-        vec2 dir = horz ? vec2(0.0, u_texel.y) : vec2(u_texel.x, 0.0);
-        if (abs(l1 - m) >= abs(l2 - m)) dir = -dir;
-        // sub-pixel coverage estimate from the neighbourhood (after FXAA 3.11)
-        float avg = (2.0 * (n + s + e + w) + ne + sw) / 10.0;
-        float sub = smoothstep(0.0, 1.0, clamp(abs(avg - m) / range, 0.0, 1.0));
-        off = dir * max(sub * sub * 0.75, 0.25);
-    }
-    vec4 c = texture(u_color, uv + off);
+    vec2 lo = uv - 0.5 * u_texel;
+    vec2 hi = uv + 0.5 * u_texel;
+    // 3x3 neighbourhood but NW and SE, gathered as (w, m, s, sw) and (n, ne, e, m):
+    // 1/z, and luma (LUM: luminance; RGB: green, its 72 % share, as a proxy)
+    vec4 za = textureGather(u_color, lo, ZCH);
+    vec4 zb = textureGather(u_color, hi, ZCH);
+    vec4 la = sqrt(textureGather(u_color, lo, LCH));  // ~perceptual, like FXAA's luma
+    vec4 lb = sqrt(textureGather(u_color, hi, LCH));
+    // Over a plane 1/z is affine in the image, so its second differences vanish: they
+    // are non-zero only at silhouettes and creases, the edges that rasterization
+    // aliases (texture detail lies on planes and is mip-mapped already).
+    float zm = za.y;
+    float d2 = max(abs(zb.x + za.z - 2.0 * zm), abs(zb.z + za.x - 2.0 * zm));
+    float zmax = max(max(max(za.x, za.y), max(za.z, za.w)), max(zb.x, max(zb.y, zb.z)));
+    float w = la.x, m = la.y, s = la.z, n = lb.x, e = lb.z;
+    float lmin = min(m, min(min(n, s), min(e, w)));
+    float lmax = max(m, max(max(n, s), max(e, w)));
+    float range = lmax - lmin;
+    bool edge = d2 > 1e-3 * zmax && range >= max(0.0156, 0.0625 * lmax);
+    bool horz = abs(n + s - 2.0 * m) >= abs(e + w - 2.0 * m);  // step across in y
+    float l1 = horz ? s : w;
+    float l2 = horz ? n : e;
+    vec2 dir = horz ? vec2(0.0, u_texel.y) : vec2(u_texel.x, 0.0);
+    if (abs(l1 - m) >= abs(l2 - m)) dir = -dir;
+    // sub-pixel coverage estimate from the neighbourhood
+    float sub = clamp(abs(0.25 * (n + s + e + w) - m) / max(range, 1e-6), 0.0, 1.0);
+    sub = smoothstep(0.0, 1.0, sub);
+    vec2 off = edge ? dir * max(sub * sub * 0.75, 0.25) : vec2(0.0);
+    vec4 c = texture(u_color, uv + off);  // off = 0: exactly this texel
 #ifdef LUM
     o_color = c.r;
 #else
@@ -392,7 +396,8 @@ class _Targets:
 
     With MSAA the colour pass draws into ``ms_fbo`` and a resolve pass averages it into
     ``out_fbo`` (attachment 0: RGBA or luminance, 1: depth in m); without MSAA the
-    colour pass draws into ``out_fbo`` directly (attachment 1: 1/z).
+    colour pass draws into ``out_fbo`` directly (attachment 0: RGB + 1/z or luminance +
+    1/z, 1: 1/z) and the edge filter writes ``aa_fbo``.
     """
 
     def __init__(
@@ -414,7 +419,8 @@ class _Targets:
             ms_depth = ctx.depth_renderbuffer(size, samples=samples)
             self.ms_fbo = ctx.framebuffer(atts, ms_depth)
             self._objs += [self.ms_fbo, *atts, ms_depth]
-        out = [ctx.texture(size, ncomp, dtype="f4")]
+        # 1 sample: the edge filter reads 1/z from the colour target's last channel
+        out = [ctx.texture(size, (2 if lum else 4) if samples == 1 else ncomp, dtype="f4")]
         if depth:
             out.append(ctx.texture(size, 1, dtype="f4"))
         out_depth = None if samples > 1 else ctx.depth_renderbuffer(size)
