@@ -18,9 +18,11 @@ Anti-aliasing (aliasing would turn into fake events in the event camera): trilin
 mip-mapped textures, anisotropic filtering on GPUs, and for geometric edges either
 MSAA (:data:`MSAA_SAMPLES` = 4 per pixel on a GPU, resolved by averaging the samples)
 or, with 1 sample (the default on llvmpipe, :data:`SOFTWARE_MSAA_SAMPLES`, where MSAA
-costs 2.4x the frame), an FXAA-style edge filter: where the local luma contrast is
-high, the pixel is resampled bilinearly across the edge by its sub-pixel coverage
-estimate; flat and textured-but-smooth regions are left untouched.
+costs 2.4x the frame), an FXAA-style edge filter on geometric edges only: where 1/z is
+not affine in the image (silhouettes, creases) and the luma contrast is high, the pixel
+is resampled bilinearly across the edge by its sub-pixel coverage estimate; texture
+detail on planes is left untouched. Sub-pixel geometry (wires, lines thinner than a
+pixel) needs MSAA: ``ROSLAN_MSAA_SAMPLES=4``.
 
 Outputs (keywords of :meth:`Renderer.render`): linear RGB, Rec. 709 luminance (one
 channel: what grayscale and event cameras need, computed in the shader, a quarter of
@@ -80,7 +82,7 @@ MSAA_SAMPLES = 4
 
 SOFTWARE_MSAA_SAMPLES = 1
 """Default MSAA samples on Mesa's llvmpipe (CPU). There MSAA costs 2.4x the whole
-colour pass (2 samples cost as much as 4) while the edge filter costs ~10 %: see
+colour pass (2 samples cost as much as 4) while the edge filter costs ~15 %: see
 docs/performance.md. Override with ``ROSLAN_MSAA_SAMPLES`` or ``Renderer(samples=)``."""
 
 SOFTWARE_SHADOW_MAP = 2048
