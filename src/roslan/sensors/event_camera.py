@@ -54,7 +54,7 @@ from roslan.sensors.camera_model import (
 )
 from roslan.trajectory.frames import OPTICAL_FROM_BODY
 
-__all__ = ["SENSOR_PRESETS", "EventCamera", "EventCameraConfig", "SensorPreset", "luminance"]
+__all__ = ["SENSOR_PRESETS", "EventCamera", "EventCameraConfig", "SensorPreset"]
 
 F32 = NDArray[np.float32]
 F64 = NDArray[np.float64]
@@ -189,12 +189,6 @@ class EventCameraConfig(SensorConfig, CameraIntrinsics):
         )
 
 
-def luminance(color: F32) -> F32:
-    """Rec. 709 luminance (H, W) float32 of linear RGB (H, W, 3)."""
-    out: F32 = color @ np.array([0.2126, 0.7152, 0.0722], dtype=np.float32)
-    return out
-
-
 def _srgb8(lin: NDArray[np.floating]) -> NDArray[np.uint8]:
     x = np.clip(np.asarray(lin, dtype=np.float32), 0.0, 1.0)
     s = np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1 / 2.4) - 0.055)
@@ -318,8 +312,12 @@ class EventCamera:
         renderer = ctx.renderer()
         plan = cam.render_plan(getattr(renderer, "max_size", None))
         T_wc, v, w = camera_twist(ctx.trajectory, t_ns, self.T_body_cam)
-        res = renderer.render(T_wc, plan.K, plan.width, plan.height, color=True, depth=need_depth)
-        lum = cam.remap(luminance(res.color))
+        # luminance-only pass: one shaded channel, the cheapest read back (render/gl.py)
+        res = renderer.render(
+            T_wc, plan.K, plan.width, plan.height, color=False, depth=need_depth, luminance=True
+        )
+        assert res.luminance is not None
+        lum = cam.remap(res.luminance)
         depth = None if res.depth is None else cam.remap(res.depth, nearest=True)
         return lum, depth, v, w
 
