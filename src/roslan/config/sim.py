@@ -37,6 +37,9 @@ class OutputConfig(StrictModel):
     formats: tuple[BagFormat, ...] = ("ros1", "ros2")
     compression: Literal["none", "lz4", "bz2"] = "lz4"
     ground_truth_rate: Annotated[float, Field(gt=0)] = 200.0
+    workers: Literal["auto"] | Annotated[int, Field(ge=0, strict=True)] = "auto"
+    """Worker processes for render-heavy sensors: ``auto`` (one per such sensor, at most
+    the CPUs; none on one CPU), ``0`` (all in the main process) or N; outputs are the same."""
 
     @field_validator("start_time", mode="before")
     @classmethod

@@ -23,6 +23,19 @@ def load_config(path: Path | None) -> tuple[SimConfig, Path | None]:
         return load_yaml_model(SimConfig, p), None
 
 
+def _workers(text: str) -> int | str:
+    if text == "auto":
+        return text
+    try:
+        n = int(text)
+    except ValueError:
+        n = -1
+    if n < 0:
+        msg = f"{text!r}: allowed 'auto', 0 or a positive integer"
+        raise argparse.ArgumentTypeError(msg)
+    return n
+
+
 def _simulate(args: argparse.Namespace) -> int:
     from roslan.simulate import run_simulation
 
@@ -44,6 +57,7 @@ def _simulate(args: argparse.Namespace) -> int:
         profile=args.profile,
         config_path=path,
         overview=not args.no_overview,
+        workers=args.workers,
     )
     if not args.quiet:
         print(
@@ -81,4 +95,12 @@ def register(subparsers: Any) -> None:
         help="skip the check that the path clears the scene",
     )
     p.add_argument("--no-overview", action="store_true", help="do not draw overview.png at the end")
+    p.add_argument(
+        "--workers",
+        type=_workers,
+        default=None,
+        metavar="N",
+        help="worker processes for cameras, event cameras and lidars: 'auto' (default: "
+        "output.workers), 0 = all in one process, or N; outputs are identical either way",
+    )
     p.set_defaults(func=_simulate)

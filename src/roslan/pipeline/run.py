@@ -11,6 +11,10 @@ Steps of :func:`run_simulation`:
    ``heapq.merge`` keyed by ``t_ns`` (ties broken by a stable order: ground truth
    first, then sensors in config order) into the ROS 1 and/or ROS 2 writers. Memory is
    bounded by what each sensor holds for its current chunk, not by the trajectory length.
+   With ``workers`` (default ``output.workers: auto``), render-heavy sensors run in child
+   processes (:mod:`roslan.pipeline.worker`) that send ready wire bytes through bounded
+   queues, so rendering overlaps the writing here; the merge order and every output byte
+   are the same as with ``workers=0``.
 3. Close sensors (dataset files, calibration), bags, write ``calib/extrinsics.yaml``,
    ``PLAYBACK.md``, ``timing.json`` and finally ``run.json`` with ``"complete": true``;
    then rename the folder to OUTDIR (replacing an old OUTDIR only now, on success).
@@ -37,7 +41,7 @@ import sys
 import tempfile
 import threading
 import time
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterable, Iterator, Sequence
 from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
 from types import FrameType
@@ -52,6 +56,14 @@ from roslan.errors import ConfigError, OutputError, SensorError
 from roslan.io.bag import BAG_NAMES, BagTopic, MultiBagWriter
 from roslan.io.messages import Flavor
 from roslan.pipeline.context import Context
+from roslan.pipeline.worker import (
+    MERGE_KEY,
+    MergeItem,
+    WorkerJob,
+    WorkerPool,
+    plan_workers,
+    resolve_workers,
+)
 from roslan.sensors.base import Message, Sensor, StaticTransform
 from roslan.sensors.ground_truth import BASE_FRAME, WORLD_FRAME, GroundTruth
 from roslan.sensors.registry import sensor_class
@@ -388,6 +400,7 @@ def run_simulation(
     profile: bool = False,
     config_path: Path | None = None,
     overview: bool = True,
+    workers: int | str | None = None,
 ) -> dict[str, Any]:
     """Simulate ``config`` into ``outdir`` atomically; returns the content of run.json.
 
@@ -401,6 +414,9 @@ def run_simulation(
         profile: record (and print unless quiet) per-sensor time in timing.json.
         overview: draw ``overview.png`` (trajectory, camera, events, scan) at the end.
         config_path: the YAML file the config came from (relative scene paths, run.json).
+        workers: worker processes for the render-heavy sensors (``'auto'``, ``0`` = all
+            in this process, ``N``); default ``config.output.workers``. Outputs are
+            byte-identical whatever the value; timing.json records the one used.
     Raises:
         ConfigError: invalid sensors/topics/scene, or a path that hits the scene.
         OutputError: OUTDIR exists (without overwrite) or cannot be written.
@@ -453,11 +469,17 @@ def run_simulation(
                 )
                 raise ConfigError(msg)
 
+    n_workers = resolve_workers(
+        config.output.workers if workers is None else workers, config.sensors
+    )
+    groups = plan_workers(config.sensors, n_workers) if sys.executable else []
+
     # ---- 2. write into a temporary sibling
     tmp = _make_temp(outdir)
     writers: MultiBagWriter | None = None
     progress: _Progress | None = None
     plot: _BackgroundPlot | None = None
+    pool: WorkerPool | None = None
     try:
         with _sigterm_as_interrupt():
             from roslan.trajectory.export import write_trajectory_files
@@ -465,6 +487,8 @@ def run_simulation(
             t_setup = time.perf_counter()
             write_trajectory_files(traj, tmp, plot=False)
             plot = _BackgroundPlot(traj, tmp)
+            if groups:  # the interpreters start up while this process exports the scene
+                pool = WorkerPool(groups, config.sensors)
             if scene is not None:
                 import roslan.scene as scene_mod
 
@@ -480,27 +504,56 @@ def run_simulation(
                 scene=scene,
             )
             writers = MultiBagWriter(tmp, fmts, bag_topics, config.output.compression)
+            remote = pool.assigned if pool is not None else set()
+            if pool is not None:
+                pool.send(
+                    lambda g: WorkerJob(
+                        trajectory=config.trajectory,
+                        outdir=tmp,
+                        seed=config.seed,
+                        start_time_ns=config.output.start_time,
+                        sensors=tuple(config.sensors),
+                        assigned=g,
+                        classes=tuple(type(sensors[i]) for i in g),
+                        scene=scene,
+                        scene_spec=config.scene,
+                        base_dir=base_dir,
+                        formats=fmts,
+                        profile=profile,
+                    )
+                )
             t_stream = time.perf_counter()
+            # merge order: ground truth 0, sensor i -> i + 1 (ties resolve alike in workers)
             streams = [
                 _Stream("ground_truth", gt.messages(ctx), {t.topic for t in gt.topics()}, profile)
             ]
-            streams += [
-                _Stream(s.config.name, s.messages(ctx), {t.topic for t in s.topics()}, profile)
-                for s in sensors
+            orders = [0]
+            for i, s in enumerate(sensors):
+                if i not in remote:
+                    topics = {t.topic for t in s.topics()}
+                    streams.append(_Stream(s.config.name, s.messages(ctx), topics, profile))
+                    orders.append(i + 1)
+            sources: list[Iterable[MergeItem]] = [
+                _tagged(o, st) for o, st in zip(orders, streams, strict=True)
             ]
+            if pool is not None:
+                sources += pool.streams(fmts)
             progress = _Progress(traj.duration, quiet)
             write_seconds, build_seconds = _pump(
-                streams, writers, ctx.start_time_ns, progress, profile, owners
+                sources, writers, ctx.start_time_ns, progress, profile, owners
             )
             progress.update(traj.duration)
             progress.stop()
-            plot.finish()
             progress = None
+            if pool is not None:
+                pool.finish()
+            plot.finish()
             close_seconds: dict[str, float] = {}
-            for s in sensors:
-                t0 = time.perf_counter()
-                s.close(ctx)
-                close_seconds[s.config.name] = time.perf_counter() - t0
+            for i, s in enumerate(sensors):
+                if i not in remote:
+                    t0 = time.perf_counter()
+                    s.close(ctx)
+                    close_seconds[s.config.name] = time.perf_counter() - t0
             t0 = time.perf_counter()
             writers.close()
             write_seconds += time.perf_counter() - t0
@@ -553,9 +606,11 @@ def run_simulation(
                 "real_time_factor": wall / traj.duration,
                 "stream_real_time_factor": (t_done - t_stream) / traj.duration,
                 "speedup": traj.duration / wall if wall > 0 else None,
+                "workers": len(groups),
+                "worker_sensors": [[sensors[i].config.name for i in g] for g in groups],
             }
             if profile:
-                per = {
+                local = {
                     st.name: {
                         "generator_s": st.seconds,
                         "build_s": build_seconds.get(st.name, 0.0),
@@ -564,7 +619,15 @@ def run_simulation(
                     }
                     for st in streams
                 }
+                # worker figures are the child's own (its wall clock, its build of the bytes)
+                away = pool.profile() if pool is not None else {}
+                per = {
+                    name: away.get(name) or local[name]
+                    for name in ["ground_truth", *(s.config.name for s in sensors)]
+                }
                 timing["profile"] = {"sensors": per, "writers_s": write_seconds}
+                if pool is not None:
+                    timing["profile"]["worker_wait"] = pool.wait_seconds()
                 if not quiet:
                     _print_profile(per, write_seconds)
             if overview:
@@ -581,6 +644,8 @@ def run_simulation(
             _write_json(tmp / RUN_FILE, run)  # last: its presence marks a complete folder
             _finalize(tmp, outdir)
     except BaseException:
+        if pool is not None:
+            pool.kill()  # before removing tmp: the children write into it
         if plot is not None:
             plot.kill()
         if progress is not None:
@@ -613,16 +678,22 @@ def _print_profile(per: dict[str, dict[str, Any]], writers_s: float) -> None:
     Console(stderr=True).print(table)
 
 
+def _tagged(order: int, stream: Iterable[Message]) -> Iterator[MergeItem]:
+    for msg in stream:
+        yield msg.t_ns, order, msg
+
+
 def _pump(
-    streams: list[_Stream],
+    streams: Sequence[Iterable[MergeItem]],
     writers: MultiBagWriter,
     start_ns: int,
     progress: _Progress,
     profile: bool,
     owners: dict[str, str],
 ) -> tuple[float, dict[str, float]]:
-    """Merge all streams by t_ns and write every message; returns writer and build seconds."""
-    merged = heapq.merge(*streams, key=_t_ns)
+    """Merge all streams by ``(t_ns, order)`` and write every message; returns writer and
+    build seconds."""
+    merged = (item[2] for item in heapq.merge(*streams, key=MERGE_KEY))
     every = 2048
     n = 0
     write_s = 0.0
@@ -648,7 +719,3 @@ def _pump(
         if n % every == 0:
             progress.update(msg.t_ns * 1e-9)
     return write_s, build_s
-
-
-def _t_ns(msg: Message) -> int:
-    return msg.t_ns

@@ -1,0 +1,556 @@
+"""Sensor worker processes: render-heavy sensors run beside the main process.
+
+The main process of :func:`~roslan.pipeline.run.run_simulation` merges every sensor's
+messages by stamp and writes the bags. Rendering sensors (cameras, event cameras, lidars)
+dominate the time, so with ``workers`` > 0 they run in child processes instead, each
+pipelined with the bag writing of the main process (so both cores of a small machine are
+busy):
+
+* a child is a fresh interpreter (``python -c``, never a ``fork`` of a process that may
+  already hold EGL / Embree threads, never a re-import of the caller's ``__main__``) that
+  gets one pickled :class:`WorkerJob` through a socket pair: the trajectory config, the
+  seed and start time, every sensor config (``ctx.sensors``), the scene object, the
+  temporary OUTDIR, the bag flavours, and which sensors it runs (their classes, so a
+  class resolved by the parent is the one used);
+* it builds its own :class:`~roslan.pipeline.context.Context` (same per-name random
+  streams, same scene, hence byte-identical output), merges its sensors' streams by
+  ``(t_ns, order)``, builds each message's wire bytes for every flavour being written and
+  sends them as ``("m", t_ns, order, topic, msgtype, datas)`` through a byte-bounded
+  queue drained by a sender thread (backpressure: a child runs at most
+  :data:`QUEUE_BYTES` ahead of the writer, so memory stays flat in the trajectory's
+  duration);
+* after its streams end it calls each sensor's ``close(ctx)`` (dataset files go straight
+  into the temporary OUTDIR) and sends ``("done", profile)`` with its per-sensor times;
+* an exception is sent as ``("error", ...)`` and re-raised in the parent as the same
+  exception type and message, with the child's traceback text attached as ``__cause__``;
+  a child that dies (killed, crashed) raises :class:`WorkerError` in the parent.
+
+The parent merges by ``(t_ns, order)`` where ``order`` is the stable position of each
+component (ground truth 0, then sensors in config order), the same total order as the
+single-process merge, so the bags are byte-identical whatever the number of workers.
+
+Children ignore SIGINT (the parent handles Ctrl-C and terminates them), die with the
+parent (``PR_SET_PDEATHSIG`` on Linux) and get EPIPE if the parent goes away anyway.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import heapq
+import os
+import pickle
+import signal
+import socket
+import subprocess
+import sys
+import threading
+import time
+import traceback
+from collections import deque
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import dataclass
+from multiprocessing.connection import Connection
+from operator import itemgetter
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from roslan.errors import ConfigError, RoslanError
+from roslan.sensors.base import Message, SensorConfig
+
+if TYPE_CHECKING:
+    from roslan.io.messages import MessageStore
+    from roslan.scene.model import Scene
+    from roslan.trajectory.config import TrajectoryConfig
+
+__all__ = [
+    "HEAVY_TYPES",
+    "MERGE_KEY",
+    "QUEUE_BYTES",
+    "ByteQueue",
+    "WorkerError",
+    "WorkerJob",
+    "WorkerPool",
+    "plan_workers",
+    "resolve_workers",
+]
+
+HEAVY_TYPES: dict[str, float] = {
+    # sensor type -> rough relative cost (only used to balance sensors over workers)
+    "event_camera": 4.0,
+    "stereo_camera": 3.0,
+    "camera": 2.0,
+    "depth_camera": 2.0,
+    "lidar": 1.0,
+    "solid_state_lidar": 1.0,
+}
+"""Sensor types that run in worker processes when workers are enabled (OpenGL / Embree)."""
+
+QUEUE_BYTES = 64 << 20
+"""Most message bytes a worker holds ready ahead of the writer (plus one message)."""
+
+JOIN_TIMEOUT_S = 30.0
+"""Longest wait for a finished worker to exit, and for a terminated one (then SIGKILL)."""
+
+MergeItem = tuple[int, int, Message]
+"""``(t_ns, order, message)``: merge key first; ``order`` = component position."""
+
+MERGE_KEY = itemgetter(0, 1)
+"""Key of the stamp merge: ``(t_ns, order)``."""
+
+
+class WorkerError(RoslanError):
+    """A sensor worker process died or broke the protocol (not a sensor's own error)."""
+
+
+class _RemoteTraceback(Exception):
+    """Carries a worker's traceback text as the ``__cause__`` of a re-raised error."""
+
+    def __init__(self, tb: str) -> None:
+        super().__init__(tb)
+        self.tb = tb
+
+    def __str__(self) -> str:
+        return f"\n\n(in the worker process)\n{self.tb}"
+
+
+# ---------------------------------------------------------------------------- planning
+def usable_cpus() -> int:
+    """CPUs this process may run on (affinity mask where the OS has one)."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # pragma: no cover - non-Linux
+        return max(1, os.cpu_count() or 1)
+
+
+def resolve_workers(workers: int | str, sensors: Sequence[SensorConfig]) -> int:
+    """Number of worker processes for ``workers`` (``'auto'``, 0 or N >= 1).
+
+    ``auto``: one per render-heavy sensor, at most the usable CPUs, and none on a
+    single-CPU machine or a job without render-heavy sensors. ``N``: at most N (never
+    more than there are render-heavy sensors). ``0``: everything in this process.
+    """
+    heavy = sum(1 for s in sensors if s.type in HEAVY_TYPES)
+    if workers == "auto":
+        cpus = usable_cpus()
+        return 0 if cpus < 2 else min(cpus, heavy)
+    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 0:
+        msg = f"workers = {workers!r}: allowed 'auto', 0 (no worker processes) or an integer >= 1"
+        raise ConfigError(msg)
+    return min(workers, heavy)
+
+
+def plan_workers(sensors: Sequence[SensorConfig], n_workers: int) -> list[list[int]]:
+    """Split the render-heavy sensors (indices into ``sensors``) over ``n_workers``
+    processes: costliest first onto the least loaded worker; each group sorted."""
+    heavy = [i for i, s in enumerate(sensors) if s.type in HEAVY_TYPES]
+    n = min(n_workers, len(heavy))
+    if n <= 0:
+        return []
+    load = [0.0] * n
+    groups: list[list[int]] = [[] for _ in range(n)]
+    for i in sorted(heavy, key=lambda i: (-HEAVY_TYPES[sensors[i].type], i)):
+        k = min(range(n), key=lambda k: (load[k], k))
+        groups[k].append(i)
+        load[k] += HEAVY_TYPES[sensors[i].type]
+    return sorted(sorted(g) for g in groups)
+
+
+# ---------------------------------------------------------------------------- the job
+@dataclass(frozen=True)
+class WorkerJob:
+    """Everything a worker needs (pickled to it).
+
+    ``assigned`` are indices into ``sensors``; ``classes`` their sensor classes; the
+    merge order of sensor ``i`` is ``i + 1`` (ground truth is 0).
+    """
+
+    trajectory: TrajectoryConfig
+    outdir: Path
+    seed: int
+    start_time_ns: int
+    sensors: tuple[SensorConfig, ...]
+    assigned: tuple[int, ...]
+    classes: tuple[Any, ...]
+    scene: Scene | None
+    scene_spec: str | None
+    base_dir: Path | None
+    formats: tuple[str, ...]
+    profile: bool
+    queue_bytes: int = QUEUE_BYTES
+
+
+class ByteQueue:
+    """A FIFO of byte blobs holding at most ``limit`` bytes (one larger blob is let in
+    when the queue is empty). ``put`` blocks while full; ``fail`` wakes everybody up and
+    makes ``put`` raise (the consumer is gone)."""
+
+    def __init__(self, limit: int) -> None:
+        self.limit = int(limit)
+        self._items: deque[bytes | None] = deque()
+        self._bytes = 0
+        self._cond = threading.Condition()
+        self.error: BaseException | None = None
+        self.peak_bytes = 0
+
+    @property
+    def nbytes(self) -> int:
+        return self._bytes
+
+    def put(self, blob: bytes | None, timeout: float | None = None) -> None:
+        """Append ``blob`` (None: end of stream), waiting while the queue is full.
+
+        Raises:
+            TimeoutError: still full after ``timeout`` seconds.
+            BrokenPipeError: the consumer failed (its error is the ``__cause__``).
+        """
+        size = 0 if blob is None else len(blob)
+        with self._cond:
+            ok = self._cond.wait_for(
+                lambda: (
+                    self.error is not None or not self._items or self._bytes + size <= self.limit
+                ),
+                timeout,
+            )
+            if self.error is not None:
+                raise BrokenPipeError("the worker's reader is gone") from self.error
+            if not ok:
+                raise TimeoutError("queue full")
+            self._items.append(blob)
+            self._bytes += size
+            self.peak_bytes = max(self.peak_bytes, self._bytes)
+            self._cond.notify_all()
+
+    def get(self) -> bytes | None:
+        """Pop the oldest blob, waiting for one."""
+        with self._cond:
+            self._cond.wait_for(lambda: bool(self._items))
+            blob = self._items.popleft()
+            self._bytes -= 0 if blob is None else len(blob)
+            self._cond.notify_all()
+            return blob
+
+    def fail(self, err: BaseException) -> None:
+        with self._cond:
+            self.error = err
+            self._items.clear()
+            self._bytes = 0
+            self._cond.notify_all()
+
+
+# ---------------------------------------------------------------------------- child side
+def _die_with_parent(parent_pid: int) -> None:
+    """Ask Linux to SIGTERM this process when its parent dies; exit if it already has."""
+    if sys.platform.startswith("linux"):
+        with contextlib.suppress(Exception):
+            import ctypes
+
+            libc = ctypes.CDLL(None, use_errno=True)
+            libc.prctl(1, int(signal.SIGTERM), 0, 0, 0)  # PR_SET_PDEATHSIG
+    if os.getppid() != parent_pid:
+        os._exit(1)
+
+
+def _sender(conn: Connection, queue: ByteQueue) -> None:
+    try:
+        while True:
+            blob = queue.get()
+            if blob is None:
+                return
+            conn.send_bytes(blob)
+    except BaseException as err:  # parent gone (EPIPE): stop the producer
+        queue.fail(err)
+
+
+def _error_record(err: BaseException) -> tuple[Any, ...]:
+    tb = "".join(traceback.format_exception(err))
+    blob: bytes | None
+    try:
+        blob = pickle.dumps(err, protocol=pickle.HIGHEST_PROTOCOL)
+        pickle.loads(blob)  # must come back whole in the parent
+    except Exception:
+        blob = None
+    return ("error", blob, type(err).__name__, str(err), tb)
+
+
+def _run_job(job: WorkerJob, put: Callable[[Any], None]) -> None:
+    """Stream the assigned sensors of ``job``; ``put`` sends one protocol record."""
+    from roslan.io.messages import Flavor, MessageStore
+    from roslan.pipeline.context import Context
+    from roslan.pipeline.run import _Stream
+    from roslan.trajectory.generator import Trajectory
+
+    traj = Trajectory(job.trajectory)
+    ctx = Context(
+        traj,
+        job.outdir,
+        seed=job.seed,
+        start_time_ns=job.start_time_ns,
+        sensors=job.sensors,
+        scene_spec=job.scene_spec,
+        base_dir=job.base_dir,
+        scene=job.scene,
+    )
+    stores = [MessageStore(Flavor(f)) for f in job.formats]
+    sensors = [cls(job.sensors[i]) for cls, i in zip(job.classes, job.assigned, strict=True)]
+    streams = [
+        _Stream(s.config.name, s.messages(ctx), {t.topic for t in s.topics()}, job.profile)
+        for s in sensors
+    ]
+    build_s = [0.0] * len(sensors)
+    index = {i + 1: k for k, i in enumerate(job.assigned)}  # merge order -> sensor position
+
+    def tagged(order: int, stream: _Stream) -> Iterator[MergeItem]:
+        for msg in stream:
+            yield msg.t_ns, order, msg
+
+    merged = heapq.merge(
+        *(tagged(i + 1, st) for i, st in zip(job.assigned, streams, strict=True)),
+        key=MERGE_KEY,
+    )
+    perf = time.perf_counter
+    dumps = pickle.dumps
+    for t_ns, order, msg in merged:
+        t0 = perf()
+        datas = []
+        for store in stores:
+            data = msg.build(store)
+            if not isinstance(data, bytes | bytearray | memoryview):
+                data = store.serialize(data, msg.msgtype)
+            elif not isinstance(data, bytes):
+                data = bytes(data)
+            datas.append(data)
+        record = ("m", t_ns, order, msg.topic, msg.msgtype, tuple(datas))
+        build_s[index[order]] += perf() - t0
+        put(dumps(record, protocol=pickle.HIGHEST_PROTOCOL))
+    close_s = []
+    for s in sensors:
+        t0 = perf()
+        s.close(ctx)
+        close_s.append(perf() - t0)
+    profile = {
+        st.name: {
+            "generator_s": st.seconds,
+            "build_s": build_s[k],
+            "close_s": close_s[k],
+            "messages": st.count,
+            "worker_pid": os.getpid(),
+        }
+        for k, st in enumerate(streams)
+    }
+    put(dumps(("done", profile), protocol=pickle.HIGHEST_PROTOCOL))
+
+
+def main(argv: Sequence[str] | None = None) -> None:
+    """Child entry point: ``python -c 'from roslan.pipeline.worker import main; main()' FD PID``."""
+    args = list(sys.argv[1:] if argv is None else argv)
+    fd, parent_pid = int(args[0]), int(args[1])
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent handles Ctrl-C and stops us
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    _die_with_parent(parent_pid)
+    conn = Connection(fd)
+    queue: ByteQueue | None = None
+    sender: threading.Thread | None = None
+    code = 0
+    try:
+        job: WorkerJob = pickle.loads(conn.recv_bytes())
+        queue = ByteQueue(job.queue_bytes)
+        sender = threading.Thread(target=_sender, args=(conn, queue), daemon=True)
+        sender.start()
+        _run_job(job, queue.put)
+    except BaseException as err:
+        code = 1
+        record = pickle.dumps(_error_record(err), protocol=pickle.HIGHEST_PROTOCOL)
+        with contextlib.suppress(BaseException):
+            if queue is not None:
+                queue.put(record)
+            else:
+                conn.send_bytes(record)
+    if queue is not None and sender is not None:
+        with contextlib.suppress(BaseException):
+            queue.put(None)
+        sender.join()
+    with contextlib.suppress(BaseException):
+        conn.close()
+    sys.stdout.flush()
+    sys.stderr.flush()
+    # skip interpreter teardown: files are closed; EGL/Embree exit handlers add nothing
+    os._exit(code)
+
+
+# ---------------------------------------------------------------------------- parent side
+_CHILD_CODE = "from roslan.pipeline.worker import main; main()"
+
+
+class _Ready:
+    """``Message.build`` of a worker's message: the ready wire bytes of ``store``'s flavour."""
+
+    __slots__ = ("by_flavor",)
+
+    def __init__(self, fmts: Sequence[str], datas: Sequence[bytes]) -> None:
+        self.by_flavor = dict(zip(fmts, datas, strict=True))
+
+    def __call__(self, store: MessageStore) -> bytes:
+        return self.by_flavor[store.flavor]
+
+
+class _Worker:
+    """One child process and its connection (parent side)."""
+
+    def __init__(self, names: list[str]) -> None:
+        self.names = names
+        parent_sock, child_sock = socket.socketpair()
+        self.conn = Connection(parent_sock.detach())
+        child_fd = child_sock.detach()
+        env = dict(os.environ)
+        # the child imports what this process can (tests, source trees on sys.path)
+        env["PYTHONPATH"] = os.pathsep.join(p or os.getcwd() for p in sys.path)
+        try:
+            self.proc = subprocess.Popen(
+                [sys.executable, "-c", _CHILD_CODE, str(child_fd), str(os.getpid())],
+                pass_fds=(child_fd,),
+                stdin=subprocess.DEVNULL,
+                stdout=subprocess.DEVNULL,
+                env=env,
+            )
+        except OSError as err:
+            self.conn.close()
+            msg = f"cannot start a sensor worker process ({sys.executable}): {err}"
+            raise WorkerError(msg) from err
+        finally:
+            os.close(child_fd)  # only the child holds its end: its death means EOF here
+        self.profile: dict[str, dict[str, Any]] = {}
+        self.wait_s = 0.0
+        self.done = False
+
+    def describe(self) -> str:
+        return f"the worker process (pid {self.proc.pid}) running {', '.join(self.names)}"
+
+    def send(self, job: WorkerJob) -> None:
+        try:
+            self.conn.send_bytes(pickle.dumps(job, protocol=pickle.HIGHEST_PROTOCOL))
+        except OSError as err:
+            raise self._died() from err
+
+    def _died(self) -> WorkerError:
+        try:
+            code = self.proc.wait(JOIN_TIMEOUT_S)
+        except subprocess.TimeoutExpired:
+            code = None
+        how = (
+            "is stuck"
+            if code is None
+            else f"was killed by signal {-code}"
+            if code < 0
+            else f"exited with status {code}"
+        )
+        return WorkerError(f"{self.describe()} {how} before finishing its sensors")
+
+    def records(self, fmts: Sequence[str]) -> Iterator[MergeItem]:
+        """This worker's messages as merge items; ends after its ``done`` record."""
+        recv = self.conn.recv_bytes
+        loads = pickle.loads
+        perf = time.perf_counter
+        while True:
+            t0 = perf()
+            try:
+                blob = recv()
+            except (EOFError, OSError) as err:
+                raise self._died() from err
+            self.wait_s += perf() - t0
+            rec = loads(blob)
+            kind = rec[0]
+            if kind == "m":
+                _, t_ns, order, topic, msgtype, datas = rec
+                yield t_ns, order, Message(t_ns, topic, msgtype, _Ready(fmts, datas))
+            elif kind == "done":
+                self.profile = rec[1]
+                self.done = True
+                return
+            elif kind == "error":
+                _, exc_blob, type_name, text, tb = rec
+                exc: BaseException | None = None
+                if exc_blob is not None:
+                    with contextlib.suppress(Exception):
+                        exc = loads(exc_blob)
+                if exc is None:
+                    exc = WorkerError(f"{self.describe()} failed: {type_name}: {text}")
+                raise exc from _RemoteTraceback(tb)
+            else:  # pragma: no cover - protocol bug
+                msg = f"{self.describe()} sent an unknown record {kind!r}"
+                raise WorkerError(msg)
+
+    def finish(self) -> None:
+        """Wait for a worker that sent ``done`` to exit (WorkerError if it fails)."""
+        try:
+            code = self.proc.wait(JOIN_TIMEOUT_S)
+        except subprocess.TimeoutExpired:
+            self.kill()
+            code = 0  # its work is complete and delivered; only the exit hung
+        self.conn.close()
+        if code != 0:
+            msg = f"{self.describe()} exited with status {code} after finishing"
+            raise WorkerError(msg)
+
+    def kill(self) -> None:
+        """Stop the child now (SIGTERM, then SIGKILL) and reap it."""
+        with contextlib.suppress(Exception):
+            self.conn.close()
+        if self.proc.poll() is None:
+            with contextlib.suppress(ProcessLookupError):
+                self.proc.terminate()
+            try:
+                self.proc.wait(5.0)
+            except subprocess.TimeoutExpired:
+                with contextlib.suppress(ProcessLookupError):
+                    self.proc.kill()
+                self.proc.wait(JOIN_TIMEOUT_S)
+
+
+class WorkerPool:
+    """The worker processes of one run (parent side).
+
+    Start them early (:meth:`__init__` only launches the interpreters), :meth:`send` their
+    jobs once the scene and OUTDIR are ready, merge :meth:`streams`, then :meth:`finish`;
+    :meth:`kill` on any failure (before removing OUTDIR: children write into it).
+    """
+
+    def __init__(self, groups: Sequence[Sequence[int]], sensors: Sequence[SensorConfig]) -> None:
+        self.groups = [tuple(g) for g in groups]
+        self.workers: list[_Worker] = []
+        try:
+            for g in self.groups:
+                self.workers.append(_Worker([sensors[i].name for i in g]))
+        except BaseException:
+            self.kill()
+            raise
+
+    @property
+    def assigned(self) -> set[int]:
+        return {i for g in self.groups for i in g}
+
+    def send(self, make_job: Callable[[tuple[int, ...]], WorkerJob]) -> None:
+        for g, w in zip(self.groups, self.workers, strict=True):
+            w.send(make_job(g))
+
+    def streams(self, fmts: Sequence[str]) -> list[Iterator[MergeItem]]:
+        return [w.records(fmts) for w in self.workers]
+
+    def profile(self) -> dict[str, dict[str, Any]]:
+        out: dict[str, dict[str, Any]] = {}
+        for w in self.workers:
+            out.update(w.profile)
+        return out
+
+    def wait_seconds(self) -> list[dict[str, Any]]:
+        return [{"sensors": w.names, "wait_s": w.wait_s} for w in self.workers]
+
+    def finish(self) -> None:
+        for w in self.workers:
+            if not w.done:  # pragma: no cover - the merge consumed every stream
+                msg = f"{w.describe()} did not finish"
+                raise WorkerError(msg)
+            w.finish()
+
+    def kill(self) -> None:
+        for w in self.workers:
+            w.kill()

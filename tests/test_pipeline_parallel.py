@@ -1,0 +1,298 @@
+"""Sensor worker processes: byte-identical outputs whatever the number of workers, errors and
+crashes in a child surface cleanly in the parent, no orphan processes, bounded queues."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import psutil
+import pytest
+
+from pipeline_helpers import short_config, tree_bytes
+from roslan.cli import main
+from roslan.config.base import load_yaml_model
+from roslan.config.sim import SimConfig
+from roslan.errors import ConfigError, SensorError
+from roslan.pipeline import worker as worker_mod
+from roslan.pipeline.worker import ByteQueue, WorkerError, plan_workers, resolve_workers
+from roslan.sensors.base import Message
+from roslan.sensors.camera import Camera
+from roslan.sensors.registry import sensor_class
+from roslan.simulate import run_simulation
+
+HERE = Path(__file__).parent
+
+TINY_SENSORS: list[dict[str, Any]] = [
+    {"type": "imu", "name": "imu", "rate": 200.0, "topic": "/imu"},
+    {"type": "event_camera", "name": "dvs", "rate": 20.0, "topic": "/dvs",
+     "resolution": [48, 36], "max_rate": 150.0},
+    {"type": "camera", "name": "cam", "rate": 20.0, "topic": "/cam", "resolution": [48, 36]},
+]  # fmt: skip
+
+
+def tiny_config(**kw: Any) -> SimConfig:
+    """1.2 s landing over the empty scene: IMU, a 48x36 event camera and camera."""
+    return short_config(scene="empty", sensors=TINY_SENSORS, **kw)
+
+
+def _children() -> list[psutil.Process]:
+    return [p for p in psutil.Process().children(recursive=True) if p.status() != "zombie"]
+
+
+def _is_worker(p: psutil.Process) -> bool:
+    try:
+        return "roslan.pipeline.worker" in " ".join(p.cmdline())
+    except psutil.Error:  # a finished (zombie) helper such as the background plot
+        return False
+
+
+# ------------------------------------------------------------------ failing sensors (in a child)
+class ErrorCamera(Camera):
+    """Raises a SensorError (a RoslanError) after a few messages."""
+
+    def messages(self, ctx: Any) -> Iterator[Message]:
+        for i, m in enumerate(super().messages(ctx)):
+            if i == 3:
+                raise SensorError("lens fell off at frame 3")
+            yield m
+
+
+class BoomCamera(Camera):
+    """Raises a plain bug (RuntimeError) after a few messages."""
+
+    def messages(self, ctx: Any) -> Iterator[Message]:
+        for i, m in enumerate(super().messages(ctx)):
+            if i == 3:
+                raise RuntimeError("boom in the child")
+            yield m
+
+
+class KilledCamera(Camera):
+    """Its process is SIGKILLed mid-stream (a crash, the OOM killer)."""
+
+    def messages(self, ctx: Any) -> Iterator[Message]:
+        for i, m in enumerate(super().messages(ctx)):
+            if i == 3:
+                os.kill(os.getpid(), signal.SIGKILL)
+            yield m
+
+
+class SlowCamera(Camera):
+    """Writes its pid to $ROSLAN_TEST_PIDFILE, then hangs (to be interrupted)."""
+
+    def messages(self, ctx: Any) -> Iterator[Message]:
+        for i, m in enumerate(super().messages(ctx)):
+            if i == 3:
+                Path(os.environ["ROSLAN_TEST_PIDFILE"]).write_text(str(os.getpid()))
+                time.sleep(120)
+            yield m
+
+
+def _patch_camera(monkeypatch: pytest.MonkeyPatch, cls: type) -> None:
+    real = sensor_class
+    monkeypatch.setattr(
+        "roslan.pipeline.run.sensor_class", lambda name: cls if name == "camera" else real(name)
+    )
+
+
+# ------------------------------------------------------------------ identical outputs
+def test_workers_give_byte_identical_outputs(tmp_path: Path) -> None:
+    cfg = tiny_config()
+    outs = {}
+    for w in (0, 1, 2):  # in-process; both render sensors in one child; one child each
+        outs[w] = tmp_path / f"w{w}"
+        run_simulation(cfg, outs[w], quiet=True, workers=w, profile=True, overview=False)
+    ref = tree_bytes(outs[0])
+    assert "events.txt" in ref
+    assert "images.txt" in ref
+    assert "landing.bag" in ref
+    for w in (1, 2):
+        got = tree_bytes(outs[w])
+        assert got.keys() == ref.keys()
+        assert [k for k in ref if got[k] != ref[k]] == []
+        timing = json.loads((outs[w] / "timing.json").read_text())
+        assert timing["workers"] == w
+        assert sorted(n for g in timing["worker_sensors"] for n in g) == ["cam", "dvs"]
+        per = timing["profile"]["sensors"]
+        # child-side figures, reported under every sensor's name, in config order
+        assert list(per) == ["ground_truth", "imu", "dvs", "cam"]
+        assert per["dvs"]["messages"] > 0
+        assert per["dvs"]["generator_s"] > 0
+        assert per["dvs"]["worker_pid"] != os.getpid()
+        assert "worker_pid" not in per["imu"]
+    run0 = json.loads((outs[0] / "timing.json").read_text())
+    assert run0["workers"] == 0
+    # run.json (deterministic) records the config, not how this run was parallelized
+    assert (outs[0] / "run.json").read_bytes() == (outs[2] / "run.json").read_bytes()
+    assert _children() == []
+
+
+def test_resolve_and_plan_workers(monkeypatch: pytest.MonkeyPatch) -> None:
+    cfg = SimConfig.model_validate(
+        {
+            "sensors": [
+                {"type": "imu", "name": "imu", "rate": 100, "topic": "/imu"},
+                {"type": "camera", "name": "c1", "rate": 10, "topic": "/c1"},
+                {"type": "event_camera", "name": "dvs", "rate": 10, "topic": "/dvs"},
+                {"type": "lidar", "name": "lid", "rate": 10, "topic": "/lid"},
+                {"type": "sonar", "name": "son", "rate": 10, "topic": "/son"},
+            ]
+        }
+    )
+    s = cfg.sensors
+    monkeypatch.setattr(worker_mod, "usable_cpus", lambda: 2)
+    assert resolve_workers("auto", s) == 2
+    assert resolve_workers(0, s) == 0
+    assert resolve_workers(8, s) == 3  # never more than the render-heavy sensors
+    monkeypatch.setattr(worker_mod, "usable_cpus", lambda: 1)
+    assert resolve_workers("auto", s) == 0  # one CPU: nothing to overlap with
+    monkeypatch.setattr(worker_mod, "usable_cpus", lambda: 16)
+    assert resolve_workers("auto", s) == 3
+    assert resolve_workers("auto", s[:1]) == 0  # no render-heavy sensor
+    for bad in (-1, "many", True):
+        with pytest.raises(ConfigError, match="workers"):
+            resolve_workers(bad, s)
+    # longest first onto the least loaded: event camera alone, camera + lidar together
+    assert plan_workers(s, 2) == [[1, 3], [2]]
+    assert plan_workers(s, 1) == [[1, 2, 3]]
+    assert plan_workers(s, 3) == [[1], [2], [3]]
+    assert plan_workers(s, 0) == []
+    groups = plan_workers(s, 3)
+    assert sorted(i for g in groups for i in g) == [i for i, c in enumerate(s) if c.type != "imu"
+                                                    and c.type != "sonar"]  # fmt: skip
+
+
+def test_workers_config_and_cli_validation(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    f = tmp_path / "job.yaml"
+    f.write_text("output:\n  workers: -2\n")
+    with pytest.raises(ConfigError, match=r"output\.workers"):
+        load_yaml_model(SimConfig, f)
+    f.write_text("output:\n  workers: 3\n")
+    assert load_yaml_model(SimConfig, f).output.workers == 3
+    assert SimConfig().output.workers == "auto"
+    with pytest.raises(SystemExit):
+        main(["simulate", "-o", str(tmp_path / "o"), "--workers", "lots"])
+    assert "--workers" in capsys.readouterr().err
+    assert not (tmp_path / "o").exists()
+
+
+# ------------------------------------------------------------------ errors in a child
+def test_sensor_error_in_child_is_reraised(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    _patch_camera(monkeypatch, ErrorCamera)
+    with pytest.raises(SensorError, match="lens fell off at frame 3") as info:
+        run_simulation(tiny_config(), tmp_path / "out", quiet=True, workers=2, overview=False)
+    assert "test_pipeline_parallel.py" in str(info.value.__cause__)  # the child's traceback
+    assert list(tmp_path.iterdir()) == []  # no OUTDIR, no .partial folder
+    assert _children() == []
+    # the CLI prints the message, no traceback
+    monkeypatch.setattr("roslan.pipeline.cli.load_config", lambda p: (tiny_config(), None))
+    code = main(["simulate", "-o", str(tmp_path / "cli"), "--quiet", "--workers", "1"])
+    assert code == 2
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_bug_in_child_keeps_type_and_traceback(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    _patch_camera(monkeypatch, BoomCamera)
+    with pytest.raises(RuntimeError, match="boom in the child") as info:
+        run_simulation(tiny_config(), tmp_path / "out", quiet=True, workers=1, overview=False)
+    tb = str(info.value.__cause__)
+    assert "in the worker process" in tb
+    assert "Traceback" in tb
+    assert 'raise RuntimeError("boom in the child")' in tb
+    assert list(tmp_path.iterdir()) == []
+    assert _children() == []
+
+
+def test_killed_child_fails_the_run_cleanly(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    _patch_camera(monkeypatch, KilledCamera)
+    t0 = time.perf_counter()
+    with pytest.raises(WorkerError, match=r"running cam was killed by signal 9"):
+        run_simulation(tiny_config(), tmp_path / "out", quiet=True, workers=2, overview=False)
+    assert time.perf_counter() - t0 < 60  # no hang
+    assert list(tmp_path.iterdir()) == []
+    assert _children() == []
+
+
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGKILL])
+def test_stopping_the_parent_stops_the_children(tmp_path: Path, sig: signal.Signals) -> None:
+    """SIGTERM: the parent terminates its children and removes its partial folder; SIGKILL:
+    the children die with it (no orphans either way)."""
+    script = textwrap.dedent(
+        f"""
+        import sys
+        sys.path.insert(0, {str(HERE)!r})
+        from pathlib import Path
+        import roslan.pipeline.run as run
+        from roslan.sensors.registry import sensor_class
+        from test_pipeline_parallel import SlowCamera, tiny_config
+        run.sensor_class = lambda n: SlowCamera if n == "camera" else sensor_class(n)
+        try:
+            run.run_simulation(tiny_config(), Path(sys.argv[1]), quiet=True, workers=2,
+                               overview=False)
+        except KeyboardInterrupt:
+            sys.exit(130)
+        """
+    )
+    pidfile = tmp_path / "pid"
+    out = tmp_path / "runs"
+    out.mkdir()
+    env = {**os.environ, "ROSLAN_TEST_PIDFILE": str(pidfile)}
+    proc = subprocess.Popen([sys.executable, "-c", script, str(out / "o")], env=env)
+    deadline = time.monotonic() + 60
+    while not pidfile.exists() or not pidfile.read_text():
+        assert proc.poll() is None, "the run ended before the slow camera started"
+        assert time.monotonic() < deadline
+        time.sleep(0.05)
+    child = psutil.Process(int(pidfile.read_text()))
+    workers = [p for p in psutil.Process(proc.pid).children() if _is_worker(p)]
+    assert child.pid in {p.pid for p in workers}
+    assert len(workers) == 2
+    proc.send_signal(sig)
+    code = proc.wait(timeout=30)
+    _gone, alive = psutil.wait_procs(workers, timeout=15)
+    assert [p for p in alive if p.status() != "zombie"] == []
+    if sig == signal.SIGTERM:
+        assert code == 130
+        assert list(out.iterdir()) == []
+    else:
+        assert not (out / "o").exists()
+
+
+# ------------------------------------------------------------------ bounded queue
+def test_byte_queue_is_bounded() -> None:
+    q = ByteQueue(100)
+    q.put(b"x" * 60)
+    q.put(b"x" * 40)
+    with pytest.raises(TimeoutError):
+        q.put(b"y", timeout=0.05)  # full: a producer would wait here
+    assert q.nbytes == 100
+    assert q.get() == b"x" * 60
+    q.put(b"y" * 50)
+    assert q.nbytes == 90
+    assert q.get() == b"x" * 40
+    assert q.get() == b"y" * 50
+    q.put(b"z" * 500)  # one larger message still passes when the queue is empty
+    with pytest.raises(TimeoutError):
+        q.put(b"w", timeout=0.05)
+    assert q.get() == b"z" * 500
+    assert q.peak_bytes == 500
+    q.put(None)
+    assert q.get() is None
+    q.fail(BrokenPipeError("reader gone"))
+    with pytest.raises(BrokenPipeError):
+        q.put(b"v")
