@@ -9,21 +9,28 @@ rate), and prints:
 * real-time factor = simulation wall time / trajectory duration (<= 1: faster than real
   time), also by CPU time (robust to other load on the machine);
 * each sensor's share of the time (``roslan simulate --profile`` figures);
-* peak resident memory (ru_maxrss of the child), which must stay flat with duration.
+* peak resident memory, which must stay flat with duration: the sum over the whole process
+  tree (the simulation and its sensor worker processes, sampled every 20 ms with psutil)
+  and the largest single process (ru_maxrss of the run and of its children);
+* with ``--workers 0 auto`` the same cases without and with sensor worker processes.
 
-    .venv/bin/python benchmarks/bench_e2e.py [--scales 1 2 4] [--json FILE]
+    .venv/bin/python benchmarks/bench_e2e.py [--scales 1 2 4] [--workers auto] [--json FILE]
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import subprocess
 import sys
 import tempfile
 import textwrap
+import time
 from pathlib import Path
 from typing import Any
+
+import psutil  # type: ignore[import-untyped]
 
 CHILD = textwrap.dedent(
     """
@@ -32,15 +39,18 @@ CHILD = textwrap.dedent(
     from roslan.pipeline.cli import load_config
     from roslan.simulate import run_simulation
 
-    scale, outdir = float(sys.argv[1]), Path(sys.argv[2])
+    scale, outdir, workers = float(sys.argv[1]), Path(sys.argv[2]), sys.argv[3]
+    workers = workers if workers == "auto" else int(workers)
     cfg, _ = load_config(None)
     traj = cfg.trajectory
     # same path, descent rate / scale: the landing lasts `scale` times longer
     initial = traj.initial.model_copy(update={"descent_rate": traj.initial.descent_rate / scale})
     cfg = cfg.model_copy(update={"trajectory": traj.model_copy(update={"initial": initial})})
     t0, c0 = time.perf_counter(), time.process_time()
-    run = run_simulation(cfg, outdir, quiet=True, profile=True, overview=False)
+    run = run_simulation(cfg, outdir, quiet=True, profile=True, overview=False, workers=workers)
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+    kids = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu += kids.ru_utime + kids.ru_stime  # the sensor workers' CPU time
     timing = json.loads((outdir / "timing.json").read_text())
     print(json.dumps({
         "duration_s": run["trajectory_duration_s"],
@@ -51,48 +61,85 @@ CHILD = textwrap.dedent(
         "rtf_cpu": cpu / run["trajectory_duration_s"],
         "profile": timing["profile"],
         "peak_rss_mib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
+        "peak_rss_children_mib": kids.ru_maxrss / 1024,
+        "workers": timing["workers"],
+        "worker_sensors": timing["worker_sensors"],
     }))
     """
 )
 
 
-def run_case(scale: float) -> dict[str, Any]:
+def _tree_rss(proc: psutil.Process) -> int:
+    total = 0
+    for p in [proc, *proc.children(recursive=True)]:
+        with contextlib.suppress(psutil.Error):  # exited meanwhile
+            total += p.memory_info().rss
+    return total
+
+
+def run_case(scale: float, workers: str) -> dict[str, Any]:
     with tempfile.TemporaryDirectory() as tmp:
-        out = subprocess.run(
-            [sys.executable, "-c", CHILD, str(scale), str(Path(tmp) / "out")],
-            check=True,
-            capture_output=True,
-            text=True,
-        )
-    result: dict[str, Any] = json.loads(out.stdout.strip().splitlines()[-1])
+        cmd = [sys.executable, "-c", CHILD, str(scale), str(Path(tmp) / "out"), workers]
+        proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        ps = psutil.Process(proc.pid)
+        peak = 0
+        while proc.poll() is None:
+            try:
+                peak = max(peak, _tree_rss(ps))
+            except psutil.Error:
+                break
+            time.sleep(0.02)
+        out, err = proc.communicate()
+        if proc.returncode != 0:
+            raise SystemExit(f"simulation failed ({proc.returncode}):\n{err}")
+    result: dict[str, Any] = json.loads(out.strip().splitlines()[-1])
+    result["peak_tree_rss_mib"] = peak / 2**20
     return result
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--scales", type=float, nargs="+", default=[1.0, 2.0, 4.0])
+    ap.add_argument(
+        "--workers",
+        nargs="+",
+        default=["auto"],
+        help="output.workers values to run each scale with ('auto', 0, N)",
+    )
     ap.add_argument("--json", type=Path, default=None, help="also write the results here")
     args = ap.parse_args()
     results = []
-    for scale in args.scales:
-        r = run_case(scale)
-        r["scale"] = scale
-        results.append(r)
-        sensors = r["profile"]["sensors"]
-        total = sum(v["generator_s"] + v["build_s"] + v["close_s"] for v in sensors.values())
-        total += r["profile"]["writers_s"]
-        print(
-            f"x{scale:g}: trajectory {r['duration_s']:.2f} s, wall {r['wall_s']:.1f} s, "
-            f"RTF wall {r['rtf_wall']:.2f}, RTF cpu {r['rtf_cpu']:.2f}, "
-            f"peak RSS {r['peak_rss_mib']:.0f} MiB, {r['messages']} messages"
-        )
-        for name, v in sensors.items():
-            t = v["generator_s"] + v["build_s"] + v["close_s"]
-            print(f"    {name:14s} {t:8.2f} s  {100 * t / total:5.1f} %")
-        w = r["profile"]["writers_s"]
-        print(f"    {'bag writers':14s} {w:8.2f} s  {100 * w / total:5.1f} %")
+    for scale in args.scales:  # settings alternate: both see the same background load
+        for workers in args.workers:
+            r = run_case(scale, str(workers))
+            r["scale"] = scale
+            results.append(r)
+            _report(r, str(workers))
     if args.json is not None:
         args.json.write_text(json.dumps(results, indent=2))
+
+
+def _report(r: dict[str, Any], workers: str) -> None:
+    scale = r["scale"]
+    sensors = r["profile"]["sensors"]
+    total = sum(v["generator_s"] + v["build_s"] + v["close_s"] for v in sensors.values())
+    total += r["profile"]["writers_s"]
+    print(
+        f"x{scale:g} workers={workers} ({r['workers']}: {r['worker_sensors']}): trajectory "
+        f"{r['duration_s']:.2f} s, wall {r['wall_s']:.1f} s, RTF wall {r['rtf_wall']:.2f}, "
+        f"RTF cpu {r['rtf_cpu']:.2f}, peak RSS tree {r['peak_tree_rss_mib']:.0f} MiB "
+        f"(largest process {max(r['peak_rss_mib'], r['peak_rss_children_mib']):.0f} MiB), "
+        f"{r['messages']} messages",
+        flush=True,
+    )
+    for name, v in sensors.items():
+        t = v["generator_s"] + v["build_s"] + v["close_s"]
+        where = " (worker)" if "worker_pid" in v else ""
+        print(f"    {name:14s} {t:8.2f} s  {100 * t / total:5.1f} %{where}")
+    w = r["profile"]["writers_s"]
+    print(f"    {'bag writers':14s} {w:8.2f} s  {100 * w / total:5.1f} %")
+    for ww in r["profile"].get("worker_wait", []):
+        print(f"    main waited {ww['wait_s']:6.2f} s for {', '.join(ww['sensors'])}")
 
 
 if __name__ == "__main__":

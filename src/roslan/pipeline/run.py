@@ -455,57 +455,42 @@ def run_simulation(
                 raise ConfigError(msg)
             owners[t.topic] = s.config.name
             bag_topics.append(BagTopic(t.topic, t.msgtype))
-    scene = None
-    if config.scene is not None:
-        import roslan.scene as scene_mod
-
-        scene = scene_mod.load_scene(config.scene, base_dir=base_dir, seed=config.seed)
-        if not allow_collision:
-            hit = scene_mod.check_clearance(scene, traj)
-            if hit is not None:
-                msg = (
-                    f"scene {config.scene!r}: {hit}; "
-                    "change the trajectory or pass --allow-collision"
-                )
-                raise ConfigError(msg)
-
     n_workers = resolve_workers(
         config.output.workers if workers is None else workers, config.sensors
     )
     groups = plan_workers(config.sensors, n_workers) if sys.executable else []
+    # the worker interpreters start (imports) while this process loads the scene
+    pool: WorkerPool | None = WorkerPool(groups, config.sensors) if groups else None
+    try:
+        scene = None
+        if config.scene is not None:
+            import roslan.scene as scene_mod
 
-    # ---- 2. write into a temporary sibling
-    tmp = _make_temp(outdir)
+            scene = scene_mod.load_scene(config.scene, base_dir=base_dir, seed=config.seed)
+            if not allow_collision:
+                hit = scene_mod.check_clearance(scene, traj)
+                if hit is not None:
+                    msg = (
+                        f"scene {config.scene!r}: {hit}; "
+                        "change the trajectory or pass --allow-collision"
+                    )
+                    raise ConfigError(msg)
+        # ---- 2. write into a temporary sibling
+        tmp = _make_temp(outdir)
+    except BaseException:
+        if pool is not None:
+            pool.kill()
+        raise
     writers: MultiBagWriter | None = None
     progress: _Progress | None = None
     plot: _BackgroundPlot | None = None
-    pool: WorkerPool | None = None
     try:
         with _sigterm_as_interrupt():
             from roslan.trajectory.export import write_trajectory_files
 
             t_setup = time.perf_counter()
-            write_trajectory_files(traj, tmp, plot=False)
-            plot = _BackgroundPlot(traj, tmp)
-            if groups:  # the interpreters start up while this process exports the scene
-                pool = WorkerPool(groups, config.sensors)
-            if scene is not None:
-                import roslan.scene as scene_mod
-
-                scene_mod.export_scene(scene, tmp / "scene")
-            ctx = Context(
-                traj,
-                tmp,
-                seed=config.seed,
-                start_time_ns=config.output.start_time,
-                sensors=config.sensors,
-                scene_spec=config.scene,
-                base_dir=base_dir,
-                scene=scene,
-            )
-            writers = MultiBagWriter(tmp, fmts, bag_topics, config.output.compression)
             remote = pool.assigned if pool is not None else set()
-            if pool is not None:
+            if pool is not None:  # the workers render while this process sets up
                 pool.send(
                     lambda g: WorkerJob(
                         trajectory=config.trajectory,
@@ -522,6 +507,23 @@ def run_simulation(
                         profile=profile,
                     )
                 )
+            write_trajectory_files(traj, tmp, plot=False)
+            plot = _BackgroundPlot(traj, tmp)
+            if scene is not None:
+                import roslan.scene as scene_mod
+
+                scene_mod.export_scene(scene, tmp / "scene")
+            ctx = Context(
+                traj,
+                tmp,
+                seed=config.seed,
+                start_time_ns=config.output.start_time,
+                sensors=config.sensors,
+                scene_spec=config.scene,
+                base_dir=base_dir,
+                scene=scene,
+            )
+            writers = MultiBagWriter(tmp, fmts, bag_topics, config.output.compression)
             t_stream = time.perf_counter()
             # merge order: ground truth 0, sensor i -> i + 1 (ties resolve alike in workers)
             streams = [
