@@ -22,6 +22,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import json
+import signal
 import subprocess
 import sys
 import tempfile
@@ -83,13 +84,18 @@ def run_case(scale: float, workers: str) -> dict[str, Any]:
         proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         ps = psutil.Process(proc.pid)
         peak = 0
-        while proc.poll() is None:
-            try:
-                peak = max(peak, _tree_rss(ps))
-            except psutil.Error:
-                break
-            time.sleep(0.02)
-        out, err = proc.communicate()
+        try:
+            while proc.poll() is None:
+                try:
+                    peak = max(peak, _tree_rss(ps))
+                except psutil.Error:
+                    break
+                time.sleep(0.02)
+            out, err = proc.communicate()
+        finally:
+            if proc.poll() is None:  # interrupted: stop the simulation (it cleans up)
+                proc.terminate()
+                proc.wait()
         if proc.returncode != 0:
             raise SystemExit(f"simulation failed ({proc.returncode}):\n{err}")
     result: dict[str, Any] = json.loads(out.strip().splitlines()[-1])
@@ -108,6 +114,7 @@ def main() -> None:
     )
     ap.add_argument("--json", type=Path, default=None, help="also write the results here")
     args = ap.parse_args()
+    signal.signal(signal.SIGTERM, signal.default_int_handler)  # kill -> cleanup as Ctrl-C
     results = []
     for scale in args.scales:  # settings alternate: both see the same background load
         for workers in args.workers:

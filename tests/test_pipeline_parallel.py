@@ -158,6 +158,10 @@ def test_resolve_and_plan_workers(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(worker_mod, "usable_cpus", lambda: 16)
     assert resolve_workers("auto", s) == 3
     assert resolve_workers("auto", s[:1]) == 0  # no render-heavy sensor
+    # inside a multiprocessing worker (roslan dataset's Dask workers): already parallel
+    monkeypatch.setattr("multiprocessing.parent_process", lambda: object())
+    assert resolve_workers("auto", s) == 0
+    assert resolve_workers(2, s) == 2  # an explicit count is obeyed
     for bad in (-1, "many", True):
         with pytest.raises(ConfigError, match="workers"):
             resolve_workers(bad, s)

@@ -37,6 +37,7 @@ from __future__ import annotations
 
 import contextlib
 import heapq
+import multiprocessing
 import os
 import pickle
 import signal
@@ -126,13 +127,18 @@ def resolve_workers(workers: int | str, sensors: Sequence[SensorConfig]) -> int:
     """Number of worker processes for ``workers`` (``'auto'``, 0 or N >= 1).
 
     ``auto``: one per render-heavy sensor, at most the usable CPUs, and none on a
-    single-CPU machine or a job without render-heavy sensors. ``N``: at most N (never
-    more than there are render-heavy sensors). ``0``: everything in this process.
+    single-CPU machine, for a job without render-heavy sensors, or when this process is
+    itself a multiprocessing worker (``roslan dataset`` / Dask already runs simulations
+    side by side: more processes would only oversubscribe the CPUs and memory). ``N``: at
+    most N (never more than there are render-heavy sensors). ``0``: everything in this
+    process.
     """
     heavy = sum(1 for s in sensors if s.type in HEAVY_TYPES)
     if workers == "auto":
         cpus = usable_cpus()
-        return 0 if cpus < 2 else min(cpus, heavy)
+        if cpus < 2 or multiprocessing.parent_process() is not None:
+            return 0
+        return min(cpus, heavy)
     if isinstance(workers, bool) or not isinstance(workers, int) or workers < 0:
         msg = f"workers = {workers!r}: allowed 'auto', 0 (no worker processes) or an integer >= 1"
         raise ConfigError(msg)
