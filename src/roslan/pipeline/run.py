@@ -458,7 +458,10 @@ def run_simulation(
     n_workers = resolve_workers(
         config.output.workers if workers is None else workers, config.sensors
     )
-    groups = plan_workers(config.sensors, n_workers) if sys.executable else []
+    # (children need an interpreter to start and a POSIX fd to talk through)
+    groups = (
+        plan_workers(config.sensors, n_workers) if sys.executable and os.name == "posix" else []
+    )
     # the worker interpreters start (imports) while this process loads the scene
     pool: WorkerPool | None = WorkerPool(groups, config.sensors) if groups else None
     try:
