@@ -231,3 +231,25 @@ def test_edge_filter_leaves_textures_on_planes_alone(board: Scene) -> None:
     g = four.mean(axis=2)
     assert g.max() - g.min() > 0.3  # the checkerboard is in view
     np.testing.assert_allclose(one, four, atol=2e-3)
+
+
+@pytest.mark.parametrize("samples", [1, 4])
+def test_interleaved_resolutions_do_not_leak_between_frames(board: Scene, samples: int) -> None:
+    """A camera frame rendered after another resolution (e.g. the event camera's) equals the
+    same frame rendered on a fresh sequence: no state of one target leaks into another."""
+    r = gl.get_renderer(board)
+    K = np.array([[90.0, 0, 40.0], [0, 90.0, 30.0], [0, 0, 1]])
+    K_small = np.array([[40.0, 0, 16.0], [0, 40.0, 12.0], [0, 0, 1]])
+    T1 = look_down(0.1, 0.2, 2.5, tilt=0.3)
+    T2 = look_down(-0.3, 0.1, 2.0, tilt=0.1)
+    ref = r.render(T2, K, 80, 60, samples=samples)
+    r.render(T1, K, 80, 60, samples=samples)
+    r.render(T1, K_small, 32, 24, color=False, luminance=True, depth=True, samples=samples)
+    r.render(T1, K_small, 32, 24, color=False, depth=True)
+    again = r.render(T2, K, 80, 60, samples=samples)
+    assert ref.color is not None
+    assert again.color is not None
+    assert ref.depth is not None
+    assert again.depth is not None
+    np.testing.assert_array_equal(again.color, ref.color)
+    np.testing.assert_array_equal(again.depth, ref.depth)

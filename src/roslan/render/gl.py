@@ -794,7 +794,9 @@ class Renderer:
         zrow = tuple(float(x) for x in T_cam_world[2])
         first, count, group = self.visible_ranges(clip)
         ctx = self.ctx
-        ctx.viewport = (0, 0, width, height)
+        # No ctx.viewport here: in moderngl it writes the viewport of whichever framebuffer
+        # is bound *now* (another resolution's), corrupting that target for its next frame.
+        # Each target framebuffer keeps its own full-size viewport, applied by fbo.use().
 
         if not (color or luminance):
             return RenderResult(None, self._render_depth(width, height, mvp, zrow, first, count))
