@@ -220,7 +220,31 @@ class BagWriter(Protocol):
     def abort(self) -> None: ...
 
 
-class Ros1BagWriter:
+class _BagWriter:
+    """What both bag flavours share once open: one rosbags writer, one connection per topic."""
+
+    _writer: Any
+    _conns: dict[str, Connection]
+
+    def write(self, topic: str, stamp_ns: int, data: bytes) -> None:
+        self._writer.write(self._conns[topic], stamp_ns, data)
+
+    def connection(self, topic: str) -> Connection:
+        return self._conns[topic]
+
+    @property
+    def raw_write(self) -> Any:
+        """rosbags' ``write(connection, timestamp, data)`` of this bag."""
+        return self._writer.write
+
+    def close(self) -> None:
+        self._writer.close()
+
+    def abort(self) -> None:
+        self._writer.abort()
+
+
+class Ros1BagWriter(_BagWriter):
     """ROS 1 bag v2.0 at ``path`` (must not exist), chunked, ``compression`` none/lz4/bz2."""
 
     def __init__(
@@ -245,25 +269,8 @@ class Ros1BagWriter:
                 latching=1 if t.latched else None,
             )
 
-    def write(self, topic: str, stamp_ns: int, data: bytes) -> None:
-        self._writer.write(self._conns[topic], stamp_ns, data)
 
-    def connection(self, topic: str) -> Connection:
-        return self._conns[topic]
-
-    @property
-    def raw_write(self) -> Any:
-        """rosbags' ``write(connection, timestamp, data)`` of this bag."""
-        return self._writer.write
-
-    def close(self) -> None:
-        self._writer.close()
-
-    def abort(self) -> None:
-        self._writer.abort()
-
-
-class Ros2BagWriter:
+class Ros2BagWriter(_BagWriter):
     """ROS 2 bag folder at ``path`` (must not exist) with MCAP storage and CDR messages."""
 
     def __init__(self, path: Path, store: MessageStore | None = None) -> None:
@@ -283,23 +290,6 @@ class Ros2BagWriter:
                 typestore=self.store.typestore,
                 offered_qos_profiles=_ros2_qos(t.latched),
             )
-
-    def write(self, topic: str, stamp_ns: int, data: bytes) -> None:
-        self._writer.write(self._conns[topic], stamp_ns, data)
-
-    def connection(self, topic: str) -> Connection:
-        return self._conns[topic]
-
-    @property
-    def raw_write(self) -> Any:
-        """rosbags' ``write(connection, timestamp, data)`` of this bag."""
-        return self._writer.write
-
-    def close(self) -> None:
-        self._writer.close()
-
-    def abort(self) -> None:
-        self._writer.abort()
 
 
 class MultiBagWriter:
