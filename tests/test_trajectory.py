@@ -238,8 +238,11 @@ def configs(draw: st.DrawFn) -> dict[str, object]:
     kap = {}
     for name in ("x", "y", "roll", "pitch", "yaw"):
         kap[name] = draw(st.floats(0.05, 1.0)) / k  # k*kappa in (0, 1]
-    pos = [draw(st.floats(-50, 50)), draw(st.floats(-50, 50)), draw(st.floats(0.01, 50))]
-    rpy = [draw(st.floats(-1.5, 1.5)) for _ in range(3)]
+    # gaps below a nanometre are zero here: a subnormal gap's g'' underflows to 0 in float64
+    xy = [draw(st.floats(-50, 50, allow_subnormal=False)) for _ in range(2)]
+    pos = [*(g if abs(g) >= 1e-9 else 0.0 for g in xy), draw(st.floats(0.01, 50))]
+    rpy = [draw(st.floats(-1.5, 1.5, allow_subnormal=False)) for _ in range(3)]
+    rpy = [a if abs(a) >= 1e-9 else 0.0 for a in rpy]
     return {
         "k": k,
         "kappa": kap,
