@@ -12,6 +12,7 @@ at a time.
 
 from __future__ import annotations
 
+import argparse
 import json
 import math
 from collections.abc import Iterator, Sequence
@@ -33,6 +34,7 @@ __all__ = [
     "LidarSequence",
     "PlotError",
     "TrajectoryTable",
+    "add_outdir_command",
     "find_images",
     "find_lidar",
     "load_imu",
@@ -45,6 +47,22 @@ __all__ = [
     "seconds_to_ns",
     "sensor_configs",
 ]
+
+
+def add_outdir_command(
+    subparsers: Any, name: str, help_text: str, doc: str | None, output_help: str
+) -> argparse.ArgumentParser:
+    """A subcommand reading one ``roslan simulate`` OUTDIR, with an optional ``-o`` file."""
+    p: argparse.ArgumentParser = subparsers.add_parser(
+        name,
+        help=help_text,
+        description=doc,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument("outdir", metavar="OUTDIR", help="output folder of a roslan simulate run")
+    p.add_argument("-o", "--output", type=Path, default=None, help=output_help)
+    return p
+
 
 F64 = NDArray[np.float64]
 I64 = NDArray[np.int64]

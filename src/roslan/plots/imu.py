@@ -24,6 +24,7 @@ from numpy.typing import NDArray
 from roslan.plots.data import (
     ImuData,
     PlotError,
+    add_outdir_command,
     find_imu_files,
     load_groundtruth,
     load_imu,
@@ -192,19 +193,12 @@ def _run(args: argparse.Namespace) -> int:
 
 def register(sub: Any) -> None:
     """Add ``imu`` to the ``roslan plot`` subcommands."""
-    p = sub.add_parser(
+    p = add_outdir_command(
+        sub,
         "imu",
-        help="accelerometer and gyroscope samples against the noise-free truth",
-        description=__doc__,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
-    p.add_argument("outdir", metavar="OUTDIR", help="output folder of a roslan simulate run")
-    p.add_argument(
-        "-o",
-        "--output",
-        type=Path,
-        default=None,
-        help="PNG to write (default OUTDIR/plots/imu.png)",
+        "accelerometer and gyroscope samples against the noise-free truth",
+        __doc__,
+        "PNG to write (default OUTDIR/plots/imu.png)",
     )
     p.add_argument(
         "--imu",

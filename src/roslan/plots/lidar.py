@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from roslan.plots.data import LidarScan, LidarSequence, PlotError, find_lidar
+from roslan.plots.data import LidarScan, LidarSequence, PlotError, add_outdir_command, find_lidar
 from roslan.plots.style import figure, save_figure, style
 
 __all__ = ["COLOR_BY", "choose_scan", "plot_lidar", "register", "scan_values"]
@@ -169,19 +169,12 @@ def _run(args: argparse.Namespace) -> int:
 
 def register(sub: Any) -> None:
     """Add ``lidar`` to the ``roslan plot`` subcommands."""
-    p = sub.add_parser(
+    p = add_outdir_command(
+        sub,
         "lidar",
-        help="one LiDAR scan as a coloured point cloud (perspective and bird's-eye)",
-        description=__doc__,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
-    p.add_argument("outdir", metavar="OUTDIR", help="output folder of a roslan simulate run")
-    p.add_argument(
-        "-o",
-        "--output",
-        type=Path,
-        default=None,
-        help="PNG to write (default OUTDIR/plots/lidar_<name>.png)",
+        "one LiDAR scan as a coloured point cloud (perspective and bird's-eye)",
+        __doc__,
+        "PNG to write (default OUTDIR/plots/lidar_<name>.png)",
     )
     p.add_argument(
         "--sensor",

@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from roslan.plots.data import PlotError
+from roslan.plots.data import PlotError, add_outdir_command
 from roslan.plots.media import RunMedia, render_events
 from roslan.plots.style import figure, save_figure, style
 
@@ -209,14 +209,11 @@ def _run(args: argparse.Namespace) -> int:
 
 def register(sub: Any) -> None:
     """Add ``overview`` to the ``roslan plot`` subcommands."""
-    p = sub.add_parser(
+    p = add_outdir_command(
+        sub,
         "overview",
-        help="one small figure of a run: trajectory, camera, event frame, LiDAR scan",
-        description=__doc__,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
-    p.add_argument("outdir", metavar="OUTDIR", help="output folder of a roslan simulate run")
-    p.add_argument(
-        "-o", "--output", type=Path, default=None, help="PNG to write (default OUTDIR/overview.png)"
+        "one small figure of a run: trajectory, camera, event frame, LiDAR scan",
+        __doc__,
+        "PNG to write (default OUTDIR/overview.png)",
     )
     p.set_defaults(func=_run)

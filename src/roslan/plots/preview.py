@@ -27,7 +27,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from roslan.plots.data import LidarScan, PlotError
+from roslan.plots.data import LidarScan, PlotError, add_outdir_command
 from roslan.plots.media import RunMedia, render_events
 from roslan.plots.raster import (
     BACKGROUND_RGB,
@@ -350,19 +350,12 @@ def _run(args: argparse.Namespace) -> int:
 
 def register(subparsers: Any) -> None:
     """Add the top-level ``preview`` command."""
-    p = subparsers.add_parser(
+    p = add_outdir_command(
+        subparsers,
         "preview",
-        help="synchronized video of a run: camera, events, LiDAR, trajectory, time",
-        description=__doc__,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
-    p.add_argument("outdir", metavar="OUTDIR", help="output folder of a roslan simulate run")
-    p.add_argument(
-        "-o",
-        "--output",
-        type=Path,
-        default=None,
-        help="video to write (default OUTDIR/preview.mp4, or .gif with --gif)",
+        "synchronized video of a run: camera, events, LiDAR, trajectory, time",
+        __doc__,
+        "video to write (default OUTDIR/preview.mp4, or .gif with --gif)",
     )
     p.add_argument("--gif", action="store_true", help="write an animated GIF (half size, <=12 fps)")
     p.add_argument("--fps", type=float, default=30.0, help="video frames per second (default 30)")

@@ -20,6 +20,7 @@ from numpy.typing import NDArray
 
 from roslan.plots.data import (
     TrajectoryTable,
+    add_outdir_command,
     load_run,
     load_summary,
     load_trajectory_table,
@@ -291,18 +292,11 @@ def _run(args: argparse.Namespace) -> int:
 
 def register(sub: Any) -> None:
     """Add ``trajectory`` to the ``roslan plot`` subcommands."""
-    p = sub.add_parser(
+    p = add_outdir_command(
+        sub,
         "trajectory",
-        help="3-D landing path with velocity vectors and orientation triads; gaps and tau vs time",
-        description=__doc__,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
-    p.add_argument("outdir", metavar="OUTDIR", help="output folder of a roslan simulate run")
-    p.add_argument(
-        "-o",
-        "--output",
-        type=Path,
-        default=None,
-        help="PNG to write (default OUTDIR/plots/trajectory.png)",
+        "3-D landing path with velocity vectors and orientation triads; gaps and tau vs time",
+        __doc__,
+        "PNG to write (default OUTDIR/plots/trajectory.png)",
     )
     p.set_defaults(func=_run)
