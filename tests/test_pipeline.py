@@ -262,33 +262,44 @@ def test_interrupted_run_leaves_nothing(
     assert tree_bytes(old) == before  # the old complete output is untouched
 
 
-def test_killed_run_leaves_no_complete_outdir(tmp_path: Path) -> None:
-    """SIGKILL mid-run: only a hidden .partial folder remains, never OUTDIR or a run.json."""
-    script = textwrap.dedent(
-        f"""
-        import sys, time
-        sys.path.insert(0, {str(Path(__file__).parent)!r})
-        from pathlib import Path
-        from pipeline_helpers import short_config
-        from roslan.sensors.imu import Imu
-        import roslan.pipeline.run as run
-        class Slow(Imu):
-            def messages(self, ctx):
-                for i, m in enumerate(super().messages(ctx)):
-                    if i == 50:
-                        print("started", flush=True)
-                        time.sleep(60)
-                    yield m
-        run.sensor_class = lambda name: Slow
+_SLOW_RUN = textwrap.dedent(
+    f"""
+    import sys, time
+    sys.path.insert(0, {str(Path(__file__).parent)!r})
+    from pathlib import Path
+    from pipeline_helpers import short_config
+    from roslan.sensors.imu import Imu
+    import roslan.pipeline.run as run
+    class Slow(Imu):
+        def messages(self, ctx):
+            for i, m in enumerate(super().messages(ctx)):
+                if i == 50:
+                    print("started", flush=True)
+                    time.sleep(60)
+                yield m
+    run.sensor_class = lambda name: Slow
+    try:
         run.run_simulation(short_config(), Path(sys.argv[1]), quiet=True)
-        """
-    )
-    target = tmp_path / "out"
+    except KeyboardInterrupt:
+        sys.exit(130)
+    """
+)
+
+
+def _start_slow_run(target: Path) -> subprocess.Popen[str]:
+    """A simulation in a child process, stopped mid-stream until signalled."""
     proc = subprocess.Popen(
-        [sys.executable, "-c", script, str(target)], stdout=subprocess.PIPE, text=True
+        [sys.executable, "-c", _SLOW_RUN, str(target)], stdout=subprocess.PIPE, text=True
     )
     assert proc.stdout is not None
     assert proc.stdout.readline().strip() == "started"
+    return proc
+
+
+def test_killed_run_leaves_no_complete_outdir(tmp_path: Path) -> None:
+    """SIGKILL mid-run: only a hidden .partial folder remains, never OUTDIR or a run.json."""
+    target = tmp_path / "out"
+    proc = _start_slow_run(target)
     proc.send_signal(signal.SIGKILL)
     proc.wait(timeout=30)
     assert not target.exists()
@@ -298,33 +309,7 @@ def test_killed_run_leaves_no_complete_outdir(tmp_path: Path) -> None:
 
 
 def test_sigterm_cleans_up(tmp_path: Path) -> None:
-    script = textwrap.dedent(
-        f"""
-        import sys, time
-        sys.path.insert(0, {str(Path(__file__).parent)!r})
-        from pathlib import Path
-        from pipeline_helpers import short_config
-        from roslan.sensors.imu import Imu
-        import roslan.pipeline.run as run
-        class Slow(Imu):
-            def messages(self, ctx):
-                for i, m in enumerate(super().messages(ctx)):
-                    if i == 50:
-                        print("started", flush=True)
-                        time.sleep(60)
-                    yield m
-        run.sensor_class = lambda name: Slow
-        try:
-            run.run_simulation(short_config(), Path(sys.argv[1]), quiet=True)
-        except KeyboardInterrupt:
-            sys.exit(130)
-        """
-    )
-    proc = subprocess.Popen(
-        [sys.executable, "-c", script, str(tmp_path / "out")], stdout=subprocess.PIPE, text=True
-    )
-    assert proc.stdout is not None
-    assert proc.stdout.readline().strip() == "started"
+    proc = _start_slow_run(tmp_path / "out")
     proc.send_signal(signal.SIGTERM)
     assert proc.wait(timeout=30) == 130
     assert list(tmp_path.iterdir()) == []
