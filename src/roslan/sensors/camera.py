@@ -79,7 +79,6 @@ U8 = NDArray[np.uint8]
 
 IMAGE = "sensor_msgs/msg/Image"
 CAMERA_INFO = "sensor_msgs/msg/CameraInfo"
-BASE_FRAME = "base_link"
 
 Positive = Annotated[FiniteFloat, Field(gt=0)]
 NonNegative = Annotated[FiniteFloat, Field(ge=0)]
@@ -310,10 +309,9 @@ class _CameraBase:
         return out
 
     def static_transforms(self) -> list[StaticTransform]:
-        c = self.config
-        out = [StaticTransform(BASE_FRAME, c.frame, self._T_body_sensor.copy())]
-        out += [StaticTransform(c.frame, e.frame, e.T_sensor_optical.copy()) for e in self._eyes]
-        return out
+        # base_link -> frame comes from the extrinsics (pipeline); the eyes are ours
+        frame = self.config.frame
+        return [StaticTransform(frame, e.frame, e.T_sensor_optical.copy()) for e in self._eyes]
 
     def _plans(self, ctx: SimContext) -> Any:
         renderer = ctx.renderer()

@@ -128,7 +128,7 @@ class Laser:
         return [TopicSpec(self.config.topic, LASERSCAN)]
 
     def static_transforms(self) -> list[StaticTransform]:
-        return [StaticTransform("base_link", self.config.frame, self.T_body_sensor)]
+        return []  # base_link -> frame comes from the extrinsics (pipeline)
 
     def scan(
         self, trajectory: Any, caster: Any, t0_ns: int, rng: np.random.Generator

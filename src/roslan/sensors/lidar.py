@@ -281,7 +281,7 @@ class Lidar:
         return [TopicSpec(self.config.topic, PointCloud2)]
 
     def static_transforms(self) -> list[StaticTransform]:
-        return [StaticTransform("base_link", self.config.frame, self.T_body_sensor)]
+        return []  # base_link -> frame comes from the extrinsics (pipeline)
 
     def scan_times_ns(self, duration_ns: int) -> NDArray[np.int64]:
         """Start instants of the turns within [0, duration] (trajectory ns)."""
