@@ -15,12 +15,13 @@ from __future__ import annotations
 
 from typing import Literal
 
+import numba
 import numpy as np
 from numpy.typing import NDArray
 
 from roslan.trajectory.generator import Trajectory
 
-__all__ = ["AdaptiveSampler", "camera_twist", "motion_field", "pixel_rays"]
+__all__ = ["AdaptiveSampler", "camera_twist", "max_flow_speed", "motion_field", "pixel_rays"]
 
 F64 = NDArray[np.float64]
 Strategy = Literal["brightness", "optical_flow", "fixed"]
@@ -68,6 +69,59 @@ def motion_field(
     out[..., 0] = K[0, 0] * dx
     out[..., 1] = K[1, 1] * dy
     return out
+
+
+@numba.njit(cache=True, nogil=True)
+def _max_flow_speed(d, x, y, fx, fy, vx, vy, vz, wx, wy, wz):  # type: ignore[no-untyped-def]
+    # motion_field's float64 operations in the same order, its float32 rounding, then the
+    # float32 hypot of np.hypot on float32 (computed in double: exact before rounding)
+    best = np.float32(0.0)
+    for i in range(d.shape[0]):
+        for j in range(d.shape[1]):
+            z = np.float64(d[i, j])
+            inv_z = 1.0 / z if (np.isfinite(z) and z > 0.0) else 0.0
+            a = x[i, j]
+            b = y[i, j]
+            dx = (-vx + a * vz) * inv_z + a * b * wx - (1.0 + a * a) * wy + b * wz
+            dy = (-vy + b * vz) * inv_z + (1.0 + b * b) * wx - a * b * wy - a * wz
+            u = np.float64(np.float32(fx * dx))
+            v = np.float64(np.float32(fy * dy))
+            s = np.float32(np.sqrt(u * u + v * v))
+            if s > best:
+                best = s
+    return best
+
+
+def max_flow_speed(
+    depth: NDArray[np.floating],
+    K: NDArray[np.floating],
+    v_cam: NDArray[np.floating],
+    w_cam: NDArray[np.floating],
+    rays: tuple[F64, F64] | None = None,
+) -> float:
+    """``max |flow|`` over the image, px/s: what the ``optical_flow`` sampling needs, in one
+    pass without the (H, W, 2) field of :func:`motion_field` (same arguments, same value)."""
+    d = np.asarray(depth)
+    H, W = d.shape
+    x, y = rays if rays is not None else pixel_rays(K, W, H)
+    K = np.asarray(K, dtype=np.float64)
+    vx, vy, vz = (float(a) for a in v_cam)
+    wx, wy, wz = (float(a) for a in w_cam)
+    return float(
+        _max_flow_speed(
+            d,
+            np.ascontiguousarray(x),
+            np.ascontiguousarray(y),
+            float(K[0, 0]),
+            float(K[1, 1]),
+            vx,
+            vy,
+            vz,
+            wx,
+            wy,
+            wz,
+        )
+    )
 
 
 def camera_twist(

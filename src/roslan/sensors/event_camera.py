@@ -36,7 +36,13 @@ from roslan.config.base import FiniteFloat
 from roslan.events.files import EventH5Writer, EventTextWriter
 from roslan.events.model import EVENT_PRESETS, EventBatch, EventGenerator, EventModelParams
 from roslan.events.ros import EVENT_ARRAY, pack_event_array
-from roslan.events.sampling import AdaptiveSampler, camera_twist, motion_field, pixel_rays
+from roslan.events.sampling import (
+    AdaptiveSampler,
+    camera_twist,
+    max_flow_speed,
+    motion_field,
+    pixel_rays,
+)
 from roslan.io.messages import MessageStore
 from roslan.sensors.base import (
     Message,
@@ -238,6 +244,13 @@ class _Camera:
         )
         return out
 
+    def max_flow_speed(self, depth: NDArray[np.floating], v: F64, w: F64) -> float:
+        """``max |flow|`` of the output pixels, px/s (one pass for a pinhole camera)."""
+        if self.model.is_pinhole:
+            return max_flow_speed(depth, self.K, v, w, self.rays)
+        f = self.flow(depth, v, w)
+        return float(np.max(np.hypot(f[..., 0], f[..., 1])))
+
     def flow(self, depth: NDArray[np.floating], v: F64, w: F64) -> NDArray[np.float32]:
         """(H, W, 2) float32 image motion of the output pixels, px/s."""
         if self.model.is_pinhole:
@@ -369,10 +382,12 @@ class EventCamera:
                     wr.write(batch)
                 buf.append(batch)
             flow = None
-            if depth is not None and (
-                c.sampling == "optical_flow" or (c.optic_flow and t in gt_set)
-            ):
+            speed = 0.0  # max |flow|, px/s (optical_flow sampling)
+            if depth is not None and c.optic_flow and t in gt_set:
                 flow = cam.flow(depth, v, w)
+                speed = float(np.max(np.hypot(flow[..., 0], flow[..., 1])))
+            elif depth is not None and c.sampling == "optical_flow":
+                speed = cam.max_flow_speed(depth, v, w)
             # messages of this instant
             out: list[Message] = []
             if t in info_set:
@@ -395,9 +410,7 @@ class EventCamera:
                 yield heapq.heappop(pending)[2]
             # next instant: ESIM's lambda / max rate of change
             if c.sampling == "optical_flow":
-                rate = (
-                    float(np.max(np.hypot(flow[..., 0], flow[..., 1]))) if flow is not None else 0.0
-                )
+                rate = speed
             elif c.sampling == "brightness":
                 L = gen.lp.copy()
                 if prev_L is None:
