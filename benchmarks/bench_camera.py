@@ -1,4 +1,3 @@
-# ruff: noqa: B023  (closures are timed inside the loop that defines them)
 """Camera throughput: one 640x480 rgb8 frame of the warehouse (plumb_bob distortion,
 noise-free, sRGB encoding and sensor_msgs/Image packing included), frames/s at 346x260
 mono8, and the ratio to a bare moderngl draw + readback of the same scene.
@@ -7,14 +6,23 @@ The bare baseline is a minimal moderngl program on the same context: one VBO of 
 scene triangles (no index buffer, no culling), a constant-colour shader, no MSAA, an
 RGBA8 target and a uint8 RGB readback, at the camera's render size and pose.
 
-Run by hand: ``.venv/bin/python benchmarks/bench_camera.py`` (``ROSLAN_MSAA_SAMPLES=4``
+Before/after in one run: every variant is timed in interleaved rounds (the machine is
+shared): "plan 1.0" renders the distorted camera at the centre's density everywhere
+(``render_plan(scale=1.0)``, 805x605), "plan auto" at the default scale (645x485);
+"index order" / "front to back" is :attr:`Renderer.front_to_back`. Reported: best
+wall time of one frame, and process CPU time per frame (all threads, llvmpipe's
+included) averaged over the runs.
+
+Run by hand: ``.venv/bin/python benchmarks/bench_camera.py [ROUNDS]`` (``ROSLAN_MSAA_SAMPLES=4``
 for MSAA on llvmpipe).
 """
 
 from __future__ import annotations
 
 import os
+import sys
 import time
+from collections.abc import Callable
 
 import numpy as np
 
@@ -66,15 +74,48 @@ class _Ctx:
         return self._r
 
 
-def _time(f, n: int) -> float:  # type: ignore[no-untyped-def]
-    f()
-    t = time.perf_counter()
-    for _ in range(n):
+class _Timer:
+    """Best wall time and mean process CPU time per call, over interleaved rounds."""
+
+    def __init__(self) -> None:
+        self.best: dict[str, float] = {}
+        self.cpu: dict[str, list[float]] = {}
+
+    def run(self, name: str, f: Callable[[], object], n: int = 10) -> None:
         f()
-    return (time.perf_counter() - t) / n
+        c0 = time.process_time()
+        for _ in range(n):
+            t = time.perf_counter()
+            f()
+            self.best[name] = min(self.best.get(name, 1e9), time.perf_counter() - t)
+        self.cpu.setdefault(name, []).append((time.process_time() - c0) / n)
+
+    def ms(self, name: str) -> str:
+        cpu = sum(self.cpu[name]) / len(self.cpu[name])
+        return f"{self.best[name] * 1e3:5.1f} ms (cpu {cpu * 1e3:5.1f} ms)"
+
+
+def _camera(w: int, h: int, enc: str, dist: bool) -> Camera:
+    cfg = CameraConfig.model_validate(
+        {
+            "type": "camera",
+            "name": "c",
+            "rate": 30.0,
+            "topic": "/c",
+            "resolution": [w, h],
+            "encoding": enc,
+            **(
+                {"distortion_model": "plumb_bob", "distortion_coeffs": [-0.2, 0.05, 0, 0, 0]}
+                if dist
+                else {}
+            ),
+        }
+    )
+    return Camera(cfg)
 
 
 def main() -> None:
+    rounds = int(sys.argv[1]) if len(sys.argv) > 1 else 5
     scene = load_scene("warehouse")
     r = get_renderer(scene)
     store = MessageStore(Flavor.ROS1)
@@ -87,61 +128,99 @@ def main() -> None:
         [0, 1, 0],
         [-np.sin(pitch), 0, np.cos(pitch)],
     ]
+    T = T_wb @ T_LINK_OPTICAL
     bare_draw = _Bare(scene)
+    load0 = os.getloadavg()[0]
     print(
         f"scene warehouse: {scene.n_triangles} triangles, {r.n_clusters} culling clusters; "
         f"{r.ctx.info['GL_RENDERER']}; MSAA samples {r.samples}; "
-        f"load average {os.getloadavg()[0]:.2f}"
+        f"LP_NUM_THREADS={os.environ.get('LP_NUM_THREADS', '-')}; {rounds} rounds"
     )
-    for w, h, enc, dist in [(640, 480, "rgb8", True), (346, 260, "mono8", False)]:
-        cfg = CameraConfig.model_validate(
-            {
-                "type": "camera",
-                "name": "c",
-                "rate": 30.0,
-                "topic": "/c",
-                "resolution": [w, h],
-                "encoding": enc,
-                **(
-                    {"distortion_model": "plumb_bob", "distortion_coeffs": [-0.2, 0.05, 0, 0, 0]}
-                    if dist
-                    else {}
-                ),
-            }
-        )
-        cam = Camera(cfg)
-        cam._plans(_Ctx(r))  # type: ignore[arg-type]
+    rng = np.random.default_rng(0)
+    timer = _Timer()
+    cases: list[tuple[str, Callable[[], object], bool]] = []  # name, call, front to back
+    sizes: dict[str, str] = {}
+
+    def frame(cam: Camera, enc: str) -> Callable[[], object]:
         e = cam._eyes[0]
-        rng = np.random.default_rng(0)
 
-        def frame() -> None:
+        def f() -> object:
             img = cam.finish_image(cam.render_linear(r, e, T_wb[None]), rng)
-            store.serialize(_image(store, "c_optical", 1, 0, img, enc), "sensor_msgs/msg/Image")
-
-        T = T_wb @ T_LINK_OPTICAL
-        plan = e.plan
-        assert plan is not None
-
-        mono = enc == "mono8"
-
-        def render_only() -> None:
-            r.render(
-                T, plan.K, plan.width, plan.height, color=not mono, depth=False, luminance=mono
+            return store.serialize(
+                _image(store, "c_optical", 1, 0, img, enc), "sensor_msgs/msg/Image"
             )
 
-        def bare() -> None:
-            bare_draw(T, plan.K, plan.width, plan.height, 80.0)
+        return f
 
-        n = 30
-        t_frame = _time(frame, n)
-        t_render = _time(render_only, n)
-        t_bare = _time(bare, n)
-        print(
-            f"{w}x{h} {enc}{' plumb_bob' if dist else ''} (render {plan.width}x{plan.height}): "
-            f"{t_frame * 1e3:.1f} ms/frame ({1 / t_frame:.0f} frames/s), of which "
-            f"Renderer.render {t_render * 1e3:.1f} ms; bare moderngl draw+readback "
-            f"{t_bare * 1e3:.1f} ms; ratio frame/bare {t_frame / t_bare:.2f}"
+    # 640x480 rgb8 plumb_bob: plan scale 1.0 (before) and auto (default)
+    for label, scale in (("plan 1.0", 1.0), ("plan auto", None)):
+        cam = _camera(640, 480, "rgb8", True)
+        cam._plans(_Ctx(r))  # type: ignore[arg-type]
+        e = cam._eyes[0]
+        e.plan = e.model.render_plan(r.max_size, scale=scale)
+        p = e.plan
+        sizes[label] = f"{p.width}x{p.height}, f {p.K[0, 0]:.1f}"
+        for ftb in (False, True):
+            order = "front to back" if ftb else "index order"
+            cases.append(
+                (f"640x480 rgb8 plumb_bob frame, {label}, {order}", frame(cam, "rgb8"), ftb)
+            )
+        cases.append(
+            (
+                f"  Renderer.render(color) {p.width}x{p.height}, front to back",
+                lambda p=p: r.render(T, p.K, p.width, p.height, color=True, depth=False),
+                True,
+            )
         )
+        cases.append(
+            (
+                f"  bare moderngl draw+readback {p.width}x{p.height}",
+                lambda p=p: bare_draw(T, p.K, p.width, p.height, 80.0),
+                True,
+            )
+        )
+    # 346x260: mono8 frame and the event camera's render (luminance [+ depth])
+    cam = _camera(346, 260, "mono8", False)
+    cam._plans(_Ctx(r))  # type: ignore[arg-type]
+    p = cam._eyes[0].plan
+    assert p is not None
+    for ftb in (False, True):
+        order = "front to back" if ftb else "index order"
+        cases.append((f"346x260 mono8 frame, {order}", frame(cam, "mono8"), ftb))
+        for dep in (False, True):
+            cases.append(
+                (
+                    f"  Renderer.render(luminance{', depth' if dep else ''}) 346x260, {order}",
+                    lambda dep=dep: r.render(
+                        T, p.K, 346, 260, color=False, depth=dep, luminance=True
+                    ),
+                    ftb,
+                )
+            )
+    cases.append(
+        ("  bare moderngl draw+readback 346x260", lambda: bare_draw(T, p.K, 346, 260, 80.0), True)
+    )
+
+    for _ in range(rounds):
+        for name, f, ftb in cases:
+            r.front_to_back = ftb
+            timer.run(name, f)
+    r.front_to_back = True
+    print(
+        f"render plans: {sizes}; load average {load0:.2f} at start, {os.getloadavg()[0]:.2f} at end"
+    )
+    for name, _, _ in cases:
+        print(f"{name}: {timer.ms(name)}")
+    a = "640x480 rgb8 plumb_bob frame, plan auto, front to back"
+    b = "640x480 rgb8 plumb_bob frame, plan 1.0, index order"
+    bare = f"  bare moderngl draw+readback {sizes['plan auto'].split(',')[0]}"
+    m = timer.best["346x260 mono8 frame, front to back"]
+    m_bare = timer.best["  bare moderngl draw+readback 346x260"]
+    print(
+        f"ratios: 640x480 frame after/before {timer.best[a] / timer.best[b]:.2f}; "
+        f"frame/bare {timer.best[a] / timer.best[bare]:.2f}; 346x260 mono8 frame/bare "
+        f"{m / m_bare:.2f}; 346x260 mono8 {1 / m:.0f} frames/s"
+    )
 
 
 if __name__ == "__main__":

@@ -19,9 +19,13 @@ def board() -> Scene:
     return board_scene()
 
 
-def _render_model(scene: Scene, model: CameraModel, T: np.ndarray) -> np.ndarray:
+def _render_model(
+    scene: Scene, model: CameraModel, T: np.ndarray, scale: float | None = None
+) -> np.ndarray:
     r = gl.get_renderer(scene)
-    plan = model.render_plan(r.max_size)
+    plan = model.render_plan(r.max_size, scale=scale)
+    if not plan.identity:
+        assert (plan.K[0, 0] < model.fx) == (scale is None)  # the default reduces density
     col = r.render(T, plan.K, plan.width, plan.height, depth=False).color
     assert col is not None
     if not plan.identity:
@@ -30,19 +34,23 @@ def _render_model(scene: Scene, model: CameraModel, T: np.ndarray) -> np.ndarray
 
 
 @pytest.mark.parametrize(
-    ("model_name", "coeffs"),
+    ("model_name", "coeffs", "scale"),
     [
-        ("none", ()),
-        ("plumb_bob", (-0.25, 0.08, 0.002, -0.001, -0.01)),
-        ("equidistant", (0.05, -0.02, 0.01, -0.003)),
+        ("none", (), None),
+        ("plumb_bob", (-0.25, 0.08, 0.002, -0.001, -0.01), None),
+        ("plumb_bob", (-0.25, 0.08, 0.002, -0.001, -0.01), 1.0),
+        ("equidistant", (0.05, -0.02, 0.01, -0.003), None),
+        ("equidistant", (0.05, -0.02, 0.01, -0.003), 1.0),
     ],
 )
 def test_projection_matches_opencv(
-    board: Scene, model_name: str, coeffs: tuple[float, ...]
+    board: Scene, model_name: str, coeffs: tuple[float, ...], scale: float | None
 ) -> None:
+    """Corners within 0.5 px of OpenCV's projection, at the default (reduced) render
+    density of distorted lenses and at the centre's density everywhere (scale 1)."""
     model = CameraModel.create(320, 240, 210.0, 215.0, 161.3, 118.7, model_name, coeffs)
     T = look_down(0.13, -0.07, 5.0, tilt=0.2)
-    img = _render_model(board, model, T)
+    img = _render_model(board, model, T, scale)
     found = detect_corners(img)
     assert found is not None, "checkerboard not detected"
     T_cw = np.linalg.inv(T)
@@ -189,22 +197,36 @@ def test_culling_keeps_every_visible_triangle() -> None:
     assert r.n_clusters > 50
     K = np.array([[50.0, 0, 40.0], [0, 50.0, 30.0], [0, 0, 1]])
     tri = np.stack([o.vertices[o.faces] for o in objs]).reshape(-1, 3, 3).astype(np.float64)
+    centres = np.stack([o.vertices.mean(axis=0) for o in objs]).astype(np.float64)
     for k in range(5):
         T = look_down(*rng.uniform(-20, 20, size=2), 6.0 + 4 * k, tilt=0.3 * k)
         P = gl.projection_from_K(K, 80, 60, r.near, 200.0) @ np.linalg.inv(T)
         clip = np.c_[tri.reshape(-1, 3), np.ones(tri.shape[0] * 3)] @ P.T
         w = clip[:, 3:4]
         inside = np.all((np.abs(clip[:, :3]) < w) & (w > 0), axis=1).reshape(-1, 3).any(axis=1)
-        first, count, _ = r.visible_ranges(P)
         seen = inside.reshape(len(objs), 2).any(axis=1)  # per quad
-        drawn = np.zeros(len(objs), bool)
         # index position -> quad: the renderer reorders faces; read its index buffer
         idx = np.frombuffer(r._ibo.read(), np.uint32)
-        for f, n in zip(first.tolist(), count.tolist(), strict=True):
-            drawn[idx[f : f + n] // 4] = True  # 4 vertices per quad, uploaded in order
-        assert seen.sum() > 0
-        assert np.all(drawn[seen]), "a visible triangle was culled"
-        assert drawn.sum() < drawn.size  # and culling did cull
+        eye = T[:3, 3]
+        drawn_by: list[np.ndarray] = []
+        for order_eye in (None, eye):
+            first, count, _ = r.visible_ranges(P, order_eye)
+            drawn = np.zeros(len(objs), bool)
+            nearest = []  # per run: distance of its nearest quad centre
+            for f, n in zip(first.tolist(), count.tolist(), strict=True):
+                q = idx[f : f + n] // 4  # 4 vertices per quad, uploaded in order
+                drawn[q] = True
+                nearest.append(np.linalg.norm(centres[q] - eye, axis=1).min())
+            assert seen.sum() > 0
+            assert np.all(drawn[seen]), "a visible triangle was culled"
+            assert drawn.sum() < drawn.size  # and culling did cull
+            drawn_by.append(drawn)
+            if order_eye is not None:  # front to back: runs by nearest distance (the
+                # renderer sorts by box distance: a quad's centre is <= 0.25 m further)
+                near = np.asarray(nearest)
+                assert np.all(np.diff(near) > -0.3)
+                assert near[0] <= near.min() + 0.3
+        assert np.array_equal(drawn_by[0], drawn_by[1])  # same set, other order
 
 
 def test_bad_msaa_env(monkeypatch: pytest.MonkeyPatch) -> None:

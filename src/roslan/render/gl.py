@@ -452,6 +452,8 @@ class Renderer:
         near: near clipping distance (m), chosen from the scene size.
         anisotropy: texture anisotropic filtering level (1 on llvmpipe: see below).
         software: True on Mesa's llvmpipe (CPU) renderer.
+        front_to_back: draw the visible clusters nearest first (default; False: index
+            order, for benchmarks), see :meth:`visible_ranges`.
     """
 
     def __init__(self, scene: Scene, *, samples: int | None = None) -> None:
@@ -469,6 +471,7 @@ class Renderer:
         self.software = "llvmpipe" in str(ctx.info.get("GL_RENDERER", "")).lower()
         self.samples = self._clamp_samples(default_samples(self.software, samples))
         self.anisotropy = 1.0 if self.software else 16.0
+        self.front_to_back = True
         self._targets: dict[tuple[int, int, int, bool, bool], _Targets] = {}
         self._d_targets: dict[tuple[int, int], tuple[Any, Any, Any]] = {}
         self._programs: dict[tuple[bool, bool], tuple[Any, Any]] = {}
@@ -717,11 +720,20 @@ class Renderer:
             )
             raise RenderError(msg)
 
-    def visible_ranges(self, clip_from_world: F64) -> tuple[NDArray[np.int64], ...]:
+    def visible_ranges(
+        self, clip_from_world: F64, eye: F64 | None = None
+    ) -> tuple[NDArray[np.int64], ...]:
         """Index ranges to draw for a view: clusters whose box meets the frustum.
+
+        With ``eye``, the clusters are ordered front to back (by the distance from
+        ``eye`` to their box) so that the depth test rejects hidden fragments before
+        shading (llvmpipe tests depth early: 1.31 instead of 1.80 shaded fragments per
+        pixel on the warehouse view of bench_camera.py); consecutive clusters that are
+        also adjacent in the index buffer with the same texture still merge into one run.
 
         Args:
             clip_from_world: (4, 4) clip matrix ``P @ T_cam_world``.
+            eye: (3,) camera position in the world (m), or None for index order.
         Returns:
             ``(first, count, group)``: (R,) first index, index count and texture group of
             each run of consecutive visible clusters (one draw call each).
@@ -735,6 +747,10 @@ class Renderer:
         if idx.size == 0:
             e = np.zeros(0, dtype=np.int64)
             return e, e, e
+        if eye is not None:
+            gap = np.abs(self._c_centre[idx] - np.asarray(eye, dtype=np.float64))
+            gap = np.maximum(gap - self._c_half[idx], 0.0)  # 0 inside the box
+            idx = idx[np.argsort(np.einsum("ij,ij->i", gap, gap), kind="stable")]
         brk = np.flatnonzero((np.diff(idx) != 1) | (np.diff(self._c_group[idx]) != 0)) + 1
         starts = idx[np.concatenate([[0], brk])]
         ends = idx[np.concatenate([brk - 1, [idx.size - 1]])]
@@ -792,7 +808,7 @@ class Renderer:
         clip = P @ T_cam_world
         mvp = _gl_mat(clip)
         zrow = tuple(float(x) for x in T_cam_world[2])
-        first, count, group = self.visible_ranges(clip)
+        first, count, group = self.visible_ranges(clip, cam_pos if self.front_to_back else None)
         ctx = self.ctx
         # No ctx.viewport here: in moderngl it writes the viewport of whichever framebuffer
         # is bound *now* (another resolution's), corrupting that target for its next frame.

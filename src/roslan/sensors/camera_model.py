@@ -40,11 +40,13 @@ if TYPE_CHECKING:
 
 __all__ = [
     "DISTORTION_MODELS",
+    "RENDER_PIXELS_PER_OUTPUT",
     "T_LINK_OPTICAL",
     "CalibCamera",
     "CameraIntrinsics",
     "CameraModel",
     "RenderPlan",
+    "auto_render_scale",
     "load_calibration",
     "write_calibration_files",
 ]
@@ -71,6 +73,25 @@ T_LINK_OPTICAL[:3, :3] = OPTICAL_FROM_BODY.T
 
 DEFAULT_RESOLUTION = (640, 480)
 DEFAULT_HFOV_DEG = 90.0
+
+
+RENDER_PIXELS_PER_OUTPUT = 1.0
+"""Default pixel budget of a distorted camera's virtual pinhole render, in output pixels
+(see :meth:`CameraModel.render_plan`)."""
+
+
+def auto_render_scale(xy: F64, K: F64, n_out: int) -> float:
+    """Focal-length scale of the virtual pinhole render: the largest ``s <= 1`` whose
+    render (bounding box of the undistorted rays ``xy``, (N, 2) normalized, at focal
+    lengths ``s * K``'s) has at most :data:`RENDER_PIXELS_PER_OUTPUT` * ``n_out``
+    pixels. Rounded down to 1/64 so that nearby lenses share a value."""
+    px = K[0, 0] * xy[:, 0] + K[0, 1] * xy[:, 1]
+    py = K[1, 1] * xy[:, 1]
+    area = float(np.ptp(px)) * float(np.ptp(py))  # render pixels at scale 1
+    if area <= 0.0:
+        return 1.0
+    s = math.sqrt(RENDER_PIXELS_PER_OUTPUT * n_out / area)
+    return min(1.0, math.floor(s * 64.0) / 64.0)
 
 
 @dataclass(frozen=True)
@@ -344,14 +365,24 @@ class CameraModel:
             xy[:, 1] -= (-j21 * fx_ + j11 * fy_) / det
         return xy
 
-    def render_plan(self, max_size: int | None = None, *, margin: int = 2) -> RenderPlan:
+    def render_plan(
+        self, max_size: int | None = None, *, margin: int = 2, scale: float | None = None
+    ) -> RenderPlan:
         """Virtual pinhole view covering every output pixel's ray, and remap maps.
 
-        The virtual camera keeps fx, fy (same sampling density at the image centre);
-        its size is the bounding box of all undistorted pixel rays plus ``margin``
-        pixels for bilinear interpolation. Raises SensorError if the rays cannot be
-        covered (field of view >= 180 deg, a non-invertible lens) or the virtual image
-        exceeds ``max_size``.
+        The virtual camera has focal lengths ``scale * (fx, fy)``; its size is the
+        bounding box of all undistorted pixel rays plus ``margin`` pixels for bilinear
+        interpolation. The maps are exact at any scale (geometry does not depend on
+        it); the scale sets the sampling density. ``scale=1`` keeps the output's
+        density at the image centre everywhere, which over-samples the periphery that a
+        barrel lens compresses (640x480 with k1 = -0.2 needs an 805x605 render, 1.59x
+        the pixels). ``None`` (default): :func:`auto_render_scale`, the largest scale
+        <= 1 whose render has no more pixels than :data:`RENDER_PIXELS_PER_OUTPUT`
+        times the output (0.8 for that lens: 645x485, the centre magnified 1.25x by
+        the remap; docs/performance.md has the time and PSNR of each choice).
+
+        Raises SensorError if the rays cannot be covered (field of view >= 180 deg, a
+        non-invertible lens) or the virtual image exceeds ``max_size``.
         """
         if self.is_pinhole:
             if max_size is not None and max(self.width, self.height) > max_size:
@@ -375,8 +406,10 @@ class CameraModel:
                 "(field of view too wide or coefficients not monotonic)"
             )
             raise SensorError(msg)
-        fx, fy = self.fx, self.fy
-        s = self.K[0, 1]
+        if scale is None:
+            scale = auto_render_scale(xy, self.K, self.width * self.height)
+        fx, fy = scale * self.fx, scale * self.fy
+        s = scale * self.K[0, 1]
         # virtual pixel coordinates before choosing the principal point
         px = fx * xy[:, 0] + s * xy[:, 1]
         py = fy * xy[:, 1]
