@@ -43,6 +43,7 @@ from roslan.events.sampling import (
     motion_field,
     pixel_rays,
 )
+from roslan.io.images import write_png
 from roslan.io.messages import MessageStore
 from roslan.sensors.base import (
     Message,
@@ -506,10 +507,8 @@ class EventCamera:
         return Message(t_ns, f"{self.config.topic}/{topic}", "sensor_msgs/msg/Image", build)
 
     def _write_image(self, ctx: SimContext, t_ns: int, lum: F32, index: int) -> None:
-        import cv2
-
         rel = f"images/{index:08d}.png"
-        cv2.imwrite(str(ctx.path(f"{self.config.name}/{rel}")), _srgb8(lum))
+        write_png(ctx.path(f"{self.config.name}/{rel}"), _srgb8(lum))
         assert self._images_fh is not None
         s, ns = divmod(int(t_ns), 1_000_000_000)
         self._images_fh.write(f"{s}.{ns:09d} {rel}\n")
