@@ -78,20 +78,36 @@ def _quad(center: F64, n: F64, u: F64, v: F64, hu: float, hv: float) -> LocalMes
 _AX = np.eye(3)
 
 
+# the six faces of a box: (axis of the face centre, its sign, u axis, v axis), each face
+# spanned by +-half[u-extent] * u, +-half[v-extent] * v with normal = sign * axis = u x v
+_BOX_AXIS = np.array([0, 0, 1, 1, 2, 2])
+_BOX_SIGN = np.array([1.0, -1.0, 1.0, -1.0, 1.0, -1.0])
+_BOX_U = np.array([_AX[1], -_AX[1], -_AX[0], _AX[0], _AX[0], _AX[0]])
+_BOX_V = np.array([_AX[2], _AX[2], _AX[2], _AX[2], _AX[1], -_AX[1]])
+_BOX_HU = np.array([1, 1, 0, 0, 0, 0])  # which half size spans u
+_BOX_HV = np.array([2, 2, 2, 2, 1, 1])
+_QUAD_SU = np.array([-1.0, 1.0, 1.0, -1.0])
+_QUAD_SV = np.array([-1.0, -1.0, 1.0, 1.0])
+_BOX_FACES = (np.array([[0, 1, 2], [0, 2, 3]]) + 4 * np.arange(6)[:, None, None]).reshape(12, 3)
+_BOX_NORMALS = np.repeat(_BOX_SIGN[:, None] * _AX[_BOX_AXIS], 4, axis=0)
+
+
 def box(size: Sequence[float], center: Sequence[float] = (0.0, 0.0, 0.0)) -> LocalMesh:
-    """Axis-aligned box of ``size`` (sx, sy, sz) m around ``center``; 24 vertices, 12 triangles."""
-    sx, sy, sz = (float(s) / 2.0 for s in size)
+    """Axis-aligned box of ``size`` (sx, sy, sz) m around ``center``; 24 vertices, 12 triangles.
+
+    Six :func:`_quad` faces (+x, -x, +y, -y, +z, -z), evaluated together (same numbers)."""
+    half = np.array([float(s) / 2.0 for s in size])
     c = np.asarray(center, dtype=np.float64)
-    x, y, z = _AX
-    faces = [
-        _quad(c + sx * x, x, y, z, sy, sz),
-        _quad(c - sx * x, -x, -y, z, sy, sz),
-        _quad(c + sy * y, y, -x, z, sx, sz),
-        _quad(c - sy * y, -y, x, z, sx, sz),
-        _quad(c + sz * z, z, x, y, sx, sy),
-        _quad(c - sz * z, -z, x, -y, sx, sy),
-    ]
-    return merge(faces)
+    centres = c + (_BOX_SIGN * half[_BOX_AXIS])[:, None] * _AX[_BOX_AXIS]  # (6, 3)
+    hu, hv = half[_BOX_HU][:, None], half[_BOX_HV][:, None]  # (6, 1)
+    a, b = _QUAD_SU * hu, _QUAD_SV * hv  # (6, 4)
+    verts = (
+        centres[:, None, :] + a[..., None] * _BOX_U[:, None, :] + b[..., None] * _BOX_V[:, None, :]
+    )
+    uvs = np.stack([(_QUAD_SU + 1.0) * hu, (_QUAD_SV + 1.0) * hv], axis=-1)
+    return LocalMesh(
+        verts.reshape(24, 3), _BOX_NORMALS.copy(), uvs.reshape(24, 2), _BOX_FACES.copy()
+    )
 
 
 def plane(size: Sequence[float]) -> LocalMesh:
