@@ -2,12 +2,15 @@
 
 Prints, measured in one run:
   * rendered frames/s (346x260 luminance + depth, the sensor's own render path);
-  * event generation (ESIM pixel model, realistic preset) in events/s;
+  * event generation in events/s, realistic (the DAVIS346 default) and clean presets, on
+    every rendered frame, every 8th frame (more change per step) and synthetic dense frames
+    (~4 crossings per pixel): numba kernels vs the NumPy reference, best of N wall and CPU;
   * serialization in events/s: EventArray packing for ROS 1 and ROS 2 (1 ms packets),
-    events.txt formatting, events.h5 appending;
+    events.txt formatting (numba vs NumPy), events.txt / events.h5 writers;
   * events per second of trajectory and frames per second of trajectory.
 
 Usage: .venv/bin/python benchmarks/bench_events.py [--seconds 0.4] [--start 0.0] [--scene warehouse]
+       [--repeat 3]
 Rendering dominates on a CPU machine: it covers a slice of the landing.
 """
 
@@ -15,14 +18,22 @@ from __future__ import annotations
 
 import argparse
 import itertools
+import os
 import tempfile
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 
 from roslan.events import EventBatch, EventGenerator
-from roslan.events.files import EventH5Writer, format_events_txt
+from roslan.events.files import (
+    EventH5Writer,
+    EventTextWriter,
+    _format_events_txt_numpy,
+    format_events_txt,
+)
+from roslan.events.model import NumpyEventGenerator
 from roslan.events.ros import pack_event_array
 from roslan.events.sampling import AdaptiveSampler
 from roslan.io.messages import Flavor
@@ -40,6 +51,7 @@ def main() -> None:
     )
     ap.add_argument("--seconds", type=float, default=0.4, help="trajectory seconds rendered")
     ap.add_argument("--max-rate", type=float, default=2000.0)
+    ap.add_argument("--repeat", type=int, default=3, help="best of N")
     args = ap.parse_args()
 
     scene = load_scene(args.scene)
@@ -79,56 +91,81 @@ def main() -> None:
         n_frames = len(frames)
         span = (t_end - t0) * 1e-9
 
-        gen = EventGenerator(
-            cam.camera.width, cam.camera.height, cfg.model_params(), np.random.default_rng(0)
-        )
-        a = time.perf_counter()
+        W, H = cam.camera.width, cam.camera.height
+        presets = {
+            "realistic": cfg.model_params(),
+            "clean": cfg.model_copy(update={"preset": "clean"}).model_params(),
+        }
+        rng = np.random.default_rng(1)
+        base = rng.uniform(0.05, 0.9, (H, W)).astype(np.float32)
+        # ~4 crossings per pixel and frame: the event-dense extreme
+        dense = [(i * 1_000_000, base * np.float32(2.5 if i % 2 else 1.0)) for i in range(21)]
+        workloads = {"real": frames, "real/8": frames[::8], "dense": dense}
+        gen_rows = []
+        for pname, params in presets.items():
+            for wname, wl in workloads.items():
+                res = {}
+                for impl, cls in (("numpy", NumpyEventGenerator), ("numba", EventGenerator)):
+
+                    def run(cls=cls, wl=wl, params=params) -> int:
+                        g = cls(W, H, params, np.random.default_rng(0))
+                        g.update(wl[0][1], wl[0][0])
+                        return sum(g.update(lum, tt).size for tt, lum in wl[1:])
+
+                    res[impl] = best_of(run, args.repeat)
+                gen_rows.append((pname, wname, len(wl) - 1, res))
+        gen = EventGenerator(W, H, presets["realistic"], np.random.default_rng(0))
         batches = [gen.update(lum, tt) for tt, lum in frames]
-        g_time = time.perf_counter() - a
         ev = EventBatch.concatenate(batches)
         n_ev = ev.size
-        # event-dense input: every 8th frame (more change per step), and a synthetic
-        # pair of frames with ~4 crossings per pixel (the capacity of the expansion)
-        gen8 = EventGenerator(
-            cam.camera.width, cam.camera.height, cfg.model_params(), np.random.default_rng(0)
-        )
-        a = time.perf_counter()
-        n8 = sum(gen8.update(lum, tt).size for tt, lum in frames[::8])
-        g8_time = time.perf_counter() - a
-        rng = np.random.default_rng(1)
-        gens = EventGenerator(cam.camera.width, cam.camera.height, cfg.model_params(), rng)
-        base = rng.uniform(0.05, 0.9, (cam.camera.height, cam.camera.width)).astype(np.float32)
-        gens.update(base, 0)
-        a = time.perf_counter()
-        ns = sum(
-            gens.update(base * (2.5 if i % 2 else 1.0), i * 1_000_000).size for i in range(1, 21)
-        )
-        gs_time = time.perf_counter() - a
 
         # serialization: 1 ms packets, both flavours
         start = 1_700_000_000_000_000_000
         j = ev.t // 1_000_000
         cuts = [0, *(np.flatnonzero(np.diff(j)) + 1).tolist(), n_ev]
-        times = {}
+        ser: dict[str, tuple[float, float]] = {}
         for flavor in Flavor:
-            a = time.perf_counter()
-            total = 0
-            for i0, i1 in itertools.pairwise(cuts):
-                total += len(
-                    pack_event_array(flavor, start + int(ev.t[i1 - 1]), "dvs_optical", 260, 346,
-                                     ev.t[i0:i1] + start, ev.x[i0:i1], ev.y[i0:i1], ev.p[i0:i1])
-                )  # fmt: skip
-            times[flavor.value] = time.perf_counter() - a
-        a = time.perf_counter()
-        txt = format_events_txt(ev.t, ev.x, ev.y, ev.p)
-        times["txt"] = time.perf_counter() - a
-        a = time.perf_counter()
-        h5 = EventH5Writer(Path(tmp) / "bench.h5", 346, 260)
-        for b in batches:
-            h5.write(b)
-        h5.close()
-        times["h5"] = time.perf_counter() - a
 
+            def pack(flavor: Flavor = flavor) -> int:
+                for i0, i1 in itertools.pairwise(cuts):
+                    pack_event_array(
+                        flavor,
+                        start + int(ev.t[i1 - 1]),
+                        "dvs_optical",
+                        260,
+                        346,
+                        ev.t[i0:i1] + start,
+                        ev.x[i0:i1],
+                        ev.y[i0:i1],
+                        ev.p[i0:i1],
+                    )
+                return n_ev  # fmt: skip
+
+            ser[f"pack {flavor.value}"] = best_of(pack, args.repeat)[1:]
+        txt = format_events_txt(ev.t, ev.x, ev.y, ev.p)
+        assert txt == _format_events_txt_numpy(ev.t, ev.x, ev.y, ev.p)
+        for name, fmt in (("txt format numpy", _format_events_txt_numpy),
+                          ("txt format numba", format_events_txt)):  # fmt: skip
+            ser[name] = best_of(lambda fmt=fmt: len(fmt(ev.t, ev.x, ev.y, ev.p)), args.repeat)[1:]
+
+        def write_files(txt: bool, h5: bool) -> int:
+            ws: list[EventTextWriter | EventH5Writer] = []
+            if txt:
+                ws.append(EventTextWriter(Path(tmp) / "bench.txt"))
+            if h5:
+                ws.append(EventH5Writer(Path(tmp) / "bench.h5", W, H))
+            for b in batches:  # one batch per rendered frame, as the sensor streams them
+                for w in ws:
+                    w.write(b)
+            for w in ws:
+                w.close()
+            return n_ev
+
+        for name, flags in (("events.txt", (True, False)), ("events.h5", (False, True)),
+                            ("both files", (True, True))):  # fmt: skip
+            ser[name] = best_of(lambda flags=flags: write_files(*flags), args.repeat)[1:]
+
+    load = os.getloadavg()[0]
     print(
         f"scene {args.scene}, DAVIS346 346x260, realistic preset, "
         f"slice {args.start:.2f}+{span:.3f} s of {traj.duration:.2f} s"
@@ -137,18 +174,31 @@ def main() -> None:
     ms = r_time / n_frames * 1e3
     print(f"render (lum+depth+flow): {n_frames / r_time:8.1f} frames/s  ({ms:.2f} ms/frame)")
     print(f"events:               {n_ev} ({n_ev / span / 1e6:.2f} M per trajectory second)")
-    ms = g_time / n_frames * 1e3
-    print(f"event generation:     {n_ev / g_time / 1e6:8.2f} M events/s  ({ms:.2f} ms/frame)")
-    print(
-        f"  every 8th frame:    {n8 / g8_time / 1e6:8.2f} M events/s  "
-        f"({n8 / max(len(frames[::8]), 1):.0f} events/frame)"
-    )
-    print(
-        f"  synthetic dense:    {ns / gs_time / 1e6:8.2f} M events/s  ({ns / 20:.0f} events/frame)"
-    )
-    for k, v in times.items():
-        print(f"serialize {k:5s}:      {n_ev / v / 1e6:8.2f} M events/s")
+    print(f"load average (1 min) at the end: {load:.2f}; best of {args.repeat}, wall and CPU")
+    print("event generation (M events/s wall | CPU; ms per frame wall):")
+    for pname, wname, nf, res in gen_rows:
+        n, w0, c0 = res["numpy"]
+        _, w1, c1 = res["numba"]
+        print(
+            f"  {pname:9s} {wname:6s} {n / nf:7.0f} ev/frame  numpy {n / w0 / 1e6:6.2f} | "
+            f"{n / c0 / 1e6:6.2f} ({w0 / nf * 1e3:5.2f} ms)  numba {n / w1 / 1e6:6.2f} | "
+            f"{n / c1 / 1e6:6.2f} ({w1 / nf * 1e3:5.3f} ms)  x{w0 / w1:5.1f}"
+        )
+    print("serialization (M events/s wall | CPU):")
+    for k, (w, c) in ser.items():
+        print(f"  {k:18s} {n_ev / w / 1e6:8.2f} | {n_ev / c / 1e6:8.2f}")
     print(f"events.txt bytes/event: {len(txt) / max(n_ev, 1):.1f}")
+
+
+def best_of(fn: Callable[[], int], repeat: int) -> tuple[int, float, float]:
+    """``(result, best wall s, best process CPU s)`` of ``repeat`` calls."""
+    walls, cpus, out = [], [], 0
+    for _ in range(repeat):
+        w, c = time.perf_counter(), time.process_time()
+        out = fn()
+        walls.append(time.perf_counter() - w)
+        cpus.append(time.process_time() - c)
+    return out, min(walls), min(cpus)
 
 
 if __name__ == "__main__":

@@ -1,4 +1,4 @@
-"""ESIM-class per-pixel event generation with v2e-style non-idealities (pure NumPy).
+"""ESIM-class per-pixel event generation with v2e-style non-idealities.
 
 The model, per pixel, between two samples ``(t0, S0)`` and ``(t1, S1)`` of the signal
 
@@ -17,19 +17,26 @@ reference expressed as a drift of the signal) which is linear in between:
 * shot noise: Poisson events (rate Hz per pixel, half ON, half OFF) at uniform random
   instants, which reset the reference by one threshold like a real event (v2e).
 
-Nothing here loops over pixels or events: multi-crossings are expanded with
-``np.repeat``/``cumsum``; refractory filtering iterates over the crossing index
-(at most the largest number of crossings of one pixel in one interval).
+:class:`EventGenerator` runs the per-pixel update as numba kernels (``_kernels``: one fused
+pass over the pixels, then one over the few pixels that cross a level) with ``log``/``exp``
+in NumPy; one sort of packed integer keys orders the interval's events.
+:class:`NumpyEventGenerator` is the same model in NumPy array passes (multi-crossings
+expanded with ``np.repeat``/``cumsum``, refractory filtering iterating over the crossing
+index): the kernels' bit-exact reference and the benchmark's baseline.
 """
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, replace
-from typing import NamedTuple
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
+
+if TYPE_CHECKING:
+    from types import ModuleType
 
 __all__ = [
     "EVENT_PRESETS",
@@ -47,6 +54,8 @@ _EMPTY: tuple[I64, I64, NDArray[np.int8]] = (
     np.zeros(0, np.int64),
     np.zeros(0, np.int8),
 )
+
+_NO_LEAK: F64 = np.zeros(0)
 
 MIN_THRESHOLD = 0.01
 """Smallest contrast threshold a mismatched pixel may get (log units)."""
@@ -147,6 +156,21 @@ def log_intensity(intensity: NDArray[np.floating], eps: float) -> F64:
     return np.log(eps + np.maximum(np.asarray(intensity, dtype=np.float64), 0.0))
 
 
+@functools.cache
+def _kernels() -> ModuleType:
+    """The numba kernels, imported (and compiled or loaded from numba's cache) on first use."""
+    from roslan.events import _kernels as k
+
+    return k
+
+
+def _kernel_input(a: NDArray[Any]) -> NDArray[np.floating]:
+    """(H*W,) intensity as a contiguous float32 or float64 array for the kernels."""
+    if a.dtype != np.float32 and a.dtype != np.float64:
+        a = a.astype(np.float64)
+    return np.ascontiguousarray(a)
+
+
 class EventGenerator:
     """Stateful per-pixel event generator for an ``height x width`` sensor.
 
@@ -201,6 +225,183 @@ class EventGenerator:
         if img.shape != (self.height, self.width):
             msg = f"frame shape {img.shape} != sensor ({self.height}, {self.width})"
             raise ValueError(msg)
+        if self.t_ns is None:
+            L = log_intensity(img, self.params.log_eps).ravel()
+            return self.update_log(L, t_ns, intensity=img.ravel())
+        flat = _kernel_input(img.ravel())
+        k = _kernels()
+        want_exp = self._mode(flat) == 2
+        s = self._exp_scale(int(t_ns)) if want_exp else 0.0
+        k.log_exp_args(flat, self.params.log_eps, s, self._lbuf, self._ebuf, True, want_exp)
+        np.log(self._lbuf, out=self._lbuf)
+        return self._step(self._lbuf, flat, int(t_ns))
+
+    def update_log(
+        self, L: F64, t_ns: int, *, intensity: NDArray[np.floating] | None = None
+    ) -> EventBatch:
+        """As :meth:`update` with the log intensity ``L`` (H*W,) float64 given directly.
+
+        ``intensity`` (H*W,) is only needed by the intensity-dependent low-pass.
+        """
+        t_ns = int(t_ns)
+        if self.t_ns is None:
+            self.lp = L.astype(np.float64, copy=True)
+            self.signal = self._signal(self.lp, t_ns)
+            self.ref = self.signal - self._leak_phase
+            self.t_ns = t_ns
+            self._lbuf = np.empty(self.n_pixels)
+            self._ebuf = np.empty(self.n_pixels)
+            self._cand = np.empty(self.n_pixels, np.int64)
+            self._flag = np.empty(self.n_pixels, np.uint8)
+            self._sig_next = np.empty(self.n_pixels)  # the signal is double-buffered
+            self._cnt = np.empty(self.n_pixels, np.int64)
+            self._idx = self._t = self._key = np.empty(0, np.int64)
+            self._p = np.empty(0, np.int8)
+            return EventBatch.empty()
+        flat = None if intensity is None else _kernel_input(np.asarray(intensity).ravel())
+        if self._mode(flat) == 2:
+            s = self._exp_scale(t_ns)
+            _kernels().log_exp_args(flat, 0.0, s, self._lbuf, self._ebuf, False, True)
+        return self._step(np.ascontiguousarray(L, dtype=np.float64), flat, t_ns)
+
+    # ------------------------------------------------------------------ internals
+    def _mode(self, intensity: NDArray[np.floating] | None) -> int:
+        """Low-pass mode of the kernel: 0 none, 1 fixed bandwidth, 2 intensity-dependent."""
+        p = self.params
+        if p.cutoff_hz <= 0:
+            return 0
+        return 2 if (p.intensity_dependent and intensity is not None) else 1
+
+    def _exp_scale(self, t_ns: int) -> float:
+        """``-dt / tau`` of the intensity-dependent low-pass (raises on a non-increasing t)."""
+        tau = 1.0 / (2.0 * math.pi * self.params.cutoff_hz)
+        return -self._dt(t_ns) * 1e-9 / tau
+
+    def _dt(self, t_ns: int) -> int:
+        t0 = self.t_ns
+        assert t0 is not None
+        if t_ns <= t0:
+            msg = f"frame time {t_ns} ns must be after the previous frame ({t0} ns)"
+            raise ValueError(msg)
+        return t_ns - t0
+
+    def _step(self, L: F64, intensity: NDArray[np.floating] | None, t_ns: int) -> EventBatch:
+        """One interval with the kernels; ``self._ebuf`` holds the exp argument in mode 2."""
+        p = self.params
+        k = _kernels()
+        t0 = self.t_ns
+        assert t0 is not None
+        dt_ns = self._dt(t_ns)
+        mode = self._mode(intensity)
+        a = 0.0
+        if mode == 2:
+            np.exp(self._ebuf, out=self._ebuf)
+        elif mode == 1:
+            tau = 1.0 / (2.0 * math.pi * p.cutoff_hz)
+            a = 1.0 - math.exp(-dt_ns * 1e-9 / tau)  # exact first-order step
+        leak = self.leak_slope if self.leak_slope is not None else _NO_LEAK
+        s0, s1 = self.signal, self._sig_next
+        k.pixel_step(
+            L, self._ebuf, mode, a, self.lp, leak, t_ns * 1e-9, self.ref, self.c_pos,
+            self.c_neg, s1, self._flag,
+        )  # fmt: skip
+        m = k.compact(self._flag, self._cand)
+        total = int(
+            k.count_crossings(self._cand, m, s1, self.ref, self.c_pos, self.c_neg, self._cnt)
+        )
+        shot = self._shot_noise_draw(dt_ns) if p.shot_noise_rate > 0 else 0
+        idx, t, pol = self._scratch(total + shot)
+        n, dropped = k.emit_crossings(
+            self._cand, m, self._cnt, s0, s1, self.ref, self.c_pos, self.c_neg, self.last_event_ns,
+            t0, dt_ns, self._refractory_ns, idx, t, pol,
+        )  # fmt: skip
+        self.signal, self._sig_next = s1, s0
+        self.n_dropped += int(dropped)
+        n_real = int(n)
+        shot_ties = False
+        if shot:
+            sidx, st, spol = self._shot_noise(t0, dt_ns, shot)
+            idx[n : n + shot], t[n : n + shot], pol[n : n + shot] = sidx, st, spol
+            n += shot
+            # two shot events of one pixel at one ns (practically never): keys would tie
+            shot_ties = np.unique(st * self.n_pixels + sidx).size < shot
+        self.t_ns = t_ns
+        if n == 0:
+            return EventBatch.empty()
+        idx, t, pol = idx[:n], t[:n], pol[:n]
+        key = self._key[:n]
+        out = EventBatch(
+            np.empty(n, np.int64), np.empty(n, np.uint16), np.empty(n, np.uint16),
+            np.empty(n, np.int8),
+        )  # fmt: skip
+        # (outputs are NumPy's allocations: numba's own page-fault on every call)
+        ib = max(self.n_pixels - 1, 1).bit_length()
+        if not shot_ties and (dt_ns + 1) << (ib + 2) < 2**62:
+            # the sorted keys hold the events themselves: no gather
+            k.pack_keys(t, idx, pol, n_real, t0, ib, key)
+            key.sort()
+            k.unpack_keys(key, t0, ib, self.width, *out)
+            return out
+        shift = max(int(n - 1).bit_length(), 1)
+        if (dt_ns + 1) << shift < 2**62:
+            k.sort_keys(t, t0, shift, key)
+            key.sort()
+            mask = (1 << shift) - 1
+        else:  # pragma: no cover - intervals of years
+            key[:] = np.argsort(t, kind="stable")
+            mask = -1
+        k.gather_events(key, mask, idx, t, pol, self.width, *out)
+        return out
+
+    def _scratch(self, n: int) -> tuple[I64, I64, NDArray[np.int8]]:
+        """Reused event buffers of at least ``n`` events (grown by doubling)."""
+        if self._idx.shape[0] < n:
+            cap = max(n, 2 * self._idx.shape[0])
+            self._idx = np.empty(cap, np.int64)
+            self._t = np.empty(cap, np.int64)
+            self._p = np.empty(cap, np.int8)
+            self._key = np.empty(cap, np.int64)
+        return self._idx, self._t, self._p
+
+    def _signal(self, lp: F64, t_ns: int) -> F64:
+        if self.leak_slope is None:
+            return lp.copy() if lp.dtype == np.float64 else lp.astype(np.float64)
+        return lp + self.leak_slope * (t_ns * 1e-9)
+
+    def _shot_noise_draw(self, dt_ns: int) -> int:
+        """Number of shot-noise events of the interval (first draw of the interval)."""
+        lam = self.params.shot_noise_rate * self.n_pixels * dt_ns * 1e-9
+        return int(self._rng.poisson(lam))
+
+    def _shot_noise(self, t0: int, dt_ns: int, m: int) -> tuple[I64, I64, NDArray[np.int8]]:
+        """``m`` shot-noise events (drawn after the interval's crossings moved ``ref``)."""
+        rng = self._rng
+        if m == 0:
+            return _EMPTY
+        idx = np.sort(rng.integers(0, self.n_pixels, m))
+        t = t0 + 1 + rng.integers(0, dt_ns, m)  # in (t0, t1]
+        pol = (rng.random(m) < 0.5).astype(np.int8)
+        # a noise event resets the pixel like a real one (v2e)
+        step = np.where(pol == 1, self.c_pos[idx], -self.c_neg[idx])
+        np.add.at(self.ref, idx, step)
+        np.maximum.at(self.last_event_ns, idx, t)
+        return idx, t, pol
+
+
+class NumpyEventGenerator(EventGenerator):
+    """The same model in plain NumPy array passes (the kernels' reference, and the
+    benchmark's baseline): bit-identical events, several times slower."""
+
+    def update(self, intensity: NDArray[np.floating], t_ns: int) -> EventBatch:
+        """Advance to the frame ``intensity`` (H, W) linear luminance at ``t_ns``.
+
+        Returns the events of the interval (times in ``[t_prev, t_ns]``), sorted by time,
+        ties by pixel index (then real events before shot noise).
+        """
+        img = np.asarray(intensity)
+        if img.shape != (self.height, self.width):
+            msg = f"frame shape {img.shape} != sensor ({self.height}, {self.width})"
+            raise ValueError(msg)
         L = log_intensity(img, self.params.log_eps).ravel()
         return self.update_log(L, t_ns, intensity=img.ravel())
 
@@ -239,7 +440,7 @@ class EventGenerator:
         S1 = self._signal(self.lp, t_ns)
         parts = [self._crossings(self.signal, S1, t0, dt_ns)]
         if p.shot_noise_rate > 0:
-            parts.append(self._shot_noise(t0, dt_ns))
+            parts.append(self._shot_noise(t0, dt_ns, self._shot_noise_draw(dt_ns)))
         self.signal = S1
         self.t_ns = t_ns
         return self._sorted(parts, t0, dt_ns)
@@ -265,12 +466,6 @@ class EventGenerator:
         return EventBatch(
             t, (idx % self.width).astype(np.uint16), (idx // self.width).astype(np.uint16), pol
         )
-
-    # ------------------------------------------------------------------ internals
-    def _signal(self, lp: F64, t_ns: int) -> F64:
-        if self.leak_slope is None:
-            return lp.copy() if lp.dtype == np.float64 else lp.astype(np.float64)
-        return lp + self.leak_slope * (t_ns * 1e-9)
 
     def _crossings(
         self, S0: F64, S1: F64, t0: int, dt_ns: int
@@ -328,18 +523,3 @@ class EventGenerator:
         self.last_event_ns[pix] = last
         self.n_dropped += int(keep.size - keep.sum())
         return keep
-
-    def _shot_noise(self, t0: int, dt_ns: int) -> tuple[I64, I64, NDArray[np.int8]]:
-        rng = self._rng
-        lam = self.params.shot_noise_rate * self.n_pixels * dt_ns * 1e-9
-        m = int(rng.poisson(lam))
-        if m == 0:
-            return _EMPTY
-        idx = np.sort(rng.integers(0, self.n_pixels, m))
-        t = t0 + 1 + rng.integers(0, dt_ns, m)  # in (t0, t1]
-        pol = (rng.random(m) < 0.5).astype(np.int8)
-        # a noise event resets the pixel like a real one (v2e)
-        step = np.where(pol == 1, self.c_pos[idx], -self.c_neg[idx])
-        np.add.at(self.ref, idx, step)
-        np.maximum.at(self.last_event_ns, idx, t)
-        return idx, t, pol

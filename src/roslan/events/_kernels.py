@@ -1,0 +1,273 @@
+"""numba kernels of the event pixel model and the ``events.txt`` formatter.
+
+Each kernel fuses, in one pass over its pixels or events, what the NumPy reference
+(:class:`roslan.events.model.NumpyEventGenerator`) does in a dozen array passes; the float64
+operations are the same and in the same order (numba does not contract to FMA nor reorder
+without ``fastmath``), so the events are bit-identical. ``log``/``exp`` stay in NumPy (its
+SIMD loops may differ from libm in the last ulp): the kernels write their arguments.
+
+``nogil=True``: the simulation runs event generation in a thread beside rendering.
+``cache=True``: compiled once per machine (``__pycache__`` or numba's user cache dir).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+import numba
+import numpy as np
+
+
+def _jit(fn: Callable[..., Any]) -> Any:
+    """``njit(cache=True, nogil=True)``; without a writable cache location, no cache."""
+    try:
+        return numba.njit(cache=True, nogil=True)(fn)
+    except RuntimeError:  # pragma: no cover - no writable cache location at all
+        return numba.njit(cache=False, nogil=True)(fn)
+
+
+@_jit
+def log_exp_args(img, eps, s, logarg, exparg, want_log, want_exp):  # type: ignore[no-untyped-def]
+    """``logarg = eps + max(I, 0)`` (the argument of ``L = log(eps + I)``) and
+    ``exparg = s * (clip(I, 0, 1) + 0.08) / 1.08`` (of the intensity-dependent low-pass)."""
+    for i in range(img.shape[0]):
+        v = np.float64(img[i])
+        if want_log:
+            logarg[i] = eps + (0.0 if v < 0.0 else v)  # NaN stays NaN like np.maximum
+        if want_exp:
+            c = 0.0 if v < 0.0 else (1.0 if v > 1.0 else v)
+            exparg[i] = s * (c + 0.08) / 1.08
+
+
+@numba.njit(inline="always")
+def _test(i, s1, ref, c_pos, c_neg, sig, flag):  # type: ignore[no-untyped-def]
+    sig[i] = s1
+    r = ref[i]
+    flag[i] = (r + c_pos[i] <= s1) | (r - c_neg[i] >= s1)
+
+
+@_jit
+def pixel_step(  # type: ignore[no-untyped-def]
+    L, E, mode, a, lp, leak, tsec, ref, c_pos, c_neg, sig, flag
+):
+    """Low-pass, leak and threshold test of every pixel: updates ``lp`` in place, writes the
+    new signal ``sig`` and ``flag`` (1 where the first level is reached).
+
+    mode 0: ``lp = L``; 1: ``lp += a (L - lp)``; 2: ``lp += (1 - E) (L - lp)`` (E per pixel).
+    ``leak`` (N,) log units per second, or (0,) for none. One branch-free loop per case (so
+    that LLVM vectorizes it; the memory traffic of the pixel state is the cost).
+    """
+    n = L.shape[0]
+    if leak.shape[0] > 0:
+        if mode == 0:
+            for i in range(n):
+                x = L[i]
+                lp[i] = x
+                _test(i, x + leak[i] * tsec, ref, c_pos, c_neg, sig, flag)
+        elif mode == 1:
+            for i in range(n):
+                x = lp[i] + a * (L[i] - lp[i])
+                lp[i] = x
+                _test(i, x + leak[i] * tsec, ref, c_pos, c_neg, sig, flag)
+        else:
+            for i in range(n):
+                x = lp[i] + (1.0 - E[i]) * (L[i] - lp[i])
+                lp[i] = x
+                _test(i, x + leak[i] * tsec, ref, c_pos, c_neg, sig, flag)
+    elif mode == 0:
+        for i in range(n):
+            x = L[i]
+            lp[i] = x
+            _test(i, x, ref, c_pos, c_neg, sig, flag)
+    elif mode == 1:
+        for i in range(n):
+            x = lp[i] + a * (L[i] - lp[i])
+            lp[i] = x
+            _test(i, x, ref, c_pos, c_neg, sig, flag)
+    else:
+        for i in range(n):
+            x = lp[i] + (1.0 - E[i]) * (L[i] - lp[i])
+            lp[i] = x
+            _test(i, x, ref, c_pos, c_neg, sig, flag)
+
+
+@_jit
+def compact(flag, cand):  # type: ignore[no-untyped-def]
+    """Indices of the set flags into ``cand``; returns their number. Skips 8 clear flags
+    at a time (candidates are a few percent of the pixels)."""
+    w = flag[: flag.shape[0] // 8 * 8].view(np.uint64)
+    m = 0
+    for j in range(w.shape[0]):
+        if w[j] != 0:
+            for i in range(8 * j, 8 * j + 8):
+                cand[m] = i  # branch-free: kept only where the flag is set
+                m += flag[i]
+    for i in range(8 * w.shape[0], flag.shape[0]):
+        if flag[i]:
+            cand[m] = i
+            m += 1
+    return m
+
+
+@_jit
+def count_crossings(cand, m, sig, ref, c_pos, c_neg, cnts):  # type: ignore[no-untyped-def]
+    """Levels crossed by each of the ``m`` candidate pixels into ``cnts``; returns the total."""
+    total = np.int64(0)
+    for j in range(m):
+        i = cand[j]
+        r = ref[i]
+        s1 = sig[i]
+        up = s1 > r
+        cp = c_pos[i] if up else c_neg[i]
+        sg = 1.0 if up else -1.0
+        cnt = np.int64(np.floor(np.abs(s1 - r) / cp))
+        # make the count agree exactly with the definition (level r +- n*C reached, n+1 not)
+        # (branch-free: the mismatch makes these unpredictable)
+        cnt -= np.int64((cnt > 1) & ((r + sg * (cnt * cp) - s1) * sg > 0))
+        cnt = max(cnt, np.int64(1))
+        cnt += np.int64((r + sg * ((cnt + 1) * cp) - s1) * sg <= 0)
+        cnts[j] = cnt
+        total += cnt
+    return total
+
+
+@_jit
+def emit_crossings(  # type: ignore[no-untyped-def]
+    cand, m, cnts, sig0, sig, ref, c_pos, c_neg, last, t0, dt_ns, refractory_ns, idx, t, p
+):
+    """Every level crossing of the ``m`` candidate pixels into ``idx``, ``t``, ``p``,
+    pixel-major and in time order within a pixel (the instant the linear signal from
+    ``sig0`` to ``sig`` crosses the level); moves ``ref`` to the last level and applies the
+    refractory period (``last``: the pixels' last emitted event).
+
+    Returns ``(events written, events dropped by the refractory period)``.
+    """
+    dtf = np.float64(dt_ns)
+    n = 0
+    dropped = 0
+    for j in range(m):
+        i = cand[j]
+        r = ref[i]
+        s1 = sig[i]
+        s0 = sig0[i]
+        up = s1 > r
+        cp = c_pos[i] if up else c_neg[i]
+        sg = 1.0 if up else -1.0
+        pol = 1 if up else 0
+        cnt = cnts[j]
+        ds = s1 - s0
+        lt = last[i]
+        n_pix = n
+        for k in range(1, cnt + 1):
+            level = r + sg * (k * cp)
+            frac = (level - s0) / ds if ds != 0 else 1.0
+            if frac == frac:  # np.clip keeps NaN
+                frac = min(max(frac, 0.0), 1.0)
+            tk = t0 + np.int64(np.rint(frac * dtf))
+            # branch-free: write always, advance only for a kept event
+            keep = refractory_ns <= 0 or tk - lt >= refractory_ns
+            idx[n] = i
+            t[n] = tk
+            p[n] = pol
+            n += keep
+            lt = tk if keep else lt
+        dropped += cnt - (n - n_pix)
+        last[i] = lt
+        ref[i] = r + sg * (cnt * cp)
+    return n, dropped
+
+
+@_jit
+def pack_keys(t, idx, p, n_real, t0, ib, key):  # type: ignore[no-untyped-def]
+    """``key = (t - t0, shot, pixel index, p)`` packed in bit fields (``ib`` bits of index).
+
+    Sorting these orders by time, then real events (pixel-major: by index) before shot
+    noise (by index): the stable time order of the events, as far as events that differ go
+    (equal keys are identical events; the caller rules out shot-noise ties).
+    """
+    for j in range(t.shape[0]):
+        shot = 1 if j >= n_real else 0
+        key[j] = ((((t[j] - t0) << 1 | shot) << ib | idx[j]) << 1) | np.int64(p[j])
+
+
+@_jit
+def unpack_keys(key, t0, ib, width, to, xo, yo, po):  # type: ignore[no-untyped-def]
+    """Sorted keys of :func:`pack_keys` back to ``t``, ``x``, ``y``, ``p``."""
+    imask = (np.int64(1) << ib) - 1
+    inv_w = 1.0 / width
+    for j in range(key.shape[0]):
+        k = key[j]
+        i = (k >> 1) & imask
+        y = np.int64((i + 0.5) * inv_w)  # exact: far from an integer for i < 2**31
+        to[j] = (k >> (ib + 2)) + t0
+        xo[j] = i - y * width
+        yo[j] = y
+        po[j] = k & 1
+
+
+@_jit
+def sort_keys(t, t0, shift, key):  # type: ignore[no-untyped-def]
+    """``key = (t - t0) << shift | position``: unique keys whose unstable sort is the
+    stable time order."""
+    for j in range(t.shape[0]):
+        key[j] = ((t[j] - t0) << shift) | j
+
+
+@_jit
+def gather_events(key, mask, idx, t, p, width, to, xo, yo, po):  # type: ignore[no-untyped-def]
+    """The events in sorted-key order (position ``key & mask``) into ``to``, ``xo``, ``yo``,
+    ``po`` (pixel index split into column and row)."""
+    for j in range(key.shape[0]):
+        o = key[j] & mask
+        i = idx[o]
+        to[j] = t[o]
+        xo[j] = i % width
+        yo[j] = i // width
+        po[j] = p[o]
+
+
+@_jit
+def format_txt(t, x, y, p, out):  # type: ignore[no-untyped-def]
+    """``'%d.%09d %d %d %d\\n'`` per event into ``out`` (uint8, large enough: 48 bytes per
+    event); t non-negative int64 ns. Returns the number of bytes written."""
+    k = 0
+    digits = np.empty(20, np.uint8)
+    for j in range(t.shape[0]):
+        v = t[j]
+        sec = v // 1_000_000_000
+        frac = v - sec * 1_000_000_000
+        # seconds: at least one digit
+        nd = 0
+        while True:
+            digits[nd] = 48 + sec % 10
+            sec //= 10
+            nd += 1
+            if sec == 0:
+                break
+        for d in range(nd - 1, -1, -1):
+            out[k] = digits[d]
+            k += 1
+        out[k] = 46  # '.'
+        for d in range(8, -1, -1):
+            out[k + 1 + d] = 48 + frac % 10
+            frac //= 10
+        k += 10
+        for w in (np.int64(x[j]), np.int64(y[j])):
+            out[k] = 32
+            k += 1
+            nd = 0
+            while True:
+                digits[nd] = 48 + w % 10
+                w //= 10
+                nd += 1
+                if w == 0:
+                    break
+            for d in range(nd - 1, -1, -1):
+                out[k] = digits[d]
+                k += 1
+        out[k] = 32
+        out[k + 1] = 49 if p[j] > 0 else 48
+        out[k + 2] = 10
+        k += 3
+    return k
