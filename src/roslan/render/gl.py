@@ -344,36 +344,40 @@ layout(location = 0) out vec4 o_color;
 #define LCH 1
 #endif
 void main() {
-    vec2 uv = gl_FragCoord.xy * u_texel;  // this pixel's centre
-    vec2 lo = uv - 0.5 * u_texel;
-    vec2 hi = uv + 0.5 * u_texel;
-    // 3x3 neighbourhood but NW and SE, gathered as (w, m, s, sw) and (n, ne, e, m):
-    // 1/z, and luma (LUM: luminance; RGB: green, its 72 % share, as a proxy)
-    vec4 za = textureGather(u_color, lo, ZCH);
-    vec4 zb = textureGather(u_color, hi, ZCH);
-    vec4 la = sqrt(textureGather(u_color, lo, LCH));  // ~perceptual, like FXAA's luma
-    vec4 lb = sqrt(textureGather(u_color, hi, LCH));
+    // this pixel and its 4 neighbours, unfiltered (texelFetch: ~10 % cheaper than
+    // gathers on llvmpipe, and non-edge pixels pass through bit-exactly)
+    ivec2 p = ivec2(gl_FragCoord.xy);
+    ivec2 hi = textureSize(u_color, 0) - 1;
+    vec4 tm = texelFetch(u_color, p, 0);
+    vec4 tw = texelFetch(u_color, ivec2(max(p.x - 1, 0), p.y), 0);
+    vec4 te = texelFetch(u_color, ivec2(min(p.x + 1, hi.x), p.y), 0);
+    vec4 ts = texelFetch(u_color, ivec2(p.x, max(p.y - 1, 0)), 0);
+    vec4 tn = texelFetch(u_color, ivec2(p.x, min(p.y + 1, hi.y)), 0);
     // Over a plane 1/z is affine in the image, so its second differences vanish: they
     // are non-zero only at silhouettes and creases, the edges that rasterization
     // aliases (texture detail lies on planes and is mip-mapped already).
-    float zm = za.y;
-    float d2 = max(abs(zb.x + za.z - 2.0 * zm), abs(zb.z + za.x - 2.0 * zm));
-    float zmax = max(max(max(za.x, za.y), max(za.z, za.w)), max(zb.x, max(zb.y, zb.z)));
-    float w = la.x, m = la.y, s = la.z, n = lb.x, e = lb.z;
+    float zm = tm[ZCH];
+    float d2 = max(abs(tn[ZCH] + ts[ZCH] - 2.0 * zm), abs(te[ZCH] + tw[ZCH] - 2.0 * zm));
+    float zmax = max(max(max(tw[ZCH], zm), max(ts[ZCH], tn[ZCH])), te[ZCH]);
+    // ~perceptual luma, like FXAA's (LUM: luminance; RGB: green, its 72 % share)
+    float w = sqrt(tw[LCH]), m = sqrt(tm[LCH]), s = sqrt(ts[LCH]);
+    float n = sqrt(tn[LCH]), e = sqrt(te[LCH]);
     float lmin = min(m, min(min(n, s), min(e, w)));
     float lmax = max(m, max(max(n, s), max(e, w)));
     float range = lmax - lmin;
-    bool edge = d2 > 1e-3 * zmax && range >= max(0.0156, 0.0625 * lmax);
-    bool horz = abs(n + s - 2.0 * m) >= abs(e + w - 2.0 * m);  // step across in y
-    float l1 = horz ? s : w;
-    float l2 = horz ? n : e;
-    vec2 dir = horz ? vec2(0.0, u_texel.y) : vec2(u_texel.x, 0.0);
-    if (abs(l1 - m) >= abs(l2 - m)) dir = -dir;
-    // sub-pixel coverage estimate from the neighbourhood
-    float sub = clamp(abs(0.25 * (n + s + e + w) - m) / max(range, 1e-6), 0.0, 1.0);
-    sub = smoothstep(0.0, 1.0, sub);
-    vec2 off = edge ? dir * max(sub * sub * 0.75, 0.25) : vec2(0.0);
-    vec4 c = texture(u_color, uv + off);  // off = 0: exactly this texel
+    vec4 c = tm;
+    if (d2 > 1e-3 * zmax && range >= max(0.0156, 0.0625 * lmax)) {
+        bool horz = abs(n + s - 2.0 * m) >= abs(e + w - 2.0 * m);  // step across in y
+        float l1 = horz ? s : w;
+        float l2 = horz ? n : e;
+        vec2 dir = horz ? vec2(0.0, u_texel.y) : vec2(u_texel.x, 0.0);
+        if (abs(l1 - m) >= abs(l2 - m)) dir = -dir;
+        // sub-pixel coverage estimate from the neighbourhood
+        float sub = clamp(abs(0.25 * (n + s + e + w) - m) / max(range, 1e-6), 0.0, 1.0);
+        sub = smoothstep(0.0, 1.0, sub);
+        // resample bilinearly across the edge, from this pixel's centre
+        c = texture(u_color, gl_FragCoord.xy * u_texel + dir * max(sub * sub * 0.75, 0.25));
+    }
 #ifdef LUM
     o_color = c.r;
 #else
