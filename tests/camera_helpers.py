@@ -1,6 +1,10 @@
-"""Shared helpers of the renderer / camera tests: a checkerboard scene built with numpy."""
+"""Shared helpers of the renderer / camera tests: checkerboard scenes (built with numpy, or
+the ``empty`` scene plus a board object from a scene file)."""
 
 from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 
@@ -34,6 +38,38 @@ def board_scene(z: float = 0.0) -> Scene:
     return Scene(
         "board", (obj,), Lights(sun_direction=(0.0, 0.0, -1.0), sun_intensity=0.6, ambient=0.3)
     )
+
+
+BOARD_FILE_Z = 0.01  # the scene-file board lies 1 cm above the empty scene's ground
+
+
+def board_on_empty(folder: Path) -> Scene:
+    """The built-in ``empty`` scene plus the board as a scene-file object: a textured
+    ``plane`` primitive (``board.yaml`` + ``board.png`` written to ``folder``) loaded by
+    the scene loader, centred at the origin ``BOARD_FILE_Z`` above the ground."""
+    from PIL import Image
+
+    from roslan.scene import load_scene
+
+    nx, ny = INNER[0] + 3, INNER[1] + 3  # squares incl. border
+    w, h = nx * SQUARE, ny * SQUARE
+    img = board_texture()
+    # Primitive UVs are metres from the plane's corner, times one texture_scale (1 / w):
+    # v spans [0, h / w]. Pad white rows on top (v = 1 is the image's top row) so that
+    # the board fills exactly that part of a square image.
+    img = np.pad(img, ((img.shape[1] - img.shape[0], 0), (0, 0), (0, 0)), constant_values=255)
+    Image.fromarray(img).save(folder / "board.png")
+    (folder / "board.yaml").write_text(
+        "name: board\n"
+        "objects:\n"
+        "  - name: board\n"
+        f"    primitive: {{type: plane, size: [{w}, {h}]}}\n"
+        f"    pose: {{position: [0.0, 0.0, {BOARD_FILE_Z}], rpy: [0, 0, 0]}}\n"
+        f"    material: {{color: [1, 1, 1], texture: board.png, texture_scale: {1.0 / w}}}\n"
+    )
+    board = load_scene(folder / "board.yaml")
+    empty = load_scene("empty")
+    return replace(empty, name="empty+board", objects=empty.objects + board.objects)
 
 
 def board_corners(z: float = 0.0) -> np.ndarray:

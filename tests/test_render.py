@@ -8,7 +8,15 @@ import numpy as np
 import pytest
 
 import roslan.render.gl as gl
-from camera_helpers import board_corners, board_scene, detect_corners, look_down, match_error
+from camera_helpers import (
+    BOARD_FILE_Z,
+    board_corners,
+    board_on_empty,
+    board_scene,
+    detect_corners,
+    look_down,
+    match_error,
+)
 from roslan.errors import RenderError
 from roslan.scene.model import Lights, Material, Scene, SceneObject
 from roslan.sensors.camera_model import CameraModel
@@ -17,6 +25,11 @@ from roslan.sensors.camera_model import CameraModel
 @pytest.fixture(scope="module")
 def board() -> Scene:
     return board_scene()
+
+
+@pytest.fixture(scope="module")
+def board_file_scene(tmp_path_factory: pytest.TempPathFactory) -> Scene:
+    return board_on_empty(tmp_path_factory.mktemp("board"))
 
 
 def _render_model(
@@ -44,17 +57,18 @@ def _render_model(
     ],
 )
 def test_projection_matches_opencv(
-    board: Scene, model_name: str, coeffs: tuple[float, ...], scale: float | None
+    board_file_scene: Scene, model_name: str, coeffs: tuple[float, ...], scale: float | None
 ) -> None:
-    """Corners within 0.5 px of OpenCV's projection, at the default (reduced) render
+    """Corners of a checkerboard-textured plane (the ``empty`` scene plus a scene-file
+    board object) within 0.5 px of OpenCV's projection, at the default (reduced) render
     density of distorted lenses and at the centre's density everywhere (scale 1)."""
     model = CameraModel.create(320, 240, 210.0, 215.0, 161.3, 118.7, model_name, coeffs)
-    T = look_down(0.13, -0.07, 5.0, tilt=0.2)
-    img = _render_model(board, model, T, scale)
+    T = look_down(0.13, -0.07, 5.0 + BOARD_FILE_Z, tilt=0.2)
+    img = _render_model(board_file_scene, model, T, scale)
     found = detect_corners(img)
     assert found is not None, "checkerboard not detected"
     T_cw = np.linalg.inv(T)
-    P = board_corners()
+    P = board_corners(BOARD_FILE_Z)
     rvec, _ = cv2.Rodrigues(T_cw[:3, :3])
     tvec = T_cw[:3, 3]
     if model_name == "equidistant":
