@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 from pathlib import Path
 from typing import Any
 
@@ -138,6 +139,58 @@ def test_txt_formatter_matches_shared_text_helper() -> None:
     got = format_events_txt(t, x, y, p).decode()
     want = format_columns(t, x, y, p, fmt="%d")
     assert got == want
+
+
+def test_txt_formatter_edges_and_writers_round_trip(tmp_path: Path) -> None:
+    """The numba formatter against Python formatting and the NumPy reference on extreme
+    values; events.txt and events.h5 (every compression) read back equal."""
+    import h5py
+
+    from roslan.events.files import EventH5Writer, EventTextWriter, _format_events_txt_numpy
+
+    rng = np.random.default_rng(3)
+    n = 3000
+    t = np.sort(rng.integers(0, 2**62, n)).astype(np.int64)
+    t[:4] = [0, 9, 1_000_000_000, 1_000_000_001]
+    x = rng.integers(0, 2**16, n).astype(np.uint16)
+    y = rng.integers(0, 2**16, n).astype(np.uint16)
+    x[:3], y[:3] = [0, 9, 65535], [10, 99, 100]
+    p = rng.integers(0, 2, n).astype(np.int8)
+    want = "".join(
+        f"{a // 10**9}.{a % 10**9:09d} {b} {c} {d}\n"
+        for a, b, c, d in zip(t.tolist(), x.tolist(), y.tolist(), p.tolist(), strict=True)
+    ).encode()
+    assert format_events_txt(t, x, y, p) == want
+    assert _format_events_txt_numpy(t, x, y, p) == want
+    big = np.array([2**40 + 7], np.int64)  # int64 coordinates too
+    assert (
+        format_events_txt(t[:1], big, big, p[:1])
+        == f"0.000000000 {big[0]} {big[0]} {p[0]}\n".encode()
+    )
+    with pytest.raises(ValueError, match="non-negative"):
+        format_events_txt(np.array([-1]), x[:1], y[:1], p[:1])
+    assert format_events_txt(t[:0], x[:0], y[:0], p[:0]) == b""
+    # streamed writers, batches across chunk boundaries
+    ev = EventBatch(t, x, y, p)
+    cuts = [0, 1, 700, 701, 2500, n]
+    tw = EventTextWriter(tmp_path / "e.txt")
+    hw = {c: EventH5Writer(tmp_path / f"e_{c}.h5", 346, 260, chunk=512, compression=c)
+          for c in ("gzip", "lzf", None)}  # fmt: skip
+    for a, b in itertools.pairwise(cuts):
+        for w in (tw, *hw.values()):
+            w.write(ev.slice(a, b))
+    for w in (tw, *hw.values()):
+        w.close()
+    assert (tmp_path / "e.txt").read_bytes() == want
+    for c in hw:
+        with h5py.File(tmp_path / f"e_{c}.h5", "r") as f:
+            g = f["events"]
+            assert g["t"].compression == c
+            for name, col in zip("txyp", ev, strict=True):
+                assert g[name].dtype == col.dtype
+                np.testing.assert_array_equal(g[name][:], col)
+    with pytest.raises(ValueError, match="compression"):
+        EventH5Writer(tmp_path / "bad.h5", 1, 1, compression="zstd")  # type: ignore[arg-type]
 
 
 # ------------------------------------------------------------------ end to end

@@ -227,45 +227,59 @@ def gather_events(key, mask, idx, t, p, width, to, xo, yo, po):  # type: ignore[
         po[j] = p[o]
 
 
+_PAIRS = np.array([[48 + i // 10, 48 + i % 10] for i in range(100)], np.uint8)
+"""(100, 2) ASCII digits of 00..99."""
+
+
+@numba.njit(inline="always")
+def _put_int(out, k, v, pairs):  # type: ignore[no-untyped-def]
+    """Decimal digits of ``v >= 0`` at ``out[k:]``; returns the index after them."""
+    nd = 1
+    p10 = np.int64(10)
+    while nd < 19 and v >= p10:
+        nd += 1
+        p10 *= 10
+    e = k + nd
+    j = e
+    while v >= 100:
+        q = v // 100
+        r = v - q * 100
+        out[j - 2] = pairs[r, 0]
+        out[j - 1] = pairs[r, 1]
+        v = q
+        j -= 2
+    if v >= 10:
+        out[j - 2] = pairs[v, 0]
+        out[j - 1] = pairs[v, 1]
+    else:
+        out[j - 1] = 48 + v
+    return e
+
+
 @_jit
 def format_txt(t, x, y, p, out):  # type: ignore[no-untyped-def]
-    """``'%d.%09d %d %d %d\\n'`` per event into ``out`` (uint8, large enough: 48 bytes per
-    event); t non-negative int64 ns. Returns the number of bytes written."""
+    """``'%d.%09d %d %d %d\\n'`` per event into ``out`` (uint8, long enough); t, x, y
+    non-negative integers (t ns). Returns the number of bytes written."""
+    pairs = _PAIRS
     k = 0
-    digits = np.empty(20, np.uint8)
     for j in range(t.shape[0]):
         v = t[j]
         sec = v // 1_000_000_000
         frac = v - sec * 1_000_000_000
-        # seconds: at least one digit
-        nd = 0
-        while True:
-            digits[nd] = 48 + sec % 10
-            sec //= 10
-            nd += 1
-            if sec == 0:
-                break
-        for d in range(nd - 1, -1, -1):
-            out[k] = digits[d]
-            k += 1
+        k = _put_int(out, k, sec, pairs)
         out[k] = 46  # '.'
-        for d in range(8, -1, -1):
-            out[k + 1 + d] = 48 + frac % 10
-            frac //= 10
-        k += 10
-        for w in (np.int64(x[j]), np.int64(y[j])):
-            out[k] = 32
-            k += 1
-            nd = 0
-            while True:
-                digits[nd] = 48 + w % 10
-                w //= 10
-                nd += 1
-                if w == 0:
-                    break
-            for d in range(nd - 1, -1, -1):
-                out[k] = digits[d]
-                k += 1
+        # nine digits, zero-padded: four pairs and a leading digit
+        for e in (k + 9, k + 7, k + 5, k + 3):
+            q = frac // 100
+            r = frac - q * 100
+            out[e - 1] = pairs[r, 0]
+            out[e] = pairs[r, 1]
+            frac = q
+        out[k + 1] = 48 + frac
+        out[k + 10] = 32
+        k = _put_int(out, k + 11, np.int64(x[j]), pairs)
+        out[k] = 32
+        k = _put_int(out, k + 1, np.int64(y[j]), pairs)
         out[k] = 32
         out[k + 1] = 49 if p[j] > 0 else 48
         out[k + 2] = 10
