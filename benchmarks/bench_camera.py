@@ -13,12 +13,19 @@ shared): "plan 1.0" renders the distorted camera at the centre's density everywh
 wall time of one frame, and process CPU time per frame (all threads, llvmpipe's
 included) averaged over the runs.
 
-Run by hand: ``.venv/bin/python benchmarks/bench_camera.py [ROUNDS]`` (``ROSLAN_MSAA_SAMPLES=4``
-for MSAA on llvmpipe).
+Image quality of the render plans: ``bench_camera.py psnr`` compares the 640x480 rgb8
+plumb_bob frame at several plan scales with a reference (2x focal length, 4x MSAA, 2x2
+sub-pixel samples per output pixel through the exact lens model), PSNR of the 8-bit
+sRGB images over the whole image, the centre (< 120 px from the principal point) and
+the periphery (> 250 px).
+
+Run by hand: ``.venv/bin/python benchmarks/bench_camera.py [ROUNDS | psnr]``
+(``ROSLAN_MSAA_SAMPLES=4`` for MSAA on llvmpipe).
 """
 
 from __future__ import annotations
 
+import math
 import os
 import sys
 import time
@@ -114,7 +121,59 @@ def _camera(w: int, h: int, enc: str, dist: bool) -> Camera:
     return Camera(cfg)
 
 
+def _psnr(a: np.ndarray, b: np.ndarray, mask: np.ndarray) -> float:
+    d = (a.astype(np.float64) - b.astype(np.float64))[mask] ** 2
+    return 10.0 * math.log10(255.0**2 / float(d.mean()))
+
+
+def quality() -> None:
+    """PSNR of the 640x480 plumb_bob frame per plan scale (see the module docstring)."""
+    import cv2
+
+    scene = load_scene("warehouse")
+    r = get_renderer(scene)
+    cam = _camera(640, 480, "rgb8", True)
+    cam._plans(_Ctx(r))  # type: ignore[arg-type]
+    e = cam._eyes[0]
+    m = e.model
+    T_wb = np.eye(4)
+    T_wb[:3, 3] = np.asarray(scene.goal_position) + np.array([-6.0, 1.0, 3.0])
+    c, s = np.cos(0.35), np.sin(0.35)
+    T_wb[:3, :3] = [[c, 0, s], [0, 1, 0], [-s, 0, c]]
+    T = T_wb @ T_LINK_OPTICAL
+    u, v = np.meshgrid(np.arange(640.0), np.arange(480.0))
+    ref_plan = m.render_plan(r.max_size, scale=2.0)
+    hi = r.render(T, ref_plan.K, ref_plan.width, ref_plan.height, depth=False, samples=4).color
+    acc = np.zeros((480, 640, 3), np.float32)
+    for du in (-0.25, 0.25):
+        for dv in (-0.25, 0.25):
+            xy = m.undistort_normalized(np.stack([(u + du).ravel(), (v + dv).ravel()], 1))
+            mx = ref_plan.K[0, 0] * xy[:, 0] + ref_plan.K[0, 2]
+            my = ref_plan.K[1, 1] * xy[:, 1] + ref_plan.K[1, 2]
+            acc += cv2.remap(
+                hi,
+                mx.astype(np.float32).reshape(480, 640),
+                my.astype(np.float32).reshape(480, 640),
+                cv2.INTER_LINEAR,
+                borderMode=cv2.BORDER_REPLICATE,
+            )
+    ref = cam.finish_image(acc * np.float32(0.25), np.random.default_rng(0))
+    rad = np.hypot(u - m.cx, v - m.cy)
+    regions = {"all": rad >= 0, "centre": rad < 120, "periphery": rad > 250}
+    print(f"PSNR vs reference (load average {os.getloadavg()[0]:.2f}):")
+    for scale in (1.0, 0.9, None, 0.7):
+        e.plan = m.render_plan(r.max_size, scale=scale)
+        img = cam.finish_image(cam.render_linear(r, e, T_wb[None]), np.random.default_rng(0))
+        db = ", ".join(f"{k} {_psnr(img, ref, mk):.2f} dB" for k, mk in regions.items())
+        label = "auto" if scale is None else f"{scale}"
+        f = e.plan.K[0, 0] / m.fx
+        print(f"  scale {label} ({f:.3f}, {e.plan.width}x{e.plan.height}): {db}")
+
+
 def main() -> None:
+    if sys.argv[1:] == ["psnr"]:
+        quality()
+        return
     rounds = int(sys.argv[1]) if len(sys.argv) > 1 else 5
     scene = load_scene("warehouse")
     r = get_renderer(scene)

@@ -19,7 +19,7 @@ from roslan.config.base import validate_model
 from roslan.config.sim import SimConfig
 from roslan.errors import ConfigError, SensorError
 from roslan.sensors.base import sample_times_ns
-from roslan.sensors.camera import StereoCamera, StereoCameraConfig
+from roslan.sensors.camera import Camera, CameraConfig, StereoCamera, StereoCameraConfig
 from roslan.sensors.camera_model import T_LINK_OPTICAL, CameraModel, load_calibration
 from roslan.simulate import run_simulation
 from roslan.trajectory import Trajectory, TrajectoryConfig
@@ -223,6 +223,8 @@ def test_calibration_round_trip(tmp_path: Path) -> None:
             r"needs 4 coefficients",
         ),
         ({"calibration": "nope.yaml"}, r"nope.yaml: file not found"),
+        ({"render_scale": 0.0}, r"render_scale"),
+        ({"render_scale": 3.0}, r"render_scale"),
     ],
 )
 def test_bad_intrinsics(keys: dict[str, Any], match: str) -> None:
@@ -281,3 +283,52 @@ def test_resolution_larger_than_renderer(tmp_path: Path) -> None:
     )
     with pytest.raises(SensorError, match=r"resolution"):
         run_simulation(cfg, tmp_path / "o", quiet=True)
+
+
+class _FakeRenderer:
+    max_size = 4096
+
+    def check_size(self, width: int, height: int) -> None:
+        pass
+
+
+class _FakeCtx:
+    def renderer(self) -> _FakeRenderer:
+        return _FakeRenderer()
+
+
+@pytest.mark.parametrize("render_scale", [None, 1.0, 0.6])
+def test_render_scale_sets_the_plan(render_scale: float | None) -> None:
+    """Distorted lens: the plan's focal length is ``render_scale`` x the camera's; by
+    default the render has about as many pixels as the output (< 1.59x at scale 1)."""
+    sensor = {
+        "type": "camera",
+        "name": "c",
+        "rate": 1.0,
+        "topic": "/c",
+        "resolution": [640, 480],
+        "fx": 320.0,
+        "distortion_model": "plumb_bob",
+        "distortion_coeffs": [-0.2, 0.05, 0.0, 0.0, 0.0],
+        **({} if render_scale is None else {"render_scale": render_scale}),
+    }
+    cam = Camera(CameraConfig.model_validate(sensor))
+    cam._plans(_FakeCtx())  # type: ignore[arg-type]
+    plan = cam._eyes[0].plan
+    assert plan is not None
+    # the output border's rays set the render's extent (a lens maps the border to the
+    # border); left edge column u = 0, top row v = 0
+    u = np.arange(640.0)
+    v = np.arange(480.0)
+    border = np.concatenate([np.c_[np.zeros(480), v], np.c_[u, np.zeros(640)]])
+    xy = cam._eyes[0].model.undistort_normalized(border)
+    f = plan.K[0, 0]
+    if render_scale is None:
+        assert 0.5 * 320.0 < f < 320.0
+        assert 640 * 480 <= plan.width * plan.height <= 1.03 * 640 * 480
+    else:
+        assert f == pytest.approx(render_scale * 320.0)
+    # the render just covers the corner ray (+ the 2 px interpolation margin)
+    assert plan.K[0, 2] == pytest.approx(-f * xy[:, 0].min() + 2.0, abs=1.0)
+    assert plan.K[1, 2] == pytest.approx(-f * xy[:, 1].min() + 2.0, abs=1.0)
+    assert plan.width == pytest.approx(2.0 * plan.K[0, 2], abs=2.0)  # symmetric lens
