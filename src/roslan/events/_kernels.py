@@ -111,10 +111,21 @@ def compact(flag, cand):  # type: ignore[no-untyped-def]
 
 
 @_jit
-def count_crossings(cand, m, sig, ref, c_pos, c_neg, cnts):  # type: ignore[no-untyped-def]
-    """Levels crossed by each of the ``m`` candidate pixels into ``cnts``; returns the total."""
-    total = np.int64(0)
-    for j in range(m):
+def emit_crossings(  # type: ignore[no-untyped-def]
+    cand, j0, m, sig0, sig, ref, c_pos, c_neg, last, t0, dt_ns, refractory_ns, idx, t, p, n
+):
+    """Every level crossing of the candidate pixels ``cand[j0:m]`` into ``idx``, ``t``, ``p``
+    from ``n`` on, pixel-major and in time order within a pixel (the instant the linear
+    signal from ``sig0`` to ``sig`` crosses the level); moves ``ref`` to the last level and
+    applies the refractory period (``last``: the pixels' last emitted event).
+
+    Returns ``(j, n, dropped)``: the candidate it stopped at (``m`` when done; earlier when
+    the buffers are full, that pixel untouched), the events written, those dropped.
+    """
+    dtf = np.float64(dt_ns)
+    cap = idx.shape[0]
+    dropped = 0
+    for j in range(j0, m):
         i = cand[j]
         r = ref[i]
         s1 = sig[i]
@@ -127,35 +138,10 @@ def count_crossings(cand, m, sig, ref, c_pos, c_neg, cnts):  # type: ignore[no-u
         cnt -= np.int64((cnt > 1) & ((r + sg * (cnt * cp) - s1) * sg > 0))
         cnt = max(cnt, np.int64(1))
         cnt += np.int64((r + sg * ((cnt + 1) * cp) - s1) * sg <= 0)
-        cnts[j] = cnt
-        total += cnt
-    return total
-
-
-@_jit
-def emit_crossings(  # type: ignore[no-untyped-def]
-    cand, m, cnts, sig0, sig, ref, c_pos, c_neg, last, t0, dt_ns, refractory_ns, idx, t, p
-):
-    """Every level crossing of the ``m`` candidate pixels into ``idx``, ``t``, ``p``,
-    pixel-major and in time order within a pixel (the instant the linear signal from
-    ``sig0`` to ``sig`` crosses the level); moves ``ref`` to the last level and applies the
-    refractory period (``last``: the pixels' last emitted event).
-
-    Returns ``(events written, events dropped by the refractory period)``.
-    """
-    dtf = np.float64(dt_ns)
-    n = 0
-    dropped = 0
-    for j in range(m):
-        i = cand[j]
-        r = ref[i]
-        s1 = sig[i]
+        if n + cnt > cap:
+            return j, n, dropped
         s0 = sig0[i]
-        up = s1 > r
-        cp = c_pos[i] if up else c_neg[i]
-        sg = 1.0 if up else -1.0
         pol = 1 if up else 0
-        cnt = cnts[j]
         ds = s1 - s0
         lt = last[i]
         n_pix = n
@@ -175,7 +161,7 @@ def emit_crossings(  # type: ignore[no-untyped-def]
         dropped += cnt - (n - n_pix)
         last[i] = lt
         ref[i] = r + sg * (cnt * cp)
-    return n, dropped
+    return m, n, dropped
 
 
 @_jit

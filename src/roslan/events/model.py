@@ -254,7 +254,6 @@ class EventGenerator:
             self._cand = np.empty(self.n_pixels, np.int64)
             self._flag = np.empty(self.n_pixels, np.uint8)
             self._sig_next = np.empty(self.n_pixels)  # the signal is double-buffered
-            self._cnt = np.empty(self.n_pixels, np.int64)
             self._idx = self._t = self._key = np.empty(0, np.int64)
             self._p = np.empty(0, np.int8)
             return EventBatch.empty()
@@ -306,15 +305,19 @@ class EventGenerator:
             self.c_neg, s1, self._flag,
         )  # fmt: skip
         m = k.compact(self._flag, self._cand)
-        total = int(
-            k.count_crossings(self._cand, m, s1, self.ref, self.c_pos, self.c_neg, self._cnt)
-        )
         shot = self._shot_noise_draw(dt_ns) if p.shot_noise_rate > 0 else 0
-        idx, t, pol = self._scratch(total + shot)
-        n, dropped = k.emit_crossings(
-            self._cand, m, self._cnt, s0, s1, self.ref, self.c_pos, self.c_neg, self.last_event_ns,
-            t0, dt_ns, self._refractory_ns, idx, t, pol,
-        )  # fmt: skip
+        j = n = dropped = 0
+        while True:
+            idx, t, pol = self._scratch(n + shot, keep=n)
+            j, n, d = k.emit_crossings(
+                self._cand, j, m, s0, s1, self.ref, self.c_pos, self.c_neg,
+                self.last_event_ns, t0, dt_ns, self._refractory_ns, idx, t, pol, n,
+            )  # fmt: skip
+            dropped += d
+            if j == m:
+                break
+            self._scratch(2 * idx.shape[0] + 1024, keep=n)  # full: grow and go on
+        idx, t, pol = self._scratch(n + shot, keep=n)  # room for the shot noise
         self.signal, self._sig_next = s1, s0
         self.n_dropped += int(dropped)
         n_real = int(n)
@@ -353,13 +356,14 @@ class EventGenerator:
         k.gather_events(key, mask, idx, t, pol, self.width, *out)
         return out
 
-    def _scratch(self, n: int) -> tuple[I64, I64, NDArray[np.int8]]:
-        """Reused event buffers of at least ``n`` events (grown by doubling)."""
+    def _scratch(self, n: int, keep: int = 0) -> tuple[I64, I64, NDArray[np.int8]]:
+        """Reused event buffers of at least ``n`` events (grown by doubling, the first
+        ``keep`` events copied over)."""
         if self._idx.shape[0] < n:
             cap = max(n, 2 * self._idx.shape[0])
-            self._idx = np.empty(cap, np.int64)
-            self._t = np.empty(cap, np.int64)
-            self._p = np.empty(cap, np.int8)
+            idx, t, p = np.empty(cap, np.int64), np.empty(cap, np.int64), np.empty(cap, np.int8)
+            idx[:keep], t[:keep], p[:keep] = self._idx[:keep], self._t[:keep], self._p[:keep]
+            self._idx, self._t, self._p = idx, t, p
             self._key = np.empty(cap, np.int64)
         return self._idx, self._t, self._p
 
