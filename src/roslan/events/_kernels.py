@@ -165,6 +165,28 @@ def emit_crossings(  # type: ignore[no-untyped-def]
 
 
 @_jit
+def apply_shot_noise(idx, t, p, ref, c_pos, c_neg, last):  # type: ignore[no-untyped-def]
+    """Shot-noise events reset their pixels like real ones, in event order (``np.add.at``)."""
+    for j in range(idx.shape[0]):
+        i = idx[j]
+        ref[i] += c_pos[i] if p[j] == 1 else -c_neg[i]
+        last[i] = max(last[i], t[j])
+
+
+@_jit
+def has_ties(t, idx):  # type: ignore[no-untyped-def]
+    """Whether two events share both time and pixel (``idx`` sorted)."""
+    for j in range(1, idx.shape[0]):
+        if idx[j] == idx[j - 1]:
+            k = j - 1  # the run of this pixel, pairwise (runs are a few events long)
+            while k >= 0 and idx[k] == idx[j]:
+                if t[k] == t[j]:
+                    return True
+                k -= 1
+    return False
+
+
+@_jit
 def pack_keys(t, idx, p, n_real, t0, ib, key):  # type: ignore[no-untyped-def]
     """``key = (t - t0, shot, pixel index, p)`` packed in bit fields (``ib`` bits of index).
 

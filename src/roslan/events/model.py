@@ -327,7 +327,7 @@ class EventGenerator:
             idx[n : n + shot], t[n : n + shot], pol[n : n + shot] = sidx, st, spol
             n += shot
             # two shot events of one pixel at one ns (practically never): keys would tie
-            shot_ties = np.unique(st * self.n_pixels + sidx).size < shot
+            shot_ties = bool(k.has_ties(st, sidx))
         self.t_ns = t_ns
         if n == 0:
             return EventBatch.empty()
@@ -386,15 +386,29 @@ class EventGenerator:
         t = t0 + 1 + rng.integers(0, dt_ns, m)  # in (t0, t1]
         pol = (rng.random(m) < 0.5).astype(np.int8)
         # a noise event resets the pixel like a real one (v2e)
-        step = np.where(pol == 1, self.c_pos[idx], -self.c_neg[idx])
-        np.add.at(self.ref, idx, step)
-        np.maximum.at(self.last_event_ns, idx, t)
+        _kernels().apply_shot_noise(
+            idx, t, pol, self.ref, self.c_pos, self.c_neg, self.last_event_ns
+        )
         return idx, t, pol
 
 
 class NumpyEventGenerator(EventGenerator):
     """The same model in plain NumPy array passes (the kernels' reference, and the
     benchmark's baseline): bit-identical events, several times slower."""
+
+    def _shot_noise(self, t0: int, dt_ns: int, m: int) -> tuple[I64, I64, NDArray[np.int8]]:
+        """``m`` shot-noise events (drawn after the interval's crossings moved ``ref``)."""
+        rng = self._rng
+        if m == 0:
+            return _EMPTY
+        idx = np.sort(rng.integers(0, self.n_pixels, m))
+        t = t0 + 1 + rng.integers(0, dt_ns, m)  # in (t0, t1]
+        pol = (rng.random(m) < 0.5).astype(np.int8)
+        # a noise event resets the pixel like a real one (v2e)
+        step = np.where(pol == 1, self.c_pos[idx], -self.c_neg[idx])
+        np.add.at(self.ref, idx, step)
+        np.maximum.at(self.last_event_ns, idx, t)
+        return idx, t, pol
 
     def update(self, intensity: NDArray[np.floating], t_ns: int) -> EventBatch:
         """Advance to the frame ``intensity`` (H, W) linear luminance at ``t_ns``.
