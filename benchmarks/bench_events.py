@@ -23,6 +23,7 @@ import tempfile
 import time
 from collections.abc import Callable
 from pathlib import Path
+from typing import Literal
 
 import numpy as np
 
@@ -153,12 +154,12 @@ def main() -> None:
                           ("txt format numba", format_events_txt)):  # fmt: skip
             ser[name] = best_of(lambda fmt=fmt: len(fmt(ev.t, ev.x, ev.y, ev.p)), args.repeat)[1:]
 
-        def write_files(txt: bool, h5: bool) -> int:
+        def write_files(txt: bool, h5: Literal["gzip", "lzf"] | None) -> int:
             ws: list[EventTextWriter | EventH5Writer] = []
             if txt:
                 ws.append(EventTextWriter(Path(tmp) / "bench.txt"))
             if h5:
-                ws.append(EventH5Writer(Path(tmp) / "bench.h5", W, H))
+                ws.append(EventH5Writer(Path(tmp) / "bench.h5", W, H, compression=h5))
             for b in batches:  # one batch per rendered frame, as the sensor streams them
                 for w in ws:
                     w.write(b)
@@ -166,8 +167,13 @@ def main() -> None:
                 w.close()
             return n_ev
 
-        for name, flags in (("events.txt", (True, False)), ("events.h5", (False, True)),
-                            ("both files", (True, True))):  # fmt: skip
+        files: dict[str, tuple[bool, Literal["gzip", "lzf"] | None]] = {
+            "events.txt": (True, None),
+            "events.h5 gzip": (False, "gzip"),
+            "events.h5 lzf": (False, "lzf"),
+            "txt + h5 gzip": (True, "gzip"),
+        }
+        for name, flags in files.items():
             ser[name] = best_of(lambda flags=flags: write_files(*flags), args.repeat)[1:]
 
     load = os.getloadavg()[0]
