@@ -7,7 +7,8 @@ channel, the depth-only pass, and ``Renderer.render`` end to end for each output
 combination, at 4 and 1 MSAA samples.
 
 Run by hand: ``.venv/bin/python benchmarks/profile_render.py [WIDTH HEIGHT [FOCAL]]``
-(default: 805 605 320, the render of bench_camera's 640x480 plumb_bob frame); compare
+(default: 643 483 255, the render of bench_camera's 640x480 plumb_bob frame; it was
+805 605 320 before the lens plan's density was reduced); compare
 ``LP_NUM_THREADS=1`` to see that llvmpipe uses both cores.
 """
 
@@ -42,8 +43,8 @@ def _ms(f: Callable[[], object], n: int = REPS) -> float:
 def view(scene: Any, w: int, h: int, f: float | None = None) -> tuple[np.ndarray, np.ndarray]:
     """The bench_camera.py view: 6 m before, 3 m above the landing marker, pitched
     down 0.35 rad; K with fx = fy = ``f`` (default w / 2: the cameras' default 90 deg
-    horizontal field of view; bench_camera's 640x480 plumb_bob camera renders 805x605
-    with f = 320)."""
+    horizontal field of view; bench_camera's 640x480 plumb_bob camera renders 643x483
+    with f = 255)."""
     T_wb = np.eye(4)
     T_wb[:3, 3] = np.asarray(scene.goal_position) + np.array([-6.0, 1.0, 3.0])
     p = 0.35
@@ -59,12 +60,13 @@ def stages(r: gl.Renderer, T: np.ndarray, K: np.ndarray, w: int, h: int, ns: int
     T_cw = np.linalg.inv(T)
     P = gl.projection_from_K(K, w, h, r.near, 80.0)  # (the far plane culls nothing here)
     clip = P @ T_cw
-    first, count, group = r.visible_ranges(clip)
+    first, count, group = r.visible_ranges(clip, T[:3, 3])  # front to back, as render()
     all_first, all_count, all_group = r._c_first, r._c_count, r._c_group
     n_vis = int(count.sum()) // 3
+    cull_ms = _ms(lambda: r.visible_ranges(clip, T[:3, 3]))
     print(
         f"  culling: {n_vis} of {r.scene.n_triangles} triangles in {first.size} draws "
-        f"({r.n_clusters} clusters); cull test {_ms(lambda: r.visible_ranges(clip)):.2f} ms"
+        f"({r.n_clusters} clusters); cull test + sort {cull_ms:.2f} ms"
     )
     r.render(T, K, w, h, samples=ns)  # targets and programs
     t = r._targets[(w, h, ns, False, True)]
@@ -172,8 +174,8 @@ def stages(r: gl.Renderer, T: np.ndarray, K: np.ndarray, w: int, h: int, ns: int
 
 
 def main() -> None:
-    w, h = (int(sys.argv[1]), int(sys.argv[2])) if len(sys.argv) > 2 else (805, 605)
-    f = float(sys.argv[3]) if len(sys.argv) > 3 else (320.0 if (w, h) == (805, 605) else None)
+    w, h = (int(sys.argv[1]), int(sys.argv[2])) if len(sys.argv) > 2 else (643, 483)
+    f = float(sys.argv[3]) if len(sys.argv) > 3 else (255.0 if (w, h) == (643, 483) else None)
     scene = load_scene("warehouse")
     r = gl.get_renderer(scene)
     print(

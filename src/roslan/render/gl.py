@@ -5,9 +5,9 @@ machine, the GPU driver wherever there is one; same code). :func:`get_renderer`
 returns one :class:`Renderer` per scene: the scene is uploaded once into a single
 vertex/index buffer, its triangles grouped by texture and, inside each group, into
 spatial clusters (one object's triangles in one grid cell) with bounding boxes; every
-frame draws only the clusters whose box meets the view frustum, consecutive ones
-merged into one draw call. The sun's shadow map is rendered once at upload (scene and
-sun are static).
+frame draws only the clusters whose box meets the view frustum, nearest first (so that
+the early depth test rejects hidden fragments), consecutive ones merged into one draw
+call. The sun's shadow map is rendered once at upload (scene and sun are static).
 
 Shading: textured Lambert, ``albedo * texture * (ambient + sun * max(0, n.l) * lit)``
 in LINEAR radiance (textures are sRGB-decoded by the sampler), two-sided (the side
