@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from range_helpers import FakeContext, LinearTrajectory, run_sensor, scene, vertical_wall_x
@@ -142,6 +142,7 @@ _small = st.floats(min_value=-1.0, max_value=1.0, allow_nan=False)
     v=st.tuples(_small, _small, _small),
     scale=st.sampled_from([1e-6, 1e-4, 1e-3, 0.1, 1.0, 2.5]),
 )
+@example(rv=(0.0, 1.0, 1.0), v=(0.0, 0.0, 0.0), scale=2.5)  # angle 3.54 rad > pi
 def test_rotation_helpers_match_scipy(
     rv: tuple[float, float, float], v: tuple[float, float, float], scale: float
 ) -> None:
@@ -155,4 +156,10 @@ def test_rotation_helpers_match_scipy(
     # documented accuracy: float32 resolution (series below 3.5e-4 rad)
     np.testing.assert_allclose(_rotate(r, vec)[0], expected, atol=1e-7)
     R = Rotation.from_rotvec(r[0]).as_matrix()
-    np.testing.assert_allclose(rotvec_log(R[None])[0], r[0], atol=1e-7)
+    log = rotvec_log(R[None])[0]
+    # the log is the rotation vector of angle in [0, pi]: r itself below pi, and in any
+    # case a rotation vector of the same rotation (scale 2.5 reaches 4.3 rad)
+    assert np.linalg.norm(log) <= np.pi + 1e-9
+    np.testing.assert_allclose(Rotation.from_rotvec(log).as_matrix(), R, atol=1e-7)
+    if np.linalg.norm(r[0]) < np.pi - 1e-3:
+        np.testing.assert_allclose(log, r[0], atol=1e-7)
