@@ -12,22 +12,13 @@ SIMD loops may differ from libm in the last ulp): the kernels write their argume
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from typing import Any
-
 import numba
 import numpy as np
 
-
-def _jit(fn: Callable[..., Any]) -> Any:
-    """``njit(cache=True, nogil=True)``; without a writable cache location, no cache."""
-    try:
-        return numba.njit(cache=True, nogil=True)(fn)
-    except RuntimeError:  # pragma: no cover - no writable cache location at all
-        return numba.njit(cache=False, nogil=True)(fn)
+from roslan.jit import kernel
 
 
-@_jit
+@kernel
 def log_exp_args(img, eps, s, logarg, exparg, want_log, want_exp):  # type: ignore[no-untyped-def]
     """``logarg = eps + max(I, 0)`` (the argument of ``L = log(eps + I)``) and
     ``exparg = s * (clip(I, 0, 1) + 0.08) / 1.08`` (of the intensity-dependent low-pass)."""
@@ -47,7 +38,7 @@ def _test(i, s1, ref, c_pos, c_neg, sig, flag):  # type: ignore[no-untyped-def]
     flag[i] = (r + c_pos[i] <= s1) | (r - c_neg[i] >= s1)
 
 
-@_jit
+@kernel
 def pixel_step(  # type: ignore[no-untyped-def]
     L, E, mode, a, lp, leak, tsec, ref, c_pos, c_neg, sig, flag
 ):
@@ -92,7 +83,7 @@ def pixel_step(  # type: ignore[no-untyped-def]
             _test(i, x, ref, c_pos, c_neg, sig, flag)
 
 
-@_jit
+@kernel
 def compact(flag, cand):  # type: ignore[no-untyped-def]
     """Indices of the set flags into ``cand``; returns their number. Skips 8 clear flags
     at a time (candidates are a few percent of the pixels)."""
@@ -110,7 +101,7 @@ def compact(flag, cand):  # type: ignore[no-untyped-def]
     return m
 
 
-@_jit
+@kernel
 def emit_crossings(  # type: ignore[no-untyped-def]
     cand, j0, m, sig0, sig, ref, c_pos, c_neg, last, t0, dt_ns, refractory_ns, idx, t, p, n
 ):
@@ -164,7 +155,7 @@ def emit_crossings(  # type: ignore[no-untyped-def]
     return m, n, dropped
 
 
-@_jit
+@kernel
 def apply_shot_noise(idx, t, p, ref, c_pos, c_neg, last):  # type: ignore[no-untyped-def]
     """Shot-noise events reset their pixels like real ones, in event order (``np.add.at``)."""
     for j in range(idx.shape[0]):
@@ -173,7 +164,7 @@ def apply_shot_noise(idx, t, p, ref, c_pos, c_neg, last):  # type: ignore[no-unt
         last[i] = max(last[i], t[j])
 
 
-@_jit
+@kernel
 def has_ties(t, idx):  # type: ignore[no-untyped-def]
     """Whether two events share both time and pixel (``idx`` sorted)."""
     for j in range(1, idx.shape[0]):
@@ -186,7 +177,7 @@ def has_ties(t, idx):  # type: ignore[no-untyped-def]
     return False
 
 
-@_jit
+@kernel
 def pack_keys(t, idx, p, n_real, t0, ib, key):  # type: ignore[no-untyped-def]
     """``key = (t - t0, shot, pixel index, p)`` packed in bit fields (``ib`` bits of index).
 
@@ -199,7 +190,7 @@ def pack_keys(t, idx, p, n_real, t0, ib, key):  # type: ignore[no-untyped-def]
         key[j] = ((((t[j] - t0) << 1 | shot) << ib | idx[j]) << 1) | np.int64(p[j])
 
 
-@_jit
+@kernel
 def unpack_keys(key, t0, ib, width, to, xo, yo, po):  # type: ignore[no-untyped-def]
     """Sorted keys of :func:`pack_keys` back to ``t``, ``x``, ``y``, ``p``."""
     imask = (np.int64(1) << ib) - 1
@@ -214,7 +205,7 @@ def unpack_keys(key, t0, ib, width, to, xo, yo, po):  # type: ignore[no-untyped-
         po[j] = k & 1
 
 
-@_jit
+@kernel
 def sort_keys(t, t0, shift, key):  # type: ignore[no-untyped-def]
     """``key = (t - t0) << shift | position``: unique keys whose unstable sort is the
     stable time order."""
@@ -222,7 +213,7 @@ def sort_keys(t, t0, shift, key):  # type: ignore[no-untyped-def]
         key[j] = ((t[j] - t0) << shift) | j
 
 
-@_jit
+@kernel
 def gather_events(key, mask, idx, t, p, width, to, xo, yo, po):  # type: ignore[no-untyped-def]
     """The events in sorted-key order (position ``key & mask``) into ``to``, ``xo``, ``yo``,
     ``po`` (pixel index split into column and row)."""
@@ -264,7 +255,7 @@ def _put_int(out, k, v, pairs):  # type: ignore[no-untyped-def]
     return e
 
 
-@_jit
+@kernel
 def format_txt(t, x, y, p, out):  # type: ignore[no-untyped-def]
     """``'%d.%09d %d %d %d\\n'`` per event into ``out`` (uint8, long enough); t, x, y
     non-negative integers (t ns). Returns the number of bytes written."""

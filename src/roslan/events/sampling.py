@@ -15,10 +15,10 @@ from __future__ import annotations
 
 from typing import Literal
 
-import numba
 import numpy as np
 from numpy.typing import NDArray
 
+from roslan.jit import kernel
 from roslan.trajectory.generator import Trajectory
 
 __all__ = ["AdaptiveSampler", "camera_twist", "max_flow_speed", "motion_field", "pixel_rays"]
@@ -71,7 +71,7 @@ def motion_field(
     return out
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel
 def _max_flow_speed(d, x, y, fx, fy, vx, vy, vz, wx, wy, wz):  # type: ignore[no-untyped-def]
     # motion_field's float64 operations in the same order, its float32 rounding, then the
     # float32 hypot of np.hypot on float32 (computed in double: exact before rounding)
