@@ -102,6 +102,44 @@ def test_encodings_round_trip_through_bags(run: Path) -> None:
         np.testing.assert_allclose(k, [40, 0, 31.5, 0, 40, 23.5, 0, 0, 1])
 
 
+def test_png_files_are_rgb_whatever_the_encoding(tmp_path: Path) -> None:
+    # a red floor: an rgb8 and a bgr8 camera at the same pose write the same RGB PNG file
+    scene = tmp_path / "red.yaml"
+    scene.write_text(
+        yaml.safe_dump(
+            {
+                "name": "red",
+                "objects": [
+                    {
+                        "name": "floor",
+                        "primitive": {"type": "box", "size": [60.0, 60.0, 0.1]},
+                        "pose": {"position": [0.0, 0.0, -0.05]},
+                        "material": {"color": [0.9, 0.1, 0.05]},
+                    }
+                ],
+            }
+        )
+    )
+    cfg = _config(
+        [
+            {"type": "camera", "name": "a", "topic": "/a", "encoding": "rgb8", **CAM},
+            {"type": "camera", "name": "b", "topic": "/b", "encoding": "bgr8", **CAM},
+        ]
+    ).model_copy(update={"scene": str(scene)})
+    run_simulation(cfg, tmp_path / "out", quiet=True, overview=False)
+    from PIL import Image
+
+    with Image.open(tmp_path / "out/images/a/00000002.png") as im:
+        a = np.asarray(im)
+    with Image.open(tmp_path / "out/images/b/00000002.png") as im:
+        b = np.asarray(im)
+    assert a.shape == (48, 64, 3)
+    assert a[..., 0].mean() > 3 * a[..., 2].mean() + 20  # red, seen as red
+    np.testing.assert_array_equal(b, a)
+    msg = _read(tmp_path / "out/landing.bag", "/b/image_raw")[2]
+    np.testing.assert_array_equal(msg.data.reshape(48, 64, 3)[..., ::-1], a)
+
+
 def test_dataset_files_and_pngs(run: Path) -> None:
     lines = (run / "images_c_rgb.txt").read_text().splitlines()
     assert len(lines) == _n_frames(10.0)
@@ -109,6 +147,10 @@ def test_dataset_files_and_pngs(run: Path) -> None:
     png = cv2.imread(str(run / "images/c_rgb/00000003.png"))[..., ::-1]
     msg = _read(run / "landing.bag", "/c_rgb/image_raw")[3]
     np.testing.assert_array_equal(png, msg.data.reshape(48, 64, 3))
+    # a PNG file is RGB whatever the topic's encoding: the bgr8 camera's file is the same
+    # picture (both cameras sit at the same pose)
+    png_bgr = cv2.imread(str(run / "images/c_bgr/00000003.png"))[..., ::-1]
+    np.testing.assert_array_equal(png_bgr, png)
     cal = load_calibration(run / "calib/c_rgb.yaml")
     np.testing.assert_allclose(cal.K, [[40, 0, 31.5], [0, 40, 23.5], [0, 0, 1]])
     chain = yaml.safe_load((run / "calib/camchain.yaml").read_text())

@@ -42,6 +42,7 @@ from pydantic import Field, model_validator
 
 from roslan.config.base import FiniteFloat
 from roslan.errors import RenderError, SensorError
+from roslan.io.images import write_png
 from roslan.io.messages import MessageStore
 from roslan.io.text import format_seconds
 from roslan.sensors.base import (
@@ -360,15 +361,10 @@ class _CameraBase:
     def _write_png(
         self, ctx: SimContext, e: _Eye, index: int, t_ns: int, img: NDArray[Any]
     ) -> None:
-        import cv2
-
         rel = f"{e.files}/{index:08d}.png"
-        path = ctx.path(rel)
-        if img.ndim == 3:
-            img = img[..., ::-1]  # OpenCV writes BGR
-        if not cv2.imwrite(str(path), img, [cv2.IMWRITE_PNG_COMPRESSION, 1]):
-            msg = f"{path}: cannot write image"
-            raise SensorError(msg)
+        if img.ndim == 3 and getattr(self.config, "encoding", "rgb8") == "bgr8":
+            img = img[..., ::-1]  # the topic's bgr8 data; a PNG file holds RGB
+        write_png(ctx.path(rel), img)
         assert e.index_fh is not None
         e.index_fh.write(f"{format_seconds(np.array([t_ns]))[0]} {rel}\n")
 
