@@ -12,9 +12,13 @@ their ROS 1 md5sums match and every ROS tool decodes them.
 
 from __future__ import annotations
 
+import struct
 from enum import StrEnum
 from typing import Any
 
+import numpy as np
+from numpy.typing import NDArray
+from rosbags.interfaces import Nodetype
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from rosbags.typesys.store import Typestore
 
@@ -37,6 +41,9 @@ EXTRA_MSGDEFS: dict[str, str] = {
     # tf2_msgs is missing from rosbags' ROS 1 Noetic store (ROS 2 stores have it).
     "tf2_msgs/msg/TFMessage": "geometry_msgs/TransformStamped[] transforms\n",
 }
+
+_UINT8_SEQUENCE = (Nodetype.SEQUENCE, ((Nodetype.BASE, ("uint8", 0)), 0))
+_NO_BYTES = np.zeros(0, dtype=np.uint8)
 
 _STORES = {Flavor.ROS1: Stores.ROS1_NOETIC, Flavor.ROS2: Stores.ROS2_HUMBLE}
 
@@ -86,3 +93,23 @@ class MessageStore:
         if self.is_ros1:
             return bytes(self.typestore.serialize_ros1(msg, msgtype))
         return bytes(self.typestore.serialize_cdr(msg, msgtype))
+
+    def serialize_with_blob(self, msgtype: str, blob: NDArray[np.uint8], **fields: Any) -> bytes:
+        """Wire bytes of ``msgtype`` whose *last* field is the ``uint8[]`` ``blob`` (Image,
+        CompressedImage data): the other fields go through the serializer, the blob is
+        appended once (rosbags would copy it through its serializer and ``bytes()``;
+        the bytes are the same: length prefix, then the data, in both flavours).
+
+        Args:
+            msgtype: e.g. ``'sensor_msgs/msg/Image'``.
+            blob: the last field's bytes, any shape, C-contiguous uint8.
+            fields: every other field of the message.
+        """
+        name, desc = self.typestore.fielddefs[msgtype][1][-1]
+        if desc != _UINT8_SEQUENCE:
+            msg = f"{msgtype}: last field {name!r} is not uint8[]"
+            raise TypeError(msg)
+        empty = self.serialize(self.new(msgtype, **{name: _NO_BYTES}, **fields), msgtype)
+        data = np.ascontiguousarray(blob, dtype=np.uint8).reshape(-1)
+        # the empty sequence serializes as its u32 length 0, last (CDR: 4-aligned, no tail)
+        return b"".join((empty[:-4], struct.pack("<I", data.size), data.data))

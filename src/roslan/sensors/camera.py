@@ -271,18 +271,19 @@ def _camera_info(store: MessageStore, eye: _Eye, stamp: int, seq: int) -> Any:
 
 def _image(
     store: MessageStore, frame: str, stamp: int, seq: int, data: NDArray[Any], encoding: str
-) -> Any:
+) -> bytes:
     h, w = data.shape[:2]
     flat = np.ascontiguousarray(data).view(np.uint8).reshape(-1)
-    return store.new(
+    # wire bytes: the pixels are appended once, not copied through the serializer
+    return store.serialize_with_blob(
         IMAGE,
+        flat,
         header=store.header(stamp, frame, seq),
         height=h,
         width=w,
         encoding=encoding,
         is_bigendian=0,
         step=flat.size // h,
-        data=flat,
     )
 
 

@@ -492,16 +492,16 @@ class EventCamera:
         H, W = data.shape[:2]
         raw = np.ascontiguousarray(data).view(np.uint8).ravel()
 
-        def build(store: MessageStore) -> Any:
-            return store.new(
+        def build(store: MessageStore) -> bytes:
+            return store.serialize_with_blob(
                 "sensor_msgs/msg/Image",
+                raw,
                 header=self._header(store, ctx, t_ns),
                 height=H,
                 width=W,
                 encoding=encoding,
                 is_bigendian=0,
                 step=W * bpp,
-                data=raw,
             )
 
         return Message(t_ns, f"{self.config.topic}/{topic}", "sensor_msgs/msg/Image", build)
