@@ -43,6 +43,7 @@ from roslan.events.sampling import (
     motion_field,
     pixel_rays,
 )
+from roslan.io.background import BackgroundSink
 from roslan.io.images import write_png
 from roslan.io.messages import MessageStore
 from roslan.sensors.base import (
@@ -278,6 +279,7 @@ class EventCamera:
         self.camera = _Camera(config.camera_model())
         self._writers: list[EventTextWriter | EventH5Writer] = []
         self._images_fh: IO[str] | None = None
+        self._sink: BackgroundSink | None = None
         self.stats: dict[str, float] = {}
 
     # -------------------------------------------------------------- interface
@@ -361,6 +363,8 @@ class EventCamera:
             self._images_fh = ctx.path(f"{c.name}/images.txt").open(
                 "w", encoding="utf-8", newline="\n"
             )
+        # dataset files are written beside the rendering, in order (io/background.py)
+        sink = self._sink = BackgroundSink(f"{c.name}-files")
         need_depth = c.sampling == "optical_flow" or c.optic_flow or c.depthmap
         info_set = set(info_times.tolist())
         gt_set = set(gt_times.tolist())
@@ -379,8 +383,8 @@ class EventCamera:
             batch = gen.update(lum, t)
             if batch.size:
                 n_events += batch.size
-                for wr in self._writers:
-                    wr.write(batch)
+                if self._writers:
+                    sink.submit(self._write_events, batch)
                 buf.append(batch)
             flow = None
             speed = 0.0  # max |flow|, px/s (optical_flow sampling)
@@ -394,8 +398,9 @@ class EventCamera:
             if t in info_set:
                 out.append(self._camera_info_msg(ctx, t))
                 if c.has_aps:
-                    out.append(self._image_msg(ctx, t, _srgb8(lum), "mono8", 1))
-                    self._write_image(ctx, t, lum, image_index)
+                    aps = _srgb8(lum)
+                    out.append(self._image_msg(ctx, t, aps, "mono8", 1))
+                    sink.submit(self._write_image, ctx, t, aps, image_index)
                     image_index += 1
             if t in gt_set:
                 if c.optic_flow and flow is not None:
@@ -506,15 +511,22 @@ class EventCamera:
 
         return Message(t_ns, f"{self.config.topic}/{topic}", "sensor_msgs/msg/Image", build)
 
-    def _write_image(self, ctx: SimContext, t_ns: int, lum: F32, index: int) -> None:
+    def _write_events(self, batch: EventBatch) -> None:
+        for wr in self._writers:
+            wr.write(batch)
+
+    def _write_image(self, ctx: SimContext, t_ns: int, aps: NDArray[np.uint8], index: int) -> None:
         rel = f"images/{index:08d}.png"
-        write_png(ctx.path(f"{self.config.name}/{rel}"), _srgb8(lum))
+        write_png(ctx.path(f"{self.config.name}/{rel}"), aps)
         assert self._images_fh is not None
         s, ns = divmod(int(t_ns), 1_000_000_000)
         self._images_fh.write(f"{s}.{ns:09d} {rel}\n")
 
     def close(self, ctx: SimContext) -> None:
         write_calibration_files(ctx, self.config)
+        if self._sink is not None:
+            sink, self._sink = self._sink, None
+            sink.close()  # the last writes, and any error of one
         for wr in self._writers:
             wr.close()
         self._writers = []

@@ -1,0 +1,61 @@
+"""BackgroundSink: calls run in order on one thread; errors come back to the submitter."""
+
+from __future__ import annotations
+
+import threading
+
+import pytest
+
+from roslan.io.background import BackgroundSink
+
+
+def test_calls_run_in_submission_order_on_one_other_thread() -> None:
+    seen: list[tuple[int, str]] = []
+    sink = BackgroundSink("t", backlog=2)  # a small backlog: submit blocks and resumes
+    for i in range(200):
+        sink.submit(lambda i: seen.append((i, threading.current_thread().name)), i)
+    sink.close()
+    assert [i for i, _ in seen] == list(range(200))
+    assert {name for _, name in seen} == {"t"}
+    assert threading.current_thread().name != "t"
+    sink.close()  # idempotent
+    with pytest.raises(RuntimeError, match="closed"):
+        sink.submit(print)
+
+
+def test_first_error_is_raised_by_close_and_later_calls_do_not_run() -> None:
+    ran: list[int] = []
+
+    def work(i: int) -> None:
+        if i == 3:
+            msg = "disk full"
+            raise OSError(msg)
+        ran.append(i)
+
+    sink = BackgroundSink("t")
+    for i in range(3):
+        sink.submit(work, i)
+    sink.submit(work, 3)
+    sink.submit(work, 4)
+    with pytest.raises(OSError, match="disk full"):
+        sink.close()
+    assert ran == [0, 1, 2]
+
+
+def test_error_is_raised_by_the_next_submit() -> None:
+    sink = BackgroundSink("t")
+    done = threading.Event()
+
+    def boom() -> None:
+        done.set()
+        msg = "bad"
+        raise ValueError(msg)
+
+    sink.submit(boom)
+    done.wait(5)
+    for _ in range(100):  # the error is recorded right after the call returns
+        if sink._error is not None:
+            break
+        threading.Event().wait(0.01)
+    with pytest.raises(ValueError, match="bad"):
+        sink.submit(print, "never")
