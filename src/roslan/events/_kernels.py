@@ -4,7 +4,8 @@ Each kernel fuses, in one pass over its pixels or events, what the NumPy referen
 (:class:`roslan.events.model.NumpyEventGenerator`) does in a dozen array passes; the float64
 operations are the same and in the same order (numba does not contract to FMA nor reorder
 without ``fastmath``), so the events are bit-identical. ``log``/``exp`` stay in NumPy (its
-SIMD loops may differ from libm in the last ulp): the kernels write their arguments.
+SIMD loops may differ from libm in the last ulp): the kernels write their arguments, in
+the frame's precision (float32 for the renderer's float32 frames, float64 otherwise).
 
 ``nogil=True``: the simulation runs event generation in a thread beside rendering.
 ``cache=True``: compiled once per machine (``__pycache__`` or numba's user cache dir).
@@ -20,14 +21,18 @@ from roslan.jit import kernel
 
 @kernel
 def log_exp_args(img, eps, s, logarg, exparg, want_log, want_exp):  # type: ignore[no-untyped-def]
-    """``logarg = eps + max(I, 0)`` (the argument of ``L = log(eps + I)``) and
-    ``exparg = s * (clip(I, 0, 1) + 0.08) / 1.08`` (of the intensity-dependent low-pass)."""
+    """``logarg = eps + max(I, 0)`` (the argument of ``L = log(eps + I)``) in the dtype of
+    ``logarg`` (float32 arithmetic for a float32 ``img`` and ``eps``) and
+    ``exparg = s * (clip(I, 0, 1) + 0.08) / 1.08`` (of the intensity-dependent low-pass),
+    evaluated in float64 and rounded to the dtype of ``exparg``."""
+    zero = img.dtype.type(0)
     for i in range(img.shape[0]):
-        v = np.float64(img[i])
+        v = img[i]
         if want_log:
-            logarg[i] = eps + (0.0 if v < 0.0 else v)  # NaN stays NaN like np.maximum
+            logarg[i] = eps + (zero if v < zero else v)  # NaN stays NaN like np.maximum
         if want_exp:
-            c = 0.0 if v < 0.0 else (1.0 if v > 1.0 else v)
+            w = np.float64(v)
+            c = 0.0 if w < 0.0 else (1.0 if w > 1.0 else w)
             exparg[i] = s * (c + 0.08) / 1.08
 
 
@@ -85,19 +90,15 @@ def pixel_step(  # type: ignore[no-untyped-def]
 
 @kernel
 def compact(flag, cand):  # type: ignore[no-untyped-def]
-    """Indices of the set flags into ``cand``; returns their number. Skips 8 clear flags
-    at a time (candidates are a few percent of the pixels)."""
-    w = flag[: flag.shape[0] // 8 * 8].view(np.uint64)
+    """Indices of the set flags (0 or 1) into ``cand``; returns their number.
+
+    Branch-free (every index written, kept only where the flag is set): candidates are
+    ~1-10 % of the pixels, scattered, so any test per pixel or per word of flags is an
+    unpredictable branch (skipping clear 8-flag words cost 2x this on real frames)."""
     m = 0
-    for j in range(w.shape[0]):
-        if w[j] != 0:
-            for i in range(8 * j, 8 * j + 8):
-                cand[m] = i  # branch-free: kept only where the flag is set
-                m += flag[i]
-    for i in range(8 * w.shape[0], flag.shape[0]):
-        if flag[i]:
-            cand[m] = i
-            m += 1
+    for i in range(flag.shape[0]):
+        cand[m] = i
+        m += flag[i]
     return m
 
 
@@ -121,14 +122,21 @@ def emit_crossings(  # type: ignore[no-untyped-def]
         r = ref[i]
         s1 = sig[i]
         up = s1 > r
-        cp = c_pos[i] if up else c_neg[i]
+        cp_i = c_pos[i]
+        cn_i = c_neg[i]
+        cp = cp_i if up else cn_i
         sg = 1.0 if up else -1.0
-        cnt = np.int64(np.floor(np.abs(s1 - r) / cp))
-        # make the count agree exactly with the definition (level r +- n*C reached, n+1 not)
-        # (branch-free: the mismatch makes these unpredictable)
-        cnt -= np.int64((cnt > 1) & ((r + sg * (cnt * cp) - s1) * sg > 0))
-        cnt = max(cnt, np.int64(1))
-        cnt += np.int64((r + sg * ((cnt + 1) * cp) - s1) * sg <= 0)
+        if (r + sg * (2 * cp) - s1) * sg > 0:
+            # level 2 not reached (most candidates; level 1 is, by the flag): one crossing,
+            # exactly what the general count below gives, without its division
+            cnt = np.int64(1)
+        else:
+            cnt = np.int64(np.floor(np.abs(s1 - r) / cp))
+            # make the count agree exactly with the definition (level r +- n*C reached,
+            # n+1 not) (branch-free: the mismatch makes these unpredictable)
+            cnt -= np.int64((cnt > 1) & ((r + sg * (cnt * cp) - s1) * sg > 0))
+            cnt = max(cnt, np.int64(1))
+            cnt += np.int64((r + sg * ((cnt + 1) * cp) - s1) * sg <= 0)
         if n + cnt > cap:
             return j, n, dropped
         s0 = sig0[i]

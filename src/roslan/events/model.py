@@ -152,8 +152,16 @@ class EventBatch(NamedTuple):
 
 
 def log_intensity(intensity: NDArray[np.floating], eps: float) -> F64:
-    """``log(eps + I)`` as float64, I (H, W) linear luminance (negative values clipped to 0)."""
-    return np.log(eps + np.maximum(np.asarray(intensity, dtype=np.float64), 0.0))
+    """``log(eps + I)`` as float64, I (H, W) linear luminance (negative values clipped to 0).
+
+    Evaluated in the frame's precision: float32 for a float32 frame (the renderer's; the
+    log's error, <= 1 ulp of |L| < 8, i.e. <= 4.8e-7, is 2.4e-6 of a 0.2 contrast threshold
+    and of the order of the frame's own rounding), float64 for any other dtype.
+    """
+    a = np.asarray(intensity)
+    if a.dtype == np.float32:
+        return np.log(np.maximum(a, np.float32(0.0)) + np.float32(eps)).astype(np.float64)
+    return np.log(eps + np.maximum(a.astype(np.float64, copy=False), 0.0))
 
 
 @functools.cache
@@ -165,7 +173,8 @@ def _kernels() -> ModuleType:
 
 
 def _kernel_input(a: NDArray[Any]) -> NDArray[np.floating]:
-    """(H*W,) intensity as a contiguous float32 or float64 array for the kernels."""
+    """(H*W,) intensity as a contiguous float32 or float64 array for the kernels (the
+    precision of ``log``/``exp``: see :func:`log_intensity`)."""
     if a.dtype != np.float32 and a.dtype != np.float64:
         a = a.astype(np.float64)
     return np.ascontiguousarray(a)
@@ -213,6 +222,8 @@ class EventGenerator:
         self.last_event_ns: I64 = np.full(n, np.iinfo(np.int64).min // 2, dtype=np.int64)
         self.t_ns: int | None = None
         self.n_dropped = 0
+        # reused (H*W,) log / exp buffers per precision (float32 frames: float32)
+        self._bufs: dict[np.dtype[Any], tuple[NDArray[np.floating], NDArray[np.floating]]] = {}
 
     # ------------------------------------------------------------------ API
     def update(self, intensity: NDArray[np.floating], t_ns: int) -> EventBatch:
@@ -229,12 +240,13 @@ class EventGenerator:
             L = log_intensity(img, self.params.log_eps).ravel()
             return self.update_log(L, t_ns, intensity=img.ravel())
         flat = _kernel_input(img.ravel())
-        k = _kernels()
         want_exp = self._mode(flat) == 2
         s = self._exp_scale(int(t_ns)) if want_exp else 0.0
-        k.log_exp_args(flat, self.params.log_eps, s, self._lbuf, self._ebuf, True, want_exp)
-        np.log(self._lbuf, out=self._lbuf)
-        return self._step(self._lbuf, flat, int(t_ns))
+        lbuf, ebuf = self._buffers(flat.dtype)
+        eps = flat.dtype.type(self.params.log_eps)  # float32 arithmetic for float32 frames
+        _kernels().log_exp_args(flat, eps, s, lbuf, ebuf, True, want_exp)
+        np.log(lbuf, out=lbuf)
+        return self._step(lbuf, flat, int(t_ns), ebuf)
 
     def update_log(
         self, L: F64, t_ns: int, *, intensity: NDArray[np.floating] | None = None
@@ -249,8 +261,6 @@ class EventGenerator:
             self.signal = self._signal(self.lp, t_ns)
             self.ref = self.signal - self._leak_phase
             self.t_ns = t_ns
-            self._lbuf = np.empty(self.n_pixels)
-            self._ebuf = np.empty(self.n_pixels)
             self._cand = np.empty(self.n_pixels, np.int64)
             self._flag = np.empty(self.n_pixels, np.uint8)
             self._sig_next = np.empty(self.n_pixels)  # the signal is double-buffered
@@ -258,12 +268,21 @@ class EventGenerator:
             self._p = np.empty(0, np.int8)
             return EventBatch.empty()
         flat = None if intensity is None else _kernel_input(np.asarray(intensity).ravel())
-        if self._mode(flat) == 2:
+        ebuf = self._buffers(np.dtype(np.float64))[1]
+        if flat is not None and self._mode(flat) == 2:
             s = self._exp_scale(t_ns)
-            _kernels().log_exp_args(flat, 0.0, s, self._lbuf, self._ebuf, False, True)
-        return self._step(np.ascontiguousarray(L, dtype=np.float64), flat, t_ns)
+            lbuf, ebuf = self._buffers(flat.dtype)
+            _kernels().log_exp_args(flat, 0.0, s, lbuf, ebuf, False, True)
+        return self._step(np.ascontiguousarray(L, dtype=np.float64), flat, t_ns, ebuf)
 
     # ------------------------------------------------------------------ internals
+    def _buffers(self, dtype: np.dtype[Any]) -> tuple[NDArray[np.floating], NDArray[np.floating]]:
+        """Reused (H*W,) buffers of the log and exp arguments (then values) in ``dtype``."""
+        b = self._bufs.get(dtype)
+        if b is None:
+            b = self._bufs[dtype] = (np.empty(self.n_pixels, dtype), np.empty(self.n_pixels, dtype))
+        return b
+
     def _mode(self, intensity: NDArray[np.floating] | None) -> int:
         """Low-pass mode of the kernel: 0 none, 1 fixed bandwidth, 2 intensity-dependent."""
         p = self.params
@@ -284,8 +303,16 @@ class EventGenerator:
             raise ValueError(msg)
         return t_ns - t0
 
-    def _step(self, L: F64, intensity: NDArray[np.floating] | None, t_ns: int) -> EventBatch:
-        """One interval with the kernels; ``self._ebuf`` holds the exp argument in mode 2."""
+    def _step(
+        self,
+        L: NDArray[np.floating],
+        intensity: NDArray[np.floating] | None,
+        t_ns: int,
+        E: NDArray[np.floating],
+    ) -> EventBatch:
+        """One interval with the kernels: ``L`` (H*W,) log intensity (float32 or float64,
+        upcast exactly), ``E`` (H*W,) the exp argument of the intensity-dependent low-pass
+        (mode 2; exponentiated here in place, in its own precision)."""
         p = self.params
         k = _kernels()
         t0 = self.t_ns
@@ -294,14 +321,14 @@ class EventGenerator:
         mode = self._mode(intensity)
         a = 0.0
         if mode == 2:
-            np.exp(self._ebuf, out=self._ebuf)
+            np.exp(E, out=E)
         elif mode == 1:
             tau = 1.0 / (2.0 * math.pi * p.cutoff_hz)
             a = 1.0 - math.exp(-dt_ns * 1e-9 / tau)  # exact first-order step
         leak = self.leak_slope if self.leak_slope is not None else _NO_LEAK
         s0, s1 = self.signal, self._sig_next
         k.pixel_step(
-            L, self._ebuf, mode, a, self.lp, leak, t_ns * 1e-9, self.ref, self.c_pos,
+            L, E, mode, a, self.lp, leak, t_ns * 1e-9, self.ref, self.c_pos,
             self.c_neg, s1, self._flag,
         )  # fmt: skip
         m = k.compact(self._flag, self._cand)
@@ -448,8 +475,14 @@ class NumpyEventGenerator(EventGenerator):
             a = 1.0 - math.exp(-dt_ns * 1e-9 / tau)  # exact first-order step
             if p.intensity_dependent and intensity is not None:
                 # v2e: dim pixels have a slower photoreceptor (bandwidth ~ photocurrent)
-                inten = np.clip(np.asarray(intensity, dtype=np.float64), 0.0, 1.0)
-                a_pix = 1.0 - np.exp(-dt_ns * 1e-9 / tau * (inten + 0.08) / 1.08)
+                inten = np.asarray(intensity)
+                arg = -dt_ns * 1e-9 / tau * (np.clip(inten.astype(np.float64), 0.0, 1.0) + 0.08)
+                arg /= 1.08
+                if inten.dtype == np.float32:
+                    # exp in the frame's precision (as log_intensity): rel. error ~1e-7
+                    a_pix = 1.0 - np.exp(arg.astype(np.float32)).astype(np.float64)
+                else:
+                    a_pix = 1.0 - np.exp(arg)
                 self.lp = self.lp + a_pix * (L - self.lp)
             else:
                 self.lp = self.lp + a * (L - self.lp)
