@@ -69,7 +69,7 @@ def stages(r: gl.Renderer, T: np.ndarray, K: np.ndarray, w: int, h: int, ns: int
         f"({r.n_clusters} clusters); cull test + sort {cull_ms:.2f} ms"
     )
     r.render(T, K, w, h, samples=ns)  # targets and programs
-    t = r._targets[(w, h, ns, False, True)]
+    t = r._targets[(w, h, ns, False, True, r._rgb_target)]
     fbo = t.ms_fbo if ns > 1 else t.out_fbo
     prog, vao = r._program(False, True)
     prog["u_mvp"].write(gl._gl_mat(clip))

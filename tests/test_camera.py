@@ -19,7 +19,15 @@ from roslan.config.base import validate_model
 from roslan.config.sim import SimConfig
 from roslan.errors import ConfigError, SensorError
 from roslan.sensors.base import sample_times_ns
-from roslan.sensors.camera import Camera, CameraConfig, StereoCamera, StereoCameraConfig
+from roslan.sensors.camera import (
+    Camera,
+    CameraConfig,
+    StereoCamera,
+    StereoCameraConfig,
+    encode_image,
+    encode_linear,
+    srgb_lut,
+)
 from roslan.sensors.camera_model import T_LINK_OPTICAL, CameraModel, load_calibration
 from roslan.simulate import run_simulation
 from roslan.trajectory import Trajectory, TrajectoryConfig
@@ -374,3 +382,35 @@ def test_render_scale_sets_the_plan(render_scale: float | None) -> None:
     assert plan.K[0, 2] == pytest.approx(-f * xy[:, 0].min() + 2.0, abs=1.0)
     assert plan.K[1, 2] == pytest.approx(-f * xy[:, 1].min() + 2.0, abs=1.0)
     assert plan.width == pytest.approx(2.0 * plan.K[0, 2], abs=2.0)  # symmetric lens
+
+
+@pytest.mark.parametrize("gamma", ["srgb", 2.2])
+def test_encode_kernel_matches_numpy(gamma: str | float) -> None:
+    """The fused numba encoding gives encode_linear's bytes: every float32 step around
+    the LUT's rounding boundaries, out-of-range values, NaN, gain and bgr order."""
+    lut = srgb_lut(gamma)
+    # the values i / 16383 +- a few ulp are where the index rounds: the hard cases
+    centres = (np.arange(16384, dtype=np.float32) + np.float32(0.5)) / np.float32(16383)
+    near = np.concatenate([np.nextafter(centres, 2), centres, np.nextafter(centres, -1)])
+    rng = np.random.default_rng(3)
+    x = np.concatenate(
+        [
+            near,
+            rng.uniform(-0.2, 1.2, 100_000).astype(np.float32),
+            np.array([np.nan, np.inf, -np.inf, -0.0, 0.0, 1.0, 0.0031308], np.float32),
+        ]
+    )
+    for gain in (1.0, 0.37, 2.5):
+        ref = encode_linear(x * np.float32(gain), lut) if gain != 1.0 else encode_linear(x, lut)
+        np.testing.assert_array_equal(encode_image(x, lut, gain=gain), ref)
+    # sRGB by hand: 0.1 -> 1.055 * 0.1 ** (1 / 2.4) - 0.055 = 0.3492 -> 89.04; the linear
+    # segment: 0.001 -> 12.92e-3 * 255 = 3.29
+    np.testing.assert_array_equal(
+        encode_image(np.array([0.0, 0.001, 0.1, 1.0], np.float32), srgb_lut("srgb")),
+        [0, 3, 89, 255],
+    )
+    img = rng.uniform(0.0, 1.0, (7, 5, 3)).astype(np.float32)
+    np.testing.assert_array_equal(
+        encode_image(img, lut, reverse=True), encode_linear(img, lut)[..., ::-1]
+    )
+    np.testing.assert_array_equal(encode_image(img[..., 1], lut), encode_linear(img[..., 1], lut))

@@ -289,3 +289,48 @@ def test_interleaved_resolutions_do_not_leak_between_frames(board: Scene, sample
     assert again.depth is not None
     np.testing.assert_array_equal(again.color, ref.color)
     np.testing.assert_array_equal(again.depth, ref.depth)
+
+
+@pytest.mark.parametrize("lum", [False, True])
+def test_fast_paths_give_the_same_pixels(board_file_scene: Scene, lum: bool) -> None:
+    """imageLoad point loads, the RGB32F filter target and split flushes are speed-ups
+    only: the image equals texelFetch + RGBA32F + one flush bit for bit, and the edge
+    filter did act on this view (the board's rim and the horizon)."""
+    r = gl.get_renderer(board_file_scene)
+    K = np.array([[30.0, 0, 39.5], [0, 30.0, 29.5], [0, 0, 1]])
+    T = look_down(0.2, 0.1, 1.5, tilt=1.0)
+    out = "luminance" if lum else "color"
+    flushes = []
+    flush = r._flush
+    if flush is not None:
+        r._flush = lambda: (flushes.append(1), flush())[1]
+
+    def render(image: bool, rgb: bool, chunks: int) -> tuple[np.ndarray, np.ndarray]:
+        saved = (r._image, r._rgb_target, r.flush_chunks)
+        r._image, r._rgb_target, r.flush_chunks = image, rgb, chunks
+        try:
+            res = r.render(T, K, 80, 60, color=not lum, luminance=lum, depth=True, samples=1)
+            t = r._targets[(80, 60, 1, lum, True, rgb)]
+            raw = np.frombuffer(t.out_color.read(), np.float32).reshape(60, 80, -1)[..., 0]
+        finally:
+            r._image, r._rgb_target, r.flush_chunks = saved
+        img = getattr(res, out)
+        assert img is not None
+        return img, raw
+
+    ref, raw = render(False, False, 1)
+    first = ref if lum else ref[..., 0]
+    assert np.count_nonzero(first != raw) > 20  # edge pixels were resampled
+    assert r._image == (int(r.ctx.version_code) >= 420)
+    try:
+        for image, rgb, chunks in [
+            (True, True, 1),
+            (True, True, 4),
+            (False, True, 3),
+            (True, False, 2),
+        ]:
+            img, _ = render(image, rgb, chunks)
+            np.testing.assert_array_equal(img, ref)
+    finally:
+        r._flush = flush
+    assert flush is None or len(flushes) >= 3  # the split draws were flushed

@@ -46,10 +46,13 @@ all cores); vertex processing runs on the calling thread, hence the culling.
 
 from __future__ import annotations
 
+import ctypes
+import ctypes.util
 import math
 import os
 import threading
 import weakref
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
@@ -84,6 +87,11 @@ SOFTWARE_MSAA_SAMPLES = 1
 """Default MSAA samples on Mesa's llvmpipe (CPU). There MSAA costs 2.4x the whole
 colour pass (2 samples cost as much as 4) while the edge filter costs ~15 %: see
 docs/performance.md. Override with ``ROSLAN_MSAA_SAMPLES`` or ``Renderer(samples=)``."""
+
+FLUSH_CHUNKS = 4
+"""llvmpipe: the colour pass is flushed to the rasterizer threads in this many parts
+(``Renderer.flush_chunks``; 1 = one flush at the end), so that shading overlaps the
+vertex work, which runs on the calling thread (see docs/performance.md)."""
 
 SOFTWARE_SHADOW_MAP = 2048
 """Largest shadow map (texels per side) on llvmpipe (4096 on a GPU)."""
@@ -422,7 +430,14 @@ class _Targets:
     """
 
     def __init__(
-        self, ctx: Any, width: int, height: int, samples: int, lum: bool, depth: bool
+        self,
+        ctx: Any,
+        width: int,
+        height: int,
+        samples: int,
+        lum: bool,
+        depth: bool,
+        rgb: bool = True,
     ) -> None:
         size = (width, height)
         ncomp = 1 if lum else 4
@@ -453,7 +468,7 @@ class _Targets:
             self.out_color.filter = (ctx.LINEAR, ctx.LINEAR)
             self.out_color.repeat_x = self.out_color.repeat_y = False
             self.aa_fbo = None
-            if not lum:
+            if rgb and not lum:
                 # RGB32F where it is colour-renderable (optional in GL; llvmpipe: yes):
                 # 12 instead of 16 bytes written per pixel, and a plain copy to read back
                 aa = ctx.texture(size, 3, dtype="f4")
@@ -483,6 +498,8 @@ class Renderer:
         software: True on Mesa's llvmpipe (CPU) renderer.
         front_to_back: draw the visible clusters nearest first (default; False: index
             order, for benchmarks), see :meth:`visible_ranges`.
+        flush_chunks: flush the colour pass to the rasterizer in this many parts
+            (:data:`FLUSH_CHUNKS` on llvmpipe, 1 on GPUs); the image is the same.
     """
 
     def __init__(self, scene: Scene, *, samples: int | None = None) -> None:
@@ -503,11 +520,14 @@ class Renderer:
         self.front_to_back = True
         # image load/store (GL 4.2) for the edge filter's point loads
         self._image = int(ctx.version_code) >= 420
-        self._targets: dict[tuple[int, int, int, bool, bool], _Targets] = {}
+        self._flush = _gl_flush()
+        self.flush_chunks = FLUSH_CHUNKS if self.software else 1
+        self._rgb_target = True  # RGB32F edge-filter output where renderable
+        self._targets: dict[tuple[int, int, int, bool, bool, bool], _Targets] = {}
         self._d_targets: dict[tuple[int, int], tuple[Any, Any, Any]] = {}
         self._programs: dict[tuple[bool, bool], tuple[Any, Any]] = {}
         self._resolves: dict[tuple[bool, bool], tuple[Any, Any]] = {}
-        self._edge_aa: dict[bool, tuple[Any, Any]] = {}
+        self._edge_aa: dict[tuple[bool, bool], tuple[Any, Any]] = {}
         self._released = False
 
         lo, hi = scene.bounds
@@ -730,7 +750,7 @@ class Renderer:
         return pv
 
     def _edge_filter(self, lum: bool) -> tuple[Any, Any]:
-        pv = self._edge_aa.get(lum)
+        pv = self._edge_aa.get((lum, self._image))
         if pv is None:
             prog = self.ctx.program(
                 vertex_shader=_VERT_QUAD,
@@ -740,7 +760,7 @@ class Renderer:
             if self._image:
                 prog["u_image"].value = 0  # image unit 0
             pv = (prog, self.ctx.vertex_array(prog, []))
-            self._edge_aa[lum] = pv
+            self._edge_aa[(lum, self._image)] = pv
         return pv
 
     # ----------------------------------------------------------------- render
@@ -852,10 +872,10 @@ class Renderer:
 
         lum = luminance and not color
         ns = self.samples if samples is None else self._clamp_samples(samples)
-        key = (width, height, ns, lum, depth)
+        key = (width, height, ns, lum, depth, self._rgb_target)
         t = self._targets.get(key)
         if t is None:
-            t = _Targets(ctx, width, height, ns, lum, depth)
+            t = _Targets(ctx, width, height, ns, lum, depth, self._rgb_target)
             self._targets[key] = t
         fbo = t.ms_fbo if ns > 1 else t.out_fbo
         fbo.use()
@@ -870,11 +890,25 @@ class Renderer:
             prog["u_cam_pos"].value = tuple(float(x) for x in cam_pos)
             self._shadow_tex.use(1)
             bound = -1
-            for f, n, g in zip(first.tolist(), count.tolist(), group.tolist(), strict=True):
+            # glFlush after the draws that end each 1/flush_chunks of the indices: the
+            # rasterizer threads shade the nearer clusters while this thread still runs
+            # the vertex work of the farther ones (llvmpipe; same pixels)
+            flush = self._flush if self.flush_chunks > 1 else None
+            marks: set[int] = set()
+            if flush is not None:
+                cum = np.cumsum(count)
+                step = cum[-1] / self.flush_chunks
+                marks = set(np.searchsorted(cum, step * np.arange(1, self.flush_chunks)).tolist())
+                marks.discard(len(cum) - 1)
+            for i, (f, n, g) in enumerate(
+                zip(first.tolist(), count.tolist(), group.tolist(), strict=True)
+            ):
                 if g != bound:
                     self._group_tex[g].use(0)
                     bound = g
                 vao.render(ctx.TRIANGLES, vertices=n, first=f)
+                if i in marks:
+                    flush()  # type: ignore[misc]
         if ns > 1:
             # resolve: average colour samples, nearest depth sample
             t.out_fbo.use()
@@ -1004,6 +1038,21 @@ def _merge_runs(first: NDArray[np.int64], count: NDArray[np.int64]) -> list[tupl
         else:
             out.append((f, n))
     return out
+
+
+def _gl_flush() -> Callable[[], None] | None:
+    """``glFlush`` of the current EGL context (moderngl has none), or None."""
+    try:
+        egl = ctypes.CDLL(ctypes.util.find_library("EGL") or "libEGL.so.1")
+        egl.eglGetProcAddress.restype = ctypes.c_void_p
+        egl.eglGetProcAddress.argtypes = [ctypes.c_char_p]
+        addr = egl.eglGetProcAddress(b"glFlush")
+    except (OSError, AttributeError):
+        return None
+    if not addr:
+        return None
+    fn: Callable[[], None] = ctypes.CFUNCTYPE(None)(addr)
+    return fn
 
 
 def _gl_mat(M: F64) -> bytes:

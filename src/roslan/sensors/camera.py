@@ -45,6 +45,7 @@ from roslan.errors import RenderError, SensorError
 from roslan.io.images import write_png
 from roslan.io.messages import MessageStore
 from roslan.io.text import format_seconds
+from roslan.jit import kernel
 from roslan.sensors.base import (
     Message,
     SensorConfig,
@@ -70,6 +71,7 @@ __all__ = [
     "DepthCameraConfig",
     "StereoCamera",
     "StereoCameraConfig",
+    "encode_image",
     "encode_linear",
     "srgb_lut",
 ]
@@ -212,12 +214,53 @@ def srgb_lut(gamma: str | float) -> U8:
 
 
 def encode_linear(img: F32, lut: U8) -> U8:
-    """Linear float image (any shape, values clipped to [0, 1]) -> uint8 codes via ``lut``."""
+    """Linear float image (any shape, values clipped to [0, 1]) -> uint8 codes via ``lut``.
+
+    The NumPy reference of :func:`encode_image` (same bytes)."""
     idx = np.clip(img, 0.0, 1.0)
     idx *= _LUT_SIZE - 1
     idx += 0.5
     # uint16 indices (_LUT_SIZE <= 65536) and np.take: 15 % faster than intp fancy indexing
     out: U8 = np.take(lut, idx.astype(np.uint16))
+    return out
+
+
+@kernel
+def _encode_kernel(
+    src: F32, gain: np.float32, lut: U8, channels: int, reverse: bool, out: U8
+) -> None:
+    """``out = lut[idx(gain * src)]`` over flat (N * channels,) arrays, channel order
+    reversed per pixel if ``reverse``; idx: :func:`encode_linear`'s float32 clip, scale,
+    + 0.5 and truncation, operation for operation (NaN -> index 0, like NumPy's cast)."""
+    zero = np.float32(0.0)
+    one = np.float32(1.0)
+    half = np.float32(0.5)
+    scale = np.float32(_LUT_SIZE - 1)
+    if reverse:
+        for i in range(0, src.size, channels):
+            for j in range(channels):
+                v = src[i + channels - 1 - j] * gain
+                v = v if v > zero else zero  # (NaN too)
+                v = v if v < one else one
+                out[i + j] = lut[np.uint16(v * scale + half)]
+    else:
+        for i in range(src.size):
+            v = src[i] * gain
+            v = v if v > zero else zero
+            v = v if v < one else one
+            out[i] = lut[np.uint16(v * scale + half)]
+
+
+def encode_image(img: F32, lut: U8, *, gain: float = 1.0, reverse: bool = False) -> U8:
+    """Gain, clip to [0, 1] and ``lut`` codes in one pass (numba): (H, W[, C]) float32
+    linear -> uint8 of the same shape, channels reversed if ``reverse`` (rgb -> bgr).
+
+    Same bytes as ``encode_linear(img * float32(gain), lut)`` (tested)."""
+    src = np.ascontiguousarray(img, dtype=np.float32)
+    out = np.empty(src.shape, dtype=np.uint8)
+    channels = src.shape[-1] if src.ndim == 3 else 1
+    # (x * 1.0f == x exactly: the NumPy path's skipped multiply gives the same bytes)
+    _encode_kernel(src.reshape(-1), np.float32(gain), lut, channels, reverse, out.reshape(-1))
     return out
 
 
@@ -449,17 +492,18 @@ class _ImagingCamera(_CameraBase):
         c = self.config
         if c.encoding == "mono8" and lin.ndim == 3:
             lin = lin @ _LUMA
-        if c.gain != 1.0:
-            lin *= np.float32(c.gain)
+        gain = c.gain
+        noisy = c.full_well is not None or c.noise_std > 0
+        if noisy and gain != 1.0:
+            lin *= np.float32(gain)  # before the noise
+            gain = 1.0
         if c.full_well is not None:
             fw = float(c.full_well)
             lin = (rng.poisson(np.clip(lin, 0.0, None) * fw) / fw).astype(np.float32)
         if c.noise_std > 0:
             lin += rng.normal(0.0, c.noise_std, size=lin.shape).astype(np.float32)
-        img = encode_linear(lin, self._lut)
-        if c.encoding == "bgr8":
-            img = np.ascontiguousarray(img[..., ::-1])
-        return img
+        # gain (noise-free), clip, sRGB/gamma codes and bgr order in one pass
+        return encode_image(lin, self._lut, gain=gain, reverse=c.encoding == "bgr8")
 
     def _stream(
         self, ctx: SimContext, per_frame: Callable[[int, int, Any, F64], list[Message]]
