@@ -192,12 +192,13 @@ def test_float32_frames_log_precision_and_events() -> None:
 def test_kernels_shot_noise_ties_keep_stable_order() -> None:
     """Shot-noise events of one pixel at one ns (forced by a 1 ns interval) keep the
     reference's order: the fallback sort by position."""
-    params = EventModelParams(shot_noise_rate=2e9)
+    params = EventModelParams(shot_noise_rate=2e9, refractory=2e-9)
     ref = NumpyEventGenerator(2, 1, params, np.random.default_rng(2))
     fast = EventGenerator(2, 1, params, np.random.default_rng(2))
-    L = np.zeros(2)
     ties = 0
     for t in range(0, 200):
+        # real crossings (some dropped by the refractory period) beside the shot noise
+        L = np.array([0.9 * math.sin(t / 7), 0.0])
         w = ref.update_log(L, t)
         g = fast.update_log(L, t)
         for u, v in zip(g, w, strict=True):
@@ -205,6 +206,7 @@ def test_kernels_shot_noise_ties_keep_stable_order() -> None:
         key = w.t * 2 + w.x
         ties += int(np.any((key[1:] == key[:-1]) & (w.p[1:] != w.p[:-1])))
     assert ties > 10
+    assert ref.n_dropped > 0
     assert_same_state(fast, ref)
 
 

@@ -103,21 +103,24 @@ def compact(flag, cand):  # type: ignore[no-untyped-def]
 
 
 @kernel
-def emit_crossings(  # type: ignore[no-untyped-def]
-    cand, j0, m, sig0, sig, ref, c_pos, c_neg, last, t0, dt_ns, refractory_ns, idx, t, p, n
+def emit_first(  # type: ignore[no-untyped-def]
+    cand, m, sig0, sig, ref, c_pos, c_neg, last, t0, dt_ns, refractory_ns, idx, t, p, n
 ):
-    """Every level crossing of the candidate pixels ``cand[j0:m]`` into ``idx``, ``t``, ``p``
-    from ``n`` on, pixel-major and in time order within a pixel (the instant the linear
-    signal from ``sig0`` to ``sig`` crosses the level); moves ``ref`` to the last level and
-    applies the refractory period (``last``: the pixels' last emitted event).
+    """The first level crossing of every candidate pixel ``cand[:m]`` (one exists: the
+    flag) into ``idx``, ``t``, ``p`` from ``n`` on (room for ``m`` events needed); the
+    instant the linear signal from ``sig0`` to ``sig`` crosses ``ref +- C``.
 
-    Returns ``(j, n, dropped)``: the candidate it stopped at (``m`` when done; earlier when
-    the buffers are full, that pixel untouched), the events written, those dropped.
+    Branch-free, and the write position does not depend on the refractory test: an event
+    the refractory period drops is written with ``p = -1`` (a data-dependent branch or
+    position per candidate cost ~40 % more). Pixels that also reach their second level
+    are compacted in place to ``cand[:mm]`` for :func:`emit_more`, their ``ref``
+    untouched; the others' ``ref`` moves to the level. ``last``: the pixels' last
+    emitted event, updated. Returns ``(mm, n, dropped)``.
     """
     dtf = np.float64(dt_ns)
-    cap = idx.shape[0]
     dropped = 0
-    for j in range(j0, m):
+    mm = 0
+    for j in range(m):
         i = cand[j]
         r = ref[i]
         s1 = sig[i]
@@ -126,76 +129,119 @@ def emit_crossings(  # type: ignore[no-untyped-def]
         cn_i = c_neg[i]
         cp = cp_i if up else cn_i
         sg = 1.0 if up else -1.0
-        if (r + sg * (2 * cp) - s1) * sg > 0:
-            # level 2 not reached (most candidates; level 1 is, by the flag): one crossing,
-            # exactly what the general count below gives, without its division
-            cnt = np.int64(1)
-        else:
-            cnt = np.int64(np.floor(np.abs(s1 - r) / cp))
-            # make the count agree exactly with the definition (level r +- n*C reached,
-            # n+1 not) (branch-free: the mismatch makes these unpredictable)
-            cnt -= np.int64((cnt > 1) & ((r + sg * (cnt * cp) - s1) * sg > 0))
-            cnt = max(cnt, np.int64(1))
-            cnt += np.int64((r + sg * ((cnt + 1) * cp) - s1) * sg <= 0)
-        if n + cnt > cap:
+        s0 = sig0[i]
+        ds = s1 - s0
+        lt = last[i]
+        level = r + sg * (1 * cp)
+        frac = (level - s0) / ds if ds != 0 else 1.0
+        frac = min(max(frac, 0.0), 1.0) if frac == frac else frac  # np.clip keeps NaN
+        tk = t0 + np.int64(np.rint(frac * dtf))
+        keep = refractory_ns <= 0 or tk - lt >= refractory_ns
+        idx[n] = i
+        t[n] = tk
+        p[n] = (1 if up else 0) if keep else -1
+        n += 1
+        dropped += 1 - keep
+        last[i] = tk if keep else lt
+        # level 2 not reached (most pixels): one crossing, exactly what the general count
+        # of emit_more gives (it is >= 2 otherwise: the same test)
+        more = not ((r + sg * (2 * cp) - s1) * sg > 0)
+        ref[i] = r if more else level
+        cand[mm] = i  # in place: mm <= j
+        mm += more
+    return mm, n, dropped
+
+
+@kernel
+def emit_more(  # type: ignore[no-untyped-def]
+    cand, j0, mm, sig0, sig, ref, c_pos, c_neg, last, t0, dt_ns, refractory_ns, idx, t, p, n
+):
+    """The crossings after the first of the pixels ``cand[j0:mm]`` left by
+    :func:`emit_first` (``ref`` still the old reference, ``last`` after the first event),
+    in time order within a pixel, dropped ones with ``p = -1``; moves ``ref`` to the last
+    level crossed (dropped events included: ESIM).
+
+    Returns ``(j, n, dropped)``: the pixel it stopped at (``mm`` when done; earlier when
+    the buffers are full, that pixel untouched), the events written, those dropped.
+    """
+    dtf = np.float64(dt_ns)
+    cap = idx.shape[0]
+    dropped = 0
+    for j in range(j0, mm):
+        i = cand[j]
+        r = ref[i]
+        s1 = sig[i]
+        up = s1 > r
+        cp = c_pos[i] if up else c_neg[i]
+        sg = 1.0 if up else -1.0
+        cnt = np.int64(np.floor(np.abs(s1 - r) / cp))
+        # make the count agree exactly with the definition (level r +- n*C reached, n+1 not)
+        cnt -= np.int64((cnt > 1) & ((r + sg * (cnt * cp) - s1) * sg > 0))
+        cnt = max(cnt, np.int64(1))
+        cnt += np.int64((r + sg * ((cnt + 1) * cp) - s1) * sg <= 0)
+        if n + cnt - 1 > cap:
             return j, n, dropped
         s0 = sig0[i]
         pol = 1 if up else 0
         ds = s1 - s0
         lt = last[i]
-        n_pix = n
-        for k in range(1, cnt + 1):
+        for k in range(2, cnt + 1):
             level = r + sg * (k * cp)
             frac = (level - s0) / ds if ds != 0 else 1.0
             if frac == frac:  # np.clip keeps NaN
                 frac = min(max(frac, 0.0), 1.0)
             tk = t0 + np.int64(np.rint(frac * dtf))
-            # branch-free: write always, advance only for a kept event
             keep = refractory_ns <= 0 or tk - lt >= refractory_ns
             idx[n] = i
             t[n] = tk
-            p[n] = pol
-            n += keep
+            p[n] = pol if keep else -1
+            n += 1
+            dropped += 1 - keep
             lt = tk if keep else lt
-        dropped += cnt - (n - n_pix)
         last[i] = lt
         ref[i] = r + sg * (cnt * cp)
-    return m, n, dropped
+    return mm, n, dropped
 
 
 @kernel
-def apply_shot_noise(idx, t, p, ref, c_pos, c_neg, last):  # type: ignore[no-untyped-def]
-    """Shot-noise events reset their pixels like real ones, in event order (``np.add.at``)."""
-    for j in range(idx.shape[0]):
-        i = idx[j]
-        ref[i] += c_pos[i] if p[j] == 1 else -c_neg[i]
-        last[i] = max(last[i], t[j])
-
-
-@kernel
-def has_ties(t, idx):  # type: ignore[no-untyped-def]
-    """Whether two events share both time and pixel (``idx`` sorted)."""
-    for j in range(1, idx.shape[0]):
-        if idx[j] == idx[j - 1]:
-            k = j - 1  # the run of this pixel, pairwise (runs are a few events long)
-            while k >= 0 and idx[k] == idx[j]:
-                if t[k] == t[j]:
-                    return True
-                k -= 1
-    return False
+def place_shot_noise(  # type: ignore[no-untyped-def]
+    sidx, traw, u, t0, ref, c_pos, c_neg, last, idx, t, p, n
+):
+    """Shot-noise events from their draws (pixels ``sidx``, sorted here in place; times
+    ``t0 + 1 + traw``; ON where ``u < 0.5``) into ``idx``, ``t``, ``p`` from ``n`` on; each
+    resets its pixel like a real event, in event order (the reference's ``np.add.at``).
+    Returns whether two of them share pixel and time (their keys would tie)."""
+    sidx.sort()
+    ties = False
+    for j in range(sidx.shape[0]):
+        i = sidx[j]
+        tj = t0 + 1 + traw[j]
+        on = u[j] < 0.5
+        idx[n + j] = i
+        t[n + j] = tj
+        p[n + j] = 1 if on else 0
+        ref[i] += c_pos[i] if on else -c_neg[i]
+        last[i] = max(last[i], tj)
+        k = j - 1  # the run of this pixel, pairwise (runs are a few events long)
+        while k >= 0 and sidx[k] == i:
+            ties |= t[n + k] == tj
+            k -= 1
+    return ties
 
 
 @kernel
 def pack_keys(t, idx, p, n_real, t0, ib, key):  # type: ignore[no-untyped-def]
-    """``key = (t - t0, shot, pixel index, p)`` packed in bit fields (``ib`` bits of index).
+    """``key = (t - t0, shot, pixel index, p)`` packed in bit fields (``ib`` bits of index);
+    a dropped event (``p = -1``) gets the largest int64, so that it sorts last.
 
-    Sorting these orders by time, then real events (pixel-major: by index) before shot
-    noise (by index): the stable time order of the events, as far as events that differ go
-    (equal keys are identical events; the caller rules out shot-noise ties).
+    Sorting these orders by time, then real events (by pixel index) before shot noise (by
+    index): the stable time order of the reference's pixel-major events, as far as events
+    that differ go (equal keys are identical events; the caller rules out shot-noise ties).
     """
     for j in range(t.shape[0]):
         shot = 1 if j >= n_real else 0
-        key[j] = ((((t[j] - t0) << 1 | shot) << ib | idx[j]) << 1) | np.int64(p[j])
+        k = ((((t[j] - t0) << 1 | shot) << ib | idx[j]) << 1) | np.int64(p[j] & 1)
+        key[j] = k if p[j] >= 0 else np.iinfo(np.int64).max
 
 
 @kernel
@@ -214,19 +260,11 @@ def unpack_keys(key, t0, ib, width, to, xo, yo, po):  # type: ignore[no-untyped-
 
 
 @kernel
-def sort_keys(t, t0, shift, key):  # type: ignore[no-untyped-def]
-    """``key = (t - t0) << shift | position``: unique keys whose unstable sort is the
-    stable time order."""
-    for j in range(t.shape[0]):
-        key[j] = ((t[j] - t0) << shift) | j
-
-
-@kernel
-def gather_events(key, mask, idx, t, p, width, to, xo, yo, po):  # type: ignore[no-untyped-def]
-    """The events in sorted-key order (position ``key & mask``) into ``to``, ``xo``, ``yo``,
-    ``po`` (pixel index split into column and row)."""
-    for j in range(key.shape[0]):
-        o = key[j] & mask
+def gather_events(order, idx, t, p, width, to, xo, yo, po):  # type: ignore[no-untyped-def]
+    """The events at positions ``order`` into ``to``, ``xo``, ``yo``, ``po`` (pixel index
+    split into column and row)."""
+    for j in range(order.shape[0]):
+        o = order[j]
         i = idx[o]
         to[j] = t[o]
         xo[j] = i % width

@@ -18,8 +18,10 @@ reference expressed as a drift of the signal) which is linear in between:
   instants, which reset the reference by one threshold like a real event (v2e).
 
 :class:`EventGenerator` runs the per-pixel update as numba kernels (``_kernels``: one fused
-pass over the pixels, then one over the few pixels that cross a level) with ``log``/``exp``
-in NumPy; one sort of packed integer keys orders the interval's events.
+pass over the pixels, then one over the few pixels that cross a level, then one over those
+that cross several) with ``log``/``exp`` in NumPy, in the frame's precision (float32 for
+the renderer's float32 frames: :func:`log_intensity`); one sort of packed integer keys
+orders the interval's events.
 :class:`NumpyEventGenerator` is the same model in NumPy array passes (multi-crossings
 expanded with ``np.repeat``/``cumsum``, refractory filtering iterating over the crossing
 index): the kernels' bit-exact reference and the benchmark's baseline.
@@ -333,15 +335,17 @@ class EventGenerator:
         )  # fmt: skip
         m = k.compact(self._flag, self._cand)
         shot = self._shot_noise_draw(dt_ns) if p.shot_noise_rate > 0 else 0
-        j = n = dropped = 0
+        # first crossings (one per candidate; dropped ones kept as p = -1), then the
+        # pixels with more, resumed in grown buffers when full
+        idx, t, pol = self._scratch(m + shot)
+        args = (s0, s1, self.ref, self.c_pos, self.c_neg, self.last_event_ns, t0, dt_ns)
+        mm, n, dropped = k.emit_first(self._cand, m, *args, self._refractory_ns, idx, t, pol, 0)
+        j = 0
         while True:
             idx, t, pol = self._scratch(n + shot, keep=n)
-            j, n, d = k.emit_crossings(
-                self._cand, j, m, s0, s1, self.ref, self.c_pos, self.c_neg,
-                self.last_event_ns, t0, dt_ns, self._refractory_ns, idx, t, pol, n,
-            )  # fmt: skip
+            j, n, d = k.emit_more(self._cand, j, mm, *args, self._refractory_ns, idx, t, pol, n)
             dropped += d
-            if j == m:
+            if j == mm:
                 break
             self._scratch(2 * idx.shape[0] + 1024, keep=n)  # full: grow and go on
         idx, t, pol = self._scratch(n + shot, keep=n)  # room for the shot noise
@@ -350,37 +354,44 @@ class EventGenerator:
         n_real = int(n)
         shot_ties = False
         if shot:
-            sidx, st, spol = self._shot_noise(t0, dt_ns, shot)
-            idx[n : n + shot], t[n : n + shot], pol[n : n + shot] = sidx, st, spol
-            n += shot
+            # m shot-noise events (drawn after the crossings moved ``ref``) placed after
+            # them; a noise event resets its pixel like a real one (v2e)
+            rng = self._rng
+            draws = (rng.integers(0, self.n_pixels, shot), rng.integers(0, dt_ns, shot))
+            u = rng.random(shot)
             # two shot events of one pixel at one ns (practically never): keys would tie
-            shot_ties = bool(k.has_ties(st, sidx))
+            shot_ties = bool(
+                k.place_shot_noise(
+                    *draws, u, t0, self.ref, self.c_pos, self.c_neg, self.last_event_ns,
+                    idx, t, pol, n,
+                )
+            )  # fmt: skip
+            n += shot
         self.t_ns = t_ns
-        if n == 0:
+        n_out = n - int(dropped)
+        if n_out == 0:
             return EventBatch.empty()
         idx, t, pol = idx[:n], t[:n], pol[:n]
-        key = self._key[:n]
         out = EventBatch(
-            np.empty(n, np.int64), np.empty(n, np.uint16), np.empty(n, np.uint16),
-            np.empty(n, np.int8),
+            np.empty(n_out, np.int64), np.empty(n_out, np.uint16), np.empty(n_out, np.uint16),
+            np.empty(n_out, np.int8),
         )  # fmt: skip
         # (outputs are NumPy's allocations: numba's own page-fault on every call)
         ib = max(self.n_pixels - 1, 1).bit_length()
         if not shot_ties and (dt_ns + 1) << (ib + 2) < 2**62:
-            # the sorted keys hold the events themselves: no gather
+            # the sorted keys hold the events themselves (no gather); dropped ones sort last
+            key = self._key[:n]
             k.pack_keys(t, idx, pol, n_real, t0, ib, key)
             key.sort()
-            k.unpack_keys(key, t0, ib, self.width, *out)
+            k.unpack_keys(key[:n_out], t0, ib, self.width, *out)
             return out
-        shift = max(int(n - 1).bit_length(), 1)
-        if (dt_ns + 1) << shift < 2**62:
-            k.sort_keys(t, t0, shift, key)
-            key.sort()
-            mask = (1 << shift) - 1
-        else:  # pragma: no cover - intervals of years
-            key[:] = np.argsort(t, kind="stable")
-            mask = -1
-        k.gather_events(key, mask, idx, t, pol, self.width, *out)
+        # the reference's stable time order: real events by pixel (then identical), shot
+        # noise by position (sorted by pixel, ties in draw order)
+        kept = np.flatnonzero(pol >= 0)
+        pos = np.arange(n)
+        shot_ev = pos >= n_real
+        order = kept[np.lexsort((np.where(shot_ev, pos, idx)[kept], shot_ev[kept], t[kept]))]
+        k.gather_events(order, idx, t, pol, self.width, *out)
         return out
 
     def _scratch(self, n: int, keep: int = 0) -> tuple[I64, I64, NDArray[np.int8]]:
@@ -403,20 +414,6 @@ class EventGenerator:
         """Number of shot-noise events of the interval (first draw of the interval)."""
         lam = self.params.shot_noise_rate * self.n_pixels * dt_ns * 1e-9
         return int(self._rng.poisson(lam))
-
-    def _shot_noise(self, t0: int, dt_ns: int, m: int) -> tuple[I64, I64, NDArray[np.int8]]:
-        """``m`` shot-noise events (drawn after the interval's crossings moved ``ref``)."""
-        rng = self._rng
-        if m == 0:
-            return _EMPTY
-        idx = np.sort(rng.integers(0, self.n_pixels, m))
-        t = t0 + 1 + rng.integers(0, dt_ns, m)  # in (t0, t1]
-        pol = (rng.random(m) < 0.5).astype(np.int8)
-        # a noise event resets the pixel like a real one (v2e)
-        _kernels().apply_shot_noise(
-            idx, t, pol, self.ref, self.c_pos, self.c_neg, self.last_event_ns
-        )
-        return idx, t, pol
 
 
 class NumpyEventGenerator(EventGenerator):
