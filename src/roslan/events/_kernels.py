@@ -89,14 +89,26 @@ def pixel_step(  # type: ignore[no-untyped-def]
 
 
 @kernel
-def compact(flag, cand):  # type: ignore[no-untyped-def]
+def compact(flag, cand, dense):  # type: ignore[no-untyped-def]
     """Indices of the set flags (0 or 1) into ``cand``; returns their number.
 
-    Branch-free (every index written, kept only where the flag is set): candidates are
-    ~1-10 % of the pixels, scattered, so any test per pixel or per word of flags is an
-    unpredictable branch (skipping clear 8-flag words cost 2x this on real frames)."""
+    ``dense``: branch-free (every index written, kept only where the flag is set), for
+    candidates over ~3 % of the pixels, where a test per 8-flag word is an unpredictable
+    branch (2x slower at 8 %); otherwise words of 8 clear flags are skipped (3x faster at
+    1 %). Same result either way."""
     m = 0
-    for i in range(flag.shape[0]):
+    if dense:
+        for i in range(flag.shape[0]):
+            cand[m] = i
+            m += flag[i]
+        return m
+    w = flag[: flag.shape[0] // 8 * 8].view(np.uint64)
+    for j in range(w.shape[0]):
+        if w[j] != 0:
+            for i in range(8 * j, 8 * j + 8):
+                cand[m] = i
+                m += flag[i]
+    for i in range(8 * w.shape[0], flag.shape[0]):
         cand[m] = i
         m += flag[i]
     return m

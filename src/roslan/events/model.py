@@ -265,6 +265,7 @@ class EventGenerator:
             self.t_ns = t_ns
             self._cand = np.empty(self.n_pixels, np.int64)
             self._flag = np.empty(self.n_pixels, np.uint8)
+            self._dense = False
             self._sig_next = np.empty(self.n_pixels)  # the signal is double-buffered
             self._idx = self._t = self._key = np.empty(0, np.int64)
             self._p = np.empty(0, np.int8)
@@ -333,7 +334,9 @@ class EventGenerator:
             L, E, mode, a, self.lp, leak, t_ns * 1e-9, self.ref, self.c_pos,
             self.c_neg, s1, self._flag,
         )  # fmt: skip
-        m = k.compact(self._flag, self._cand)
+        # the last interval's candidate density picks the compaction (same result)
+        m = k.compact(self._flag, self._cand, self._dense)
+        self._dense = 32 * m > self.n_pixels
         shot = self._shot_noise_draw(dt_ns) if p.shot_noise_rate > 0 else 0
         # first crossings (one per candidate; dropped ones kept as p = -1), then the
         # pixels with more, resumed in grown buffers when full
