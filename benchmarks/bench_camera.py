@@ -7,11 +7,12 @@ scene triangles (no index buffer, no culling), a constant-colour shader, no MSAA
 RGBA8 target and a uint8 RGB readback, at the camera's render size and pose.
 
 Before/after in one run: every variant is timed in interleaved rounds (the machine is
-shared): "plan 1.0" renders the distorted camera at the centre's density everywhere
-(``render_plan(scale=1.0)``, 805x605), "plan auto" at the default scale (645x485);
-"index order" / "front to back" is :attr:`Renderer.front_to_back`. Reported: best
-wall time of one frame, and process CPU time per frame (all threads, llvmpipe's
-included) averaged over the runs.
+shared). "before" is the second pass's pipeline (edge filter with ``texelFetch`` into an
+RGBA32F target, the colour pass flushed once, NumPy ``encode_linear``); the steps in
+between switch on one change at a time (``Renderer._image``, ``_rgb_target``,
+``flush_chunks``; ``finish_image``'s numba encoding); the images are the same bytes
+(checked before timing). Reported: best wall time of one frame, and process CPU time
+per frame (all threads, llvmpipe's included) averaged over the runs.
 
 Image quality of the render plans: ``bench_camera.py psnr`` compares the 640x480 rgb8
 plumb_bob frame at several plan scales with a reference (2x focal length, 4x MSAA, 2x2
@@ -31,12 +32,20 @@ import sys
 import time
 from collections.abc import Callable
 
+import cv2
 import numpy as np
 
 from roslan.io.messages import Flavor, MessageStore
-from roslan.render.gl import create_context, get_renderer, projection_from_K
+from roslan.render.gl import FLUSH_CHUNKS, create_context, get_renderer, projection_from_K
 from roslan.scene import load_scene
-from roslan.sensors.camera import Camera, CameraConfig, _image, _pose_matrices  # noqa: F401
+from roslan.sensors.camera import (
+    Camera,
+    CameraConfig,
+    _image,
+    encode_image,
+    encode_linear,
+    srgb_lut,
+)
 from roslan.sensors.camera_model import T_LINK_OPTICAL
 
 
@@ -128,8 +137,6 @@ def _psnr(a: np.ndarray, b: np.ndarray, mask: np.ndarray) -> float:
 
 def quality() -> None:
     """PSNR of the 640x480 plumb_bob frame per plan scale (see the module docstring)."""
-    import cv2
-
     scene = load_scene("warehouse")
     r = get_renderer(scene)
     cam = _camera(640, 480, "rgb8", True)
@@ -197,83 +204,122 @@ def main() -> None:
     )
     rng = np.random.default_rng(0)
     timer = _Timer()
-    cases: list[tuple[str, Callable[[], object], bool]] = []  # name, call, front to back
-    sizes: dict[str, str] = {}
+    # name, call, renderer settings (imageLoad filter, RGB32F target, flush chunks)
+    cases: list[tuple[str, Callable[[], object], tuple[bool, bool, int]]] = []
+    image = r._image
+    after = (image, True, FLUSH_CHUNKS)
+    before = (False, False, 1)
 
-    def frame(cam: Camera, enc: str) -> Callable[[], object]:
+    def frame(cam: Camera, enc: str, mode: str = "after") -> Callable[[], object]:
+        """One frame, wire bytes. mode "after": Camera.render_linear + finish_image
+        (reused float buffers, numba encoding); "fresh": the second pass's fresh arrays
+        (render, cv2.remap) with the numba encoding; "numpy": fresh arrays and NumPy
+        encode_linear (the second pass's frame)."""
         e = cam._eyes[0]
+        lut = srgb_lut("srgb")
+        pl = e.plan
+        assert pl is not None
+        mono = enc == "mono8"
 
         def f() -> object:
-            img = cam.finish_image(cam.render_linear(r, e, T_wb[None]), rng)
-            return store.serialize(
-                _image(store, "c_optical", 1, 0, img, enc), "sensor_msgs/msg/Image"
-            )
+            if mode == "after":
+                img = cam.finish_image(cam.render_linear(r, e, T_wb[None]), rng)
+            else:
+                Tc = T_wb @ cam._T_body_sensor @ e.T_sensor_optical
+                res = r.render(
+                    Tc, pl.K, pl.width, pl.height, color=not mono, depth=False, luminance=mono
+                )
+                lin = res.luminance if mono else res.color
+                if not pl.identity:
+                    lin = cv2.remap(
+                        lin, pl.map1, pl.map2, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE
+                    )
+                img = encode_linear(lin, lut) if mode == "numpy" else encode_image(lin, lut)
+            return _image(store, "c_optical", 1, 0, img, enc)  # wire bytes
 
         return f
 
-    # 640x480 rgb8 plumb_bob: plan scale 1.0 (before) and auto (default)
-    for label, scale in (("plan 1.0", 1.0), ("plan auto", None)):
-        cam = _camera(640, 480, "rgb8", True)
-        cam._plans(_Ctx(r))  # type: ignore[arg-type]
-        e = cam._eyes[0]
-        e.plan = e.model.render_plan(r.max_size, scale=scale)
-        p = e.plan
-        sizes[label] = f"{p.width}x{p.height}, f {p.K[0, 0]:.1f}"
-        for ftb in (False, True):
-            order = "front to back" if ftb else "index order"
-            cases.append(
-                (f"640x480 rgb8 plumb_bob frame, {label}, {order}", frame(cam, "rgb8"), ftb)
-            )
-        cases.append(
-            (
-                f"  Renderer.render(color) {p.width}x{p.height}, front to back",
-                lambda p=p: r.render(T, p.K, p.width, p.height, color=True, depth=False),
-                True,
-            )
-        )
-        cases.append(
-            (
-                f"  bare moderngl draw+readback {p.width}x{p.height}",
-                lambda p=p: bare_draw(T, p.K, p.width, p.height, 80.0),
-                True,
-            )
-        )
-    # 346x260: mono8 frame and the event camera's render (luminance [+ depth])
-    cam = _camera(346, 260, "mono8", False)
+    cam = _camera(640, 480, "rgb8", True)
     cam._plans(_Ctx(r))  # type: ignore[arg-type]
     p = cam._eyes[0].plan
     assert p is not None
-    for ftb in (False, True):
-        order = "front to back" if ftb else "index order"
-        cases.append((f"346x260 mono8 frame, {order}", frame(cam, "mono8"), ftb))
+    size = f"{p.width}x{p.height}"
+    big = _camera(640, 480, "rgb8", True)
+    big._plans(_Ctx(r))  # type: ignore[arg-type]
+    big._eyes[0].plan = big._eyes[0].model.render_plan(r.max_size, scale=1.0)
+    f640 = "640x480 rgb8 plumb_bob frame"
+    cases += [
+        (f"{f640}, before (second pass)", frame(cam, "rgb8", "numpy"), before),
+        (f"{f640}, + imageLoad filter", frame(cam, "rgb8", "numpy"), (image, False, 1)),
+        (f"{f640}, + RGB32F filter target", frame(cam, "rgb8", "numpy"), (image, True, 1)),
+        (f"{f640}, + numba encoding", frame(cam, "rgb8", "fresh"), (image, True, 1)),
+        (f"{f640}, + reused float buffers", frame(cam, "rgb8"), (image, True, 1)),
+        (f"{f640}, + 2 flushes", frame(cam, "rgb8"), (image, True, 2)),
+        (f"{f640}, after (defaults: 4 flushes)", frame(cam, "rgb8"), after),
+        (f"{f640}, after, render_scale 1.0 (805x605)", frame(big, "rgb8"), after),
+        (f"{f640}, before, render_scale 1.0 (805x605)", frame(big, "rgb8", "numpy"), before),
+    ]
+    for label, st in (("before", before), ("after", after)):
+        cases.append(
+            (
+                f"  Renderer.render(color) {size}, {label}",
+                lambda: r.render(T, p.K, p.width, p.height, color=True, depth=False),
+                st,
+            )
+        )
+    cases.append(
+        (
+            f"  bare moderngl draw+readback {size}",
+            lambda: bare_draw(T, p.K, p.width, p.height, 80.0),
+            after,
+        )
+    )
+    # 346x260: mono8 frame and the event camera's render (luminance [+ depth])
+    small = _camera(346, 260, "mono8", False)
+    small._plans(_Ctx(r))  # type: ignore[arg-type]
+    q = small._eyes[0].plan
+    assert q is not None
+    for label, st in (("before", before), ("after", after)):
+        mode = "after" if label == "after" else "numpy"
+        cases.append((f"346x260 mono8 frame, {label}", frame(small, "mono8", mode), st))
         for dep in (False, True):
             cases.append(
                 (
-                    f"  Renderer.render(luminance{', depth' if dep else ''}) 346x260, {order}",
+                    f"  Renderer.render(luminance{', depth' if dep else ''}) 346x260, {label}",
                     lambda dep=dep: r.render(
-                        T, p.K, 346, 260, color=False, depth=dep, luminance=True
+                        T, q.K, 346, 260, color=False, depth=dep, luminance=True
                     ),
-                    ftb,
+                    st,
                 )
             )
     cases.append(
-        ("  bare moderngl draw+readback 346x260", lambda: bare_draw(T, p.K, 346, 260, 80.0), True)
+        ("  bare moderngl draw+readback 346x260", lambda: bare_draw(T, q.K, 346, 260, 80.0), after)
     )
 
+    # every variant of a frame gives the same bytes
+    ref: dict[str, bytes] = {}
+    for name, f, st in cases:
+        if "frame" in name:
+            r._image, r._rgb_target, r.flush_chunks = st
+            key = name.split(",")[0] + ("1.0" if "render_scale" in name else "")
+            out = f()
+            assert isinstance(out, bytes)
+            assert ref.setdefault(key, out) == out, name
     for _ in range(rounds):
-        for name, f, ftb in cases:
-            r.front_to_back = ftb
+        for name, f, st in cases:
+            r._image, r._rgb_target, r.flush_chunks = st
             timer.run(name, f)
-    r.front_to_back = True
+    r._image, r._rgb_target, r.flush_chunks = after
     print(
-        f"render plans: {sizes}; load average {load0:.2f} at start, {os.getloadavg()[0]:.2f} at end"
+        f"render plan {size}, f {p.K[0, 0]:.1f}; load average {load0:.2f} at start, "
+        f"{os.getloadavg()[0]:.2f} at end"
     )
     for name, _, _ in cases:
         print(f"{name}: {timer.ms(name)}")
-    a = "640x480 rgb8 plumb_bob frame, plan auto, front to back"
-    b = "640x480 rgb8 plumb_bob frame, plan 1.0, index order"
-    bare = f"  bare moderngl draw+readback {sizes['plan auto'].split(',')[0]}"
-    m = timer.best["346x260 mono8 frame, front to back"]
+    a = f"{f640}, after (defaults: 4 flushes)"
+    b = cases[0][0]
+    bare = f"  bare moderngl draw+readback {size}"
+    m = timer.best["346x260 mono8 frame, after"]
     m_bare = timer.best["  bare moderngl draw+readback 346x260"]
     print(
         f"ratios: 640x480 frame after/before {timer.best[a] / timer.best[b]:.2f}; "

@@ -414,3 +414,36 @@ def test_encode_kernel_matches_numpy(gamma: str | float) -> None:
         encode_image(img, lut, reverse=True), encode_linear(img, lut)[..., ::-1]
     )
     np.testing.assert_array_equal(encode_image(img[..., 1], lut), encode_linear(img[..., 1], lut))
+
+
+@pytest.mark.parametrize("distorted", [False, True])
+def test_exposure_average_through_reused_buffers(distorted: bool) -> None:
+    """render_linear over several poses = the mean of the renderer's frames (remapped
+    through the plan's maps), computed here from fresh renders; repeated calls reuse the
+    eye's buffers and give the same values."""
+    scene = board_scene()
+    keys: dict[str, Any] = {"type": "camera", "name": "c", "rate": 1.0, "topic": "/c"}
+    keys |= {"resolution": [96, 72], "fx": 60.0}
+    if distorted:
+        keys |= {"distortion_model": "plumb_bob", "distortion_coeffs": [-0.2, 0.05, 0, 0, 0]}
+    cam = Camera(CameraConfig.model_validate(keys))
+    cam._plans(_Ctx(scene))  # type: ignore[arg-type]
+    e = cam._eyes[0]
+    p = e.plan
+    assert p is not None
+    r = gl.get_renderer(scene)
+    base = look_down(0.05, 0.02, 1.2, tilt=0.1) @ np.linalg.inv(T_LINK_OPTICAL)
+    T_wb = np.stack([base.copy() for _ in range(3)])
+    T_wb[:, 0, 3] += [0.0, 0.01, 0.02]  # a sideways blur
+    frames = [r.render(T @ T_LINK_OPTICAL, p.K, p.width, p.height, depth=False).color for T in T_wb]
+    expected = (frames[0] + frames[1] + frames[2]) * np.float32(1 / 3)
+    if distorted:
+        expected = cv2.remap(
+            expected, p.map1, p.map2, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE
+        )
+    got = cam.render_linear(r, e, T_wb).copy()
+    assert got.shape == (72, 96, 3)
+    np.testing.assert_allclose(got, expected, atol=1e-6)
+    assert np.abs(frames[2] - frames[0]).max() > 0.1  # the poses differ
+    cam.render_linear(r, e, T_wb[:1])  # a different frame in the same buffers
+    np.testing.assert_array_equal(cam.render_linear(r, e, T_wb), got)

@@ -334,3 +334,23 @@ def test_fast_paths_give_the_same_pixels(board_file_scene: Scene, lum: bool) -> 
     finally:
         r._flush = flush
     assert flush is None or len(flushes) >= 3  # the split draws were flushed
+
+
+def test_render_into_a_callers_buffer(board: Scene) -> None:
+    r = gl.get_renderer(board)
+    K = np.array([[60.0, 0, 39.5], [0, 60.0, 29.5], [0, 0, 1]])
+    T = look_down(0.1, 0.05, 2.0, tilt=0.15)
+    fresh = r.render(T, K, 80, 60, depth=True)
+    buf = np.full((60, 80, 3), np.nan, np.float32)
+    res = r.render(T, K, 80, 60, depth=True, out=buf)
+    assert res.color is buf
+    assert fresh.color is not None
+    np.testing.assert_array_equal(buf, fresh.color)
+    lum = np.full((60, 80), np.nan, np.float32)
+    res = r.render(T, K, 80, 60, color=False, luminance=True, depth=False, out=lum)
+    assert res.luminance is lum
+    assert np.isfinite(lum).all()
+    assert lum.max() > 0.1
+    for bad in (np.empty((60, 80), np.float32), np.empty((60, 80, 3)), buf[:, ::-1]):
+        with pytest.raises(RenderError, match=r"render\(out=\).*\(60, 80, 3\)"):
+            r.render(T, K, 80, 60, depth=False, out=bad)
