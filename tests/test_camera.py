@@ -397,12 +397,14 @@ def test_encode_kernel_matches_numpy(gamma: str | float) -> None:
         [
             near,
             rng.uniform(-0.2, 1.2, 100_000).astype(np.float32),
-            np.array([np.nan, np.inf, -np.inf, -0.0, 0.0, 1.0, 0.0031308], np.float32),
+            np.array([np.inf, -np.inf, -0.0, 0.0, 1.0, 0.0031308], np.float32),
         ]
     )
     for gain in (1.0, 0.37, 2.5):
         ref = encode_linear(x * np.float32(gain), lut) if gain != 1.0 else encode_linear(x, lut)
         np.testing.assert_array_equal(encode_image(x, lut, gain=gain), ref)
+    # NaN (NumPy's cast of it is platform-defined): the darkest code
+    assert encode_image(np.array([np.nan], np.float32), lut)[0] == lut[0]
     # sRGB by hand: 0.1 -> 1.055 * 0.1 ** (1 / 2.4) - 0.055 = 0.3492 -> 89.04; the linear
     # segment: 0.001 -> 12.92e-3 * 255 = 3.29
     np.testing.assert_array_equal(
