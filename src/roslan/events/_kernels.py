@@ -186,11 +186,17 @@ def emit_more(  # type: ignore[no-untyped-def]
         up = s1 > r
         cp = c_pos[i] if up else c_neg[i]
         sg = 1.0 if up else -1.0
-        cnt = np.int64(np.floor(np.abs(s1 - r) / cp))
-        # make the count agree exactly with the definition (level r +- n*C reached, n+1 not)
-        cnt -= np.int64((cnt > 1) & ((r + sg * (cnt * cp) - s1) * sg > 0))
-        cnt = max(cnt, np.int64(1))
-        cnt += np.int64((r + sg * ((cnt + 1) * cp) - s1) * sg <= 0)
+        if (r + sg * (3 * cp) - s1) * sg > 0:
+            # level 3 not reached (most of these pixels; level 2 is): two crossings, what
+            # the general count gives, without its division
+            cnt = np.int64(2)
+        else:
+            cnt = np.int64(np.floor(np.abs(s1 - r) / cp))
+            # make the count agree exactly with the definition (level r +- n*C reached,
+            # n+1 not)
+            cnt -= np.int64((cnt > 1) & ((r + sg * (cnt * cp) - s1) * sg > 0))
+            cnt = max(cnt, np.int64(1))
+            cnt += np.int64((r + sg * ((cnt + 1) * cp) - s1) * sg <= 0)
         if n + cnt - 1 > cap:
             return j, n, dropped
         s0 = sig0[i]
