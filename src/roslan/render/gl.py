@@ -41,7 +41,11 @@ nothing is hit. The depth buffer only resolves visibility.
 
 Speed (llvmpipe, 2 cores): see ``benchmarks/profile_render.py`` and the "Cameras"
 section of docs/performance.md. llvmpipe shades on ``LP_NUM_THREADS`` threads (default:
-all cores); vertex processing runs on the calling thread, hence the culling.
+all cores); vertex processing runs on the calling thread, hence the culling, and the
+colour pass is flushed in :data:`FLUSH_CHUNKS` parts so that shading overlaps it. The
+edge filter loads its texels through ``imageLoad`` (cheaper than ``texelFetch`` there)
+and writes an RGB32F target where that is renderable; callers that render every frame
+pass ``out=`` buffers (fresh multi-MB arrays cost page faults).
 """
 
 from __future__ import annotations
