@@ -128,6 +128,11 @@ def test_workers_give_byte_identical_outputs(tmp_path: Path) -> None:
         assert per["dvs"]["messages"] > 0
         assert per["dvs"]["generator_s"] > 0
         assert per["dvs"]["worker_pid"] != os.getpid()
+        # with two workers the camera's runs below the event camera's priority
+        base = os.nice(0)
+        assert per["dvs"]["worker_nice"] == base
+        light = min(19, base + worker_mod.LIGHT_NICE)  # Linux caps nice at 19
+        assert per["cam"]["worker_nice"] == (light if w == 2 else base)
         assert "worker_pid" not in per["imu"]
     run0 = json.loads((outs[0] / "timing.json").read_text())
     assert run0["workers"] == 0
@@ -170,6 +175,13 @@ def test_resolve_and_plan_workers(monkeypatch: pytest.MonkeyPatch) -> None:
     assert plan_workers(s, 1) == [[1, 2, 3]]
     assert plan_workers(s, 3) == [[1], [2], [3]]
     assert plan_workers(s, 0) == []
+    # only the costliest group (the event camera) keeps its priority
+    L = worker_mod.LIGHT_NICE
+    assert L > 0
+    assert worker_mod.worker_nice([[1, 3], [2]], s) == [L, 0]
+    assert worker_mod.worker_nice([[1], [2], [3]], s) == [L, 0, L]
+    assert worker_mod.worker_nice([[1, 2, 3]], s) == [0]
+    assert worker_mod.worker_nice([], s) == []
     groups = plan_workers(s, 3)
     assert sorted(i for g in groups for i in g) == [i for i, c in enumerate(s) if c.type != "imu"
                                                     and c.type != "sonar"]  # fmt: skip

@@ -63,6 +63,7 @@ from roslan.pipeline.worker import (
     WorkerPool,
     plan_workers,
     resolve_workers,
+    worker_nice,
 )
 from roslan.sensors.base import Message, Sensor, StaticTransform
 from roslan.sensors.ground_truth import BASE_FRAME, WORLD_FRAME, GroundTruth
@@ -494,6 +495,9 @@ def run_simulation(
             t_setup = time.perf_counter()
             remote = pool.assigned if pool is not None else set()
             if pool is not None:  # the workers render while this process sets up
+                nices = dict(
+                    zip(pool.groups, worker_nice(pool.groups, config.sensors), strict=True)
+                )
                 pool.send(
                     lambda g: WorkerJob(
                         trajectory=config.trajectory,
@@ -508,6 +512,7 @@ def run_simulation(
                         base_dir=base_dir,
                         formats=fmts,
                         profile=profile,
+                        nice=nices[g],
                     )
                 )
             write_trajectory_files(traj, tmp, plot=False)

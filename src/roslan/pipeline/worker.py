@@ -73,6 +73,7 @@ __all__ = [
     "WorkerPool",
     "plan_workers",
     "resolve_workers",
+    "worker_nice",
 ]
 
 HEAVY_TYPES: dict[str, float] = {
@@ -88,6 +89,12 @@ HEAVY_TYPES: dict[str, float] = {
 
 QUEUE_BYTES = 64 << 20
 """Most message bytes a worker holds ready ahead of the writer (plus one message)."""
+
+LIGHT_NICE = 5
+"""``nice`` increment of the workers that are not on the critical path (every worker but
+the costliest): on a machine with fewer cores than busy threads, the scheduler then
+favours the worker that finishes last (the event camera in the default job), and the
+others fill the gaps instead of slowing it down. Outputs do not depend on it."""
 
 JOIN_TIMEOUT_S = 30.0
 """Longest wait for a finished worker to exit, and for a terminated one (then SIGKILL)."""
@@ -161,6 +168,16 @@ def plan_workers(sensors: Sequence[SensorConfig], n_workers: int) -> list[list[i
     return sorted(sorted(g) for g in groups)
 
 
+def worker_nice(groups: Sequence[Sequence[int]], sensors: Sequence[SensorConfig]) -> list[int]:
+    """``nice`` increment of each group of :func:`plan_workers`: 0 for the costliest group
+    (the first of equals), :data:`LIGHT_NICE` for the others."""
+    loads = [sum(HEAVY_TYPES[sensors[i].type] for i in g) for g in groups]
+    if not loads:
+        return []
+    top = loads.index(max(loads))
+    return [0 if k == top else LIGHT_NICE for k in range(len(groups))]
+
+
 # ---------------------------------------------------------------------------- the job
 @dataclass(frozen=True)
 class WorkerJob:
@@ -183,6 +200,7 @@ class WorkerJob:
     formats: tuple[str, ...]
     profile: bool
     queue_bytes: int = QUEUE_BYTES
+    nice: int = 0
 
 
 class ByteQueue:
@@ -285,6 +303,9 @@ def _run_job(job: WorkerJob, put: Callable[[Any], None]) -> None:
     from roslan.pipeline.run import _Stream
     from roslan.trajectory.generator import Trajectory
 
+    if job.nice > 0:
+        with contextlib.suppress(OSError):  # threads started from here on inherit it
+            os.nice(job.nice)
     traj = Trajectory(job.trajectory)
     ctx = Context(
         traj,
@@ -340,6 +361,7 @@ def _run_job(job: WorkerJob, put: Callable[[Any], None]) -> None:
             "close_s": close_s[k],
             "messages": st.count,
             "worker_pid": os.getpid(),
+            "worker_nice": os.nice(0),
         }
         for k, st in enumerate(streams)
     }
