@@ -227,6 +227,14 @@ class EventGenerator:
         # reused (H*W,) log / exp buffers per precision (float32 frames: float32)
         self._bufs: dict[np.dtype[Any], tuple[NDArray[np.floating], NDArray[np.floating]]] = {}
 
+    def _frame(self, intensity: NDArray[np.floating]) -> NDArray[np.floating]:
+        """``intensity`` as an array, checked against the sensor's (H, W)."""
+        img = np.asarray(intensity)
+        if img.shape != (self.height, self.width):
+            msg = f"frame shape {img.shape} != sensor ({self.height}, {self.width})"
+            raise ValueError(msg)
+        return img
+
     # ------------------------------------------------------------------ API
     def update(self, intensity: NDArray[np.floating], t_ns: int) -> EventBatch:
         """Advance to the frame ``intensity`` (H, W) linear luminance at ``t_ns``.
@@ -234,10 +242,7 @@ class EventGenerator:
         Returns the events of the interval (times in ``[t_prev, t_ns]``), sorted by time,
         ties by pixel index (then real events before shot noise).
         """
-        img = np.asarray(intensity)
-        if img.shape != (self.height, self.width):
-            msg = f"frame shape {img.shape} != sensor ({self.height}, {self.width})"
-            raise ValueError(msg)
+        img = self._frame(intensity)
         if self.t_ns is None:
             L = log_intensity(img, self.params.log_eps).ravel()
             return self.update_log(L, t_ns, intensity=img.ravel())
@@ -443,10 +448,7 @@ class NumpyEventGenerator(EventGenerator):
         Returns the events of the interval (times in ``[t_prev, t_ns]``), sorted by time,
         ties by pixel index (then real events before shot noise).
         """
-        img = np.asarray(intensity)
-        if img.shape != (self.height, self.width):
-            msg = f"frame shape {img.shape} != sensor ({self.height}, {self.width})"
-            raise ValueError(msg)
+        img = self._frame(intensity)
         L = log_intensity(img, self.params.log_eps).ravel()
         return self.update_log(L, t_ns, intensity=img.ravel())
 
