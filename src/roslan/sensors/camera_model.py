@@ -333,36 +333,54 @@ class CameraModel:
         target = np.stack([xd, yd], axis=1)
         if self.is_pinhole:
             return target
+        # Newton per point, 30 steps at most; a point whose step is exactly zero has reached
+        # its fixed point (the same step forever), so it leaves the active set: the result
+        # is what 30 full steps give, at the cost of the few steps that converge (~5)
         if self.distortion_model == "equidistant":
             k1, k2, k3, k4 = self.D
             thd = np.hypot(xd, yd)
             th = thd.copy()
+            act = np.arange(th.shape[0])
             for _ in range(30):
-                t2 = th * th
-                f = th * (1 + t2 * (k1 + t2 * (k2 + t2 * (k3 + t2 * k4)))) - thd
+                t = th[act]
+                t2 = t * t
+                f = t * (1 + t2 * (k1 + t2 * (k2 + t2 * (k3 + t2 * k4)))) - thd[act]
                 df = 1 + t2 * (3 * k1 + t2 * (5 * k2 + t2 * (7 * k3 + t2 * 9 * k4)))
-                th = th - f / np.where(np.abs(df) > 1e-12, df, 1e-12)
+                new = t - f / np.where(np.abs(df) > 1e-12, df, 1e-12)
+                moved = new != t
+                th[act] = new
+                act = act[moved]
+                if act.size == 0:
+                    break
             th = np.clip(th, 0.0, math.pi / 2 - 1e-6)
             scale = np.where(thd > 1e-12, np.tan(th) / np.maximum(thd, 1e-300), 1.0)
             return target * scale[:, None]
         # plumb_bob: Newton on the 2-D map, analytic Jacobian
         k1, k2, p1, p2, k3 = self.D
         xy = target.copy()
+        act = np.arange(xy.shape[0])
         for _ in range(30):
-            x, y = xy[:, 0], xy[:, 1]
+            x, y = xy[act, 0], xy[act, 1]
+            tx, ty = target[act, 0], target[act, 1]
             r2 = x * x + y * y
             radial = 1 + r2 * (k1 + r2 * (k2 + r2 * k3))
             drad = k1 + r2 * (2 * k2 + 3 * k3 * r2)  # d(radial)/d(r2)
-            fx_ = x * radial + 2 * p1 * x * y + p2 * (r2 + 2 * x * x) - target[:, 0]
-            fy_ = y * radial + p1 * (r2 + 2 * y * y) + 2 * p2 * x * y - target[:, 1]
+            fx_ = x * radial + 2 * p1 * x * y + p2 * (r2 + 2 * x * x) - tx
+            fy_ = y * radial + p1 * (r2 + 2 * y * y) + 2 * p2 * x * y - ty
             j11 = radial + 2 * x * x * drad + 2 * p1 * y + 6 * p2 * x
             j12 = 2 * x * y * drad + 2 * p1 * x + 2 * p2 * y
             j21 = 2 * x * y * drad + 2 * p1 * x + 2 * p2 * y
             j22 = radial + 2 * y * y * drad + 6 * p1 * y + 2 * p2 * x
             det = j11 * j22 - j12 * j21
             det = np.where(np.abs(det) > 1e-12, det, 1e-12)
-            xy[:, 0] -= (j22 * fx_ - j12 * fy_) / det
-            xy[:, 1] -= (-j21 * fx_ + j11 * fy_) / det
+            nx = x - (j22 * fx_ - j12 * fy_) / det
+            ny = y - (-j21 * fx_ + j11 * fy_) / det
+            moved = (nx != x) | (ny != y)
+            xy[act, 0] = nx
+            xy[act, 1] = ny
+            act = act[moved]
+            if act.size == 0:
+                break
         return xy
 
     def render_plan(
