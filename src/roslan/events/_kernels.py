@@ -7,7 +7,8 @@ without ``fastmath``), so the events are bit-identical. ``log``/``exp`` stay in 
 SIMD loops may differ from libm in the last ulp): the kernels write their arguments, in
 the frame's precision (float32 for the renderer's float32 frames, float64 otherwise).
 
-``nogil=True``: the simulation runs event generation in a thread beside rendering.
+``nogil=True``: they run beside other threads (the event camera writes events.txt/h5 on
+a background thread while the next frame renders; :mod:`roslan.io.background`).
 ``cache=True``: compiled once per machine (``__pycache__`` or numba's user cache dir).
 """
 
