@@ -41,7 +41,6 @@ from roslan.scene import load_scene
 from roslan.sensors.camera import (
     Camera,
     CameraConfig,
-    _image,
     encode_image,
     encode_linear,
     srgb_lut,
@@ -235,7 +234,7 @@ def main() -> None:
                         lin, pl.map1, pl.map2, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE
                     )
                 img = encode_linear(lin, lut) if mode == "numpy" else encode_image(lin, lut)
-            return _image(store, "c_optical", 1, 0, img, enc)  # wire bytes
+            return store.image("c_optical", 1, img, enc)  # wire bytes
 
         return f
 

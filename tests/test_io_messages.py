@@ -50,3 +50,17 @@ def test_blob_must_be_the_last_uint8_field() -> None:
     store = MessageStore(Flavor.ROS1)
     with pytest.raises(TypeError, match="last field 'pose' is not uint8"):
         store.serialize_with_blob("geometry_msgs/msg/PoseStamped", np.zeros(3, np.uint8))
+
+
+@pytest.mark.parametrize("flavor", list(Flavor))
+def test_image_message_decodes_to_the_array(flavor: Flavor) -> None:
+    store = MessageStore(flavor)
+    flow = np.random.default_rng(1).normal(size=(5, 7, 2)).astype(np.float32)  # 32FC2
+    raw = store.image("dvs_optical", 1_700_000_000_000_000_042, flow, "32FC2", seq=3)
+    de = store.typestore.deserialize_ros1 if store.is_ros1 else store.typestore.deserialize_cdr
+    msg = de(raw, "sensor_msgs/msg/Image")
+    assert (msg.height, msg.width, msg.step, msg.encoding) == (5, 7, 7 * 8, "32FC2")
+    assert msg.header.frame_id == "dvs_optical"
+    assert msg.header.stamp.sec == 1_700_000_000
+    assert msg.header.stamp.nanosec == 42
+    np.testing.assert_array_equal(np.frombuffer(msg.data, np.float32).reshape(5, 7, 2), flow)

@@ -94,6 +94,24 @@ class MessageStore:
             return bytes(self.typestore.serialize_ros1(msg, msgtype))
         return bytes(self.typestore.serialize_cdr(msg, msgtype))
 
+    def image(
+        self, frame_id: str, stamp_ns: int, data: NDArray[Any], encoding: str, seq: int = 0
+    ) -> bytes:
+        """Wire bytes of a sensor_msgs/Image of ``data`` (H, W[, C]), any dtype, row-major,
+        little-endian; ``step`` = bytes per row; the pixels are appended once."""
+        h = int(data.shape[0])
+        flat = np.ascontiguousarray(data).view(np.uint8).reshape(-1)
+        return self.serialize_with_blob(
+            "sensor_msgs/msg/Image",
+            flat,
+            header=self.header(stamp_ns, frame_id, seq),
+            height=h,
+            width=int(data.shape[1]),
+            encoding=encoding,
+            is_bigendian=0,
+            step=flat.size // h,
+        )
+
     def serialize_with_blob(self, msgtype: str, blob: NDArray[np.uint8], **fields: Any) -> bytes:
         """Wire bytes of ``msgtype`` whose *last* field is the ``uint8[]`` ``blob`` (Image,
         CompressedImage data): the other fields go through the serializer, the blob is

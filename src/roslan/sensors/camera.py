@@ -293,53 +293,6 @@ class _Eye:
         return a
 
 
-def _camera_info(store: MessageStore, eye: _Eye, stamp: int, seq: int) -> Any:
-    m = eye.model
-    header = store.header(stamp, eye.frame, seq)
-    D = np.asarray(m.ros_D(), dtype=np.float64)
-    K = m.K.ravel().astype(np.float64)
-    R = np.eye(3).ravel()
-    P = m.projection_matrix(eye.Tx).ravel()
-    roi = store.new(
-        "sensor_msgs/msg/RegionOfInterest",
-        x_offset=0,
-        y_offset=0,
-        height=0,
-        width=0,
-        do_rectify=False,
-    )
-    common = {
-        "header": header,
-        "height": m.height,
-        "width": m.width,
-        "distortion_model": m.ros_distortion_model(),
-        "binning_x": 0,
-        "binning_y": 0,
-        "roi": roi,
-    }
-    if store.is_ros1:
-        return store.new(CAMERA_INFO, D=D, K=K, R=R, P=P, **common)
-    return store.new(CAMERA_INFO, d=D, k=K, r=R, p=P, **common)
-
-
-def _image(
-    store: MessageStore, frame: str, stamp: int, seq: int, data: NDArray[Any], encoding: str
-) -> bytes:
-    h, w = data.shape[:2]
-    flat = np.ascontiguousarray(data).view(np.uint8).reshape(-1)
-    # wire bytes: the pixels are appended once, not copied through the serializer
-    return store.serialize_with_blob(
-        IMAGE,
-        flat,
-        header=store.header(stamp, frame, seq),
-        height=h,
-        width=w,
-        encoding=encoding,
-        is_bigendian=0,
-        step=flat.size // h,
-    )
-
-
 def _pose_matrices(ctx: SimContext, t_ns: NDArray[np.int64]) -> F64:
     """(N, 4, 4) ``T_world_body`` at trajectory times ``t_ns``."""
     st = ctx.trajectory.state(t_ns.astype(np.float64) * 1e-9)
@@ -435,10 +388,10 @@ class _CameraBase:
         frame = e.frame
 
         def build_image(store: MessageStore) -> Any:
-            return _image(store, frame, stamp, seq, data, encoding)
+            return store.image(frame, stamp, data, encoding, seq)
 
         def build_info(store: MessageStore) -> Any:
-            return _camera_info(store, e, stamp, seq)
+            return e.model.camera_info(store, e.frame, stamp, seq, e.Tx)
 
         return [
             Message(t_ns, f"{e.topic}/image_raw", IMAGE, build_image),

@@ -36,6 +36,7 @@ from roslan.errors import ConfigError, SensorError
 from roslan.trajectory.frames import OPTICAL_FROM_BODY
 
 if TYPE_CHECKING:
+    from roslan.io.messages import MessageStore
     from roslan.sensors.base import SensorConfig, SimContext
 
 __all__ = [
@@ -451,6 +452,39 @@ class CameraModel:
         )
 
     # ---------------------------------------------------------------- files
+    def camera_info(
+        self, store: MessageStore, frame_id: str, stamp_ns: int, seq: int = 0, Tx: float = 0.0
+    ) -> Any:
+        """sensor_msgs/CameraInfo of this camera in ``store``'s flavour (R = identity, P
+        from :meth:`projection_matrix` with ``Tx``), stamped ``stamp_ns`` (absolute ns)."""
+        roi = store.new(
+            "sensor_msgs/msg/RegionOfInterest",
+            x_offset=0,
+            y_offset=0,
+            height=0,
+            width=0,
+            do_rectify=False,
+        )
+        arrays = {
+            "d": np.asarray(self.ros_D(), dtype=np.float64),
+            "k": self.K.ravel().astype(np.float64),
+            "r": np.eye(3).ravel(),
+            "p": self.projection_matrix(Tx).ravel(),
+        }
+        if store.is_ros1:
+            arrays = {k.upper(): v for k, v in arrays.items()}
+        return store.new(
+            "sensor_msgs/msg/CameraInfo",
+            header=store.header(stamp_ns, frame_id, seq),
+            height=self.height,
+            width=self.width,
+            distortion_model=self.ros_distortion_model(),
+            binning_x=0,
+            binning_y=0,
+            roi=roi,
+            **arrays,
+        )
+
     def projection_matrix(self, Tx: float = 0.0) -> F64:
         """ROS CameraInfo P (3, 4): K with ``P[0, 3] = Tx`` (-fx * baseline: right camera)."""
         P = np.zeros((3, 4))

@@ -399,15 +399,15 @@ class EventCamera:
                 out.append(self._camera_info_msg(ctx, t))
                 if c.has_aps:
                     aps = _srgb8(lum)
-                    out.append(self._image_msg(ctx, t, aps, "mono8", 1))
+                    out.append(self._image_msg(ctx, t, aps, "mono8"))
                     sink.submit(self._write_image, ctx, t, aps, image_index)
                     image_index += 1
             if t in gt_set:
                 if c.optic_flow and flow is not None:
-                    out.append(self._image_msg(ctx, t, flow, "32FC2", 8))
+                    out.append(self._image_msg(ctx, t, flow, "32FC2"))
                 if c.depthmap and depth is not None:
                     d = np.where(np.isfinite(depth), depth, np.float32(np.nan)).astype(np.float32)
-                    out.append(self._image_msg(ctx, t, d, "32FC1", 4))
+                    out.append(self._image_msg(ctx, t, d, "32FC1"))
             buf, ready = packets.split(buf, t, final=False)
             for m in (*ready, *out):
                 heapq.heappush(pending, (m.t_ns, next(counter), m))
@@ -446,68 +446,22 @@ class EventCamera:
         }
 
     # -------------------------------------------------------------- messages
-    def _header(self, store: MessageStore, ctx: SimContext, t_ns: int) -> Any:
-        return store.header(ctx.stamp(t_ns), self.optical_frame)
-
     def _camera_info_msg(self, ctx: SimContext, t_ns: int) -> Message:
-        cam = self.camera
-        model = cam.model
-        dm = model.ros_distortion_model()
-        D = model.ros_D()
-        K = cam.K
-        P = model.projection_matrix()
+        model, frame, stamp = self.camera.model, self.optical_frame, ctx.stamp(t_ns)
 
         def build(store: MessageStore) -> Any:
-            arrays = {
-                "d": np.asarray(D, dtype=np.float64),
-                "k": K.ravel().astype(np.float64),
-                "r": np.eye(3).ravel(),
-                "p": P.ravel(),
-            }
-            if store.is_ros1:
-                arrays = {k.upper(): v for k, v in arrays.items()}
-            roi = store.new(
-                "sensor_msgs/msg/RegionOfInterest",
-                x_offset=0,
-                y_offset=0,
-                height=0,
-                width=0,
-                do_rectify=False,
-            )
-            return store.new(
-                "sensor_msgs/msg/CameraInfo",
-                header=self._header(store, ctx, t_ns),
-                height=cam.height,
-                width=cam.width,
-                distortion_model=dm,
-                binning_x=0,
-                binning_y=0,
-                roi=roi,
-                **arrays,
-            )
+            return model.camera_info(store, frame, stamp)
 
         return Message(
             t_ns, f"{self.config.topic}/camera_info", "sensor_msgs/msg/CameraInfo", build
         )
 
-    def _image_msg(
-        self, ctx: SimContext, t_ns: int, data: NDArray[Any], encoding: str, bpp: int
-    ) -> Message:
+    def _image_msg(self, ctx: SimContext, t_ns: int, data: NDArray[Any], encoding: str) -> Message:
         topic = {"mono8": "image_raw", "32FC2": "optic_flow", "32FC1": "depthmap"}[encoding]
-        H, W = data.shape[:2]
-        raw = np.ascontiguousarray(data).view(np.uint8).ravel()
+        frame, stamp = self.optical_frame, ctx.stamp(t_ns)
 
         def build(store: MessageStore) -> bytes:
-            return store.serialize_with_blob(
-                "sensor_msgs/msg/Image",
-                raw,
-                header=self._header(store, ctx, t_ns),
-                height=H,
-                width=W,
-                encoding=encoding,
-                is_bigendian=0,
-                step=W * bpp,
-            )
+            return store.image(frame, stamp, data, encoding)
 
         return Message(t_ns, f"{self.config.topic}/{topic}", "sensor_msgs/msg/Image", build)
 
