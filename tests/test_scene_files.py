@@ -309,3 +309,76 @@ def test_cli_info_preview_export(tmp_path: Path, capsys: pytest.CaptureFixture[s
     assert (tmp_path / "e" / "scene.yaml").is_file()
     assert main(["scene", "info", str(tmp_path / "nope.yaml")]) == 2
     assert "neither a built-in" in capsys.readouterr().err
+
+
+# ---------------------------------------------------------------- rendered preview
+def test_look_at_points_the_optical_axis_at_the_target() -> None:
+    from roslan.scene.preview import look_at
+
+    rng = np.random.default_rng(4)
+    for _ in range(20):
+        eye, target = rng.normal(size=3) * 10, rng.normal(size=3) * 10
+        T = look_at(eye, target)
+        R = T[:3, :3]
+        np.testing.assert_allclose(R.T @ R, np.eye(3), atol=1e-12)
+        assert np.linalg.det(R) == pytest.approx(1.0)
+        p = R.T @ (target - eye)  # the target in the camera frame: straight ahead
+        np.testing.assert_allclose(p[:2], 0.0, atol=1e-9)
+        assert p[2] > 0
+        # world up (+z) is image up (-y), unless looking straight up or down
+        assert (R.T @ np.array([0.0, 0.0, 1.0]))[1] <= 1e-12
+    T = look_at(np.zeros(3), np.array([0.0, 0.0, -5.0]))  # straight down: still a rotation
+    assert np.linalg.det(T[:3, :3]) == pytest.approx(1.0)
+
+
+def test_preview_renders_the_goal_at_the_centre_of_the_approach_view(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from roslan.errors import RenderError
+    from roslan.scene import preview as pv
+
+    (tmp_path / "red.yaml").write_text(
+        yaml.safe_dump(
+            {
+                "name": "red",
+                "goal": {"position": [3.0, 2.0, 1.0], "rpy": [0.0, 0.0, 0.5]},
+                "objects": [
+                    {
+                        "name": "floor",
+                        "primitive": {"type": "plane", "size": [80.0, 80.0]},
+                        "material": {"color": [0.5, 0.5, 0.5]},
+                    },
+                    {
+                        "name": "red_box_under_the_goal",
+                        "primitive": {"type": "box", "size": [1.0, 1.0, 1.0]},
+                        "pose": {"position": [3.0, 2.0, 0.5]},
+                        "material": {"color": [0.9, 0.05, 0.05]},
+                    },
+                ],
+            }
+        )
+    )
+    scene = load_scene(str(tmp_path / "red.yaml"))
+    views = pv.render_views(scene, width=96, height=72)
+    assert [t for t, _ in views] == ["approach to the goal", "overview"]
+    img = views[0][1].astype(int)
+    assert img.shape == (72, 96, 3)
+    r, g, b = img[35:37, 47:49].reshape(-1, 3).mean(axis=0)
+    assert r > 3 * g + 20  # the red box is where the camera looks
+    assert abs(g - b) < 10
+    assert views[1][1].std() > 5  # the overview sees the floor, not the void
+    png = tmp_path / "prev.png"
+    pv.write_preview(scene, png, dpi=40)
+    with Image.open(png) as im:
+        assert im.size == (15 * 40, 7 * 40)  # top view + rendered views
+
+    # without OpenGL: a warning and the top view alone
+    def no_gl(*_a: object, **_k: object) -> None:
+        msg = "no EGL"
+        raise RenderError(msg)
+
+    monkeypatch.setattr(pv, "render_views", no_gl)
+    with pytest.warns(UserWarning, match="without rendered views: no EGL"):
+        pv.write_preview(scene, png, dpi=40)
+    with Image.open(png) as im:
+        assert im.size == (9 * 40, 7 * 40)

@@ -34,7 +34,7 @@ def _info(args: argparse.Namespace) -> int:
 def _preview(args: argparse.Namespace) -> int:
     from roslan.scene.preview import write_preview
 
-    write_preview(_load(args), Path(args.output))
+    write_preview(_load(args), Path(args.output), rendered=not args.top_only)
     print(f"wrote {args.output}")
     return 0
 
@@ -64,8 +64,13 @@ def register(subparsers: Any) -> None:
     i = sub.add_parser("info", help="objects, triangles, bounds, goal")
     common(i)
     i.set_defaults(func=_info)
-    v = sub.add_parser("preview", help="top-view PNG with object outlines and the goal")
+    v = sub.add_parser(
+        "preview", help="PNG: top view with outlines and the goal, and two rendered views"
+    )
     common(v)
     v.add_argument("-o", "--output", required=True, metavar="FILE.png")
+    v.add_argument(
+        "--top-only", action="store_true", help="the top view alone (no OpenGL rendering)"
+    )
     v.set_defaults(func=_preview)
     p.set_defaults(func=lambda _args: (p.print_help(), 2)[1])

@@ -1,16 +1,25 @@
-"""Top-view preview of a scene (matplotlib): object outlines, heights, goal and approach zone."""
+"""Preview of a scene: a top view (matplotlib: object outlines coloured by height, goal,
+approach zone) beside two views rendered by the simulation's own renderer (the approach
+to the goal, and a high oblique overview), so a scene file can be checked by eye before
+anything is simulated in it."""
 
 from __future__ import annotations
 
+import math
+import warnings
 from pathlib import Path
 
 import numpy as np
+from numpy.typing import NDArray
 
-from roslan.errors import OutputError
+from roslan.errors import OutputError, RenderError
 from roslan.scene.model import Scene
 from roslan.trajectory.frames import rpy_to_matrix
 
-__all__ = ["scene_info", "write_preview"]
+__all__ = ["look_at", "render_views", "scene_info", "write_preview"]
+
+PREVIEW_FOV_DEG = 70.0
+"""Horizontal field of view of the rendered views."""
 
 
 def scene_info(scene: Scene) -> str:
@@ -38,9 +47,74 @@ def scene_info(scene: Scene) -> str:
     return "\n".join(lines)
 
 
-def write_preview(scene: Scene, path: Path, *, dpi: int = 120) -> None:
+def look_at(
+    eye: NDArray[np.floating], target: NDArray[np.floating], up: tuple[float, ...] = (0, 0, 1)
+) -> NDArray[np.float64]:
+    """(4, 4) pose in the world of a camera *optical* frame (z forward, x right, y down) at
+    ``eye`` looking at ``target``, with ``up`` (world) pointing up in the image."""
+    e = np.asarray(eye, dtype=np.float64)
+    z = np.asarray(target, dtype=np.float64) - e
+    z /= max(float(np.linalg.norm(z)), 1e-12)
+    u = np.asarray(up, dtype=np.float64)
+    if abs(float(z @ u)) > 0.999 * float(np.linalg.norm(u)):  # looking straight up/down
+        u = np.array([1.0, 0.0, 0.0]) if abs(z[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    x = np.cross(z, u)
+    x /= np.linalg.norm(x)
+    y = np.cross(z, x)  # down in the image
+    T = np.eye(4)
+    T[:3, :3] = np.column_stack([x, y, z])
+    T[:3, 3] = e
+    return T
+
+
+def _viewpoints(scene: Scene) -> list[tuple[str, NDArray[np.float64], NDArray[np.float64]]]:
+    """(title, eye, target): the approach (from the far end of the approach zone, 4.5 m
+    up, as the default landing starts) and a high oblique overview from a corner of the
+    bounds towards the middle of the floor."""
+    from roslan.scene.builtin import APPROACH_ZONE
+
+    g = np.asarray(scene.goal_position, dtype=np.float64)
+    R = rpy_to_matrix(np.asarray(scene.goal_rpy, dtype=np.float64))
+    (x0, _), _ = APPROACH_ZONE
+    eye = g + R @ np.array([0.7 * x0, 0.0, 0.0]) + np.array([0.0, 0.0, 4.5])
+    lo, hi = scene.bounds
+    centre = 0.5 * (lo + hi)
+    size = hi - lo
+    # inside the bounds (walls and roofs of enclosed scenes would hide everything)
+    high = np.array([centre[0] - 0.42 * size[0], centre[1] - 0.42 * size[1], lo[2] + 0.8 * size[2]])
+    centre[2] = lo[2]
+    return [("approach to the goal", eye, g), ("overview", high, centre)]
+
+
+def render_views(
+    scene: Scene, width: int = 480, height: int = 360
+) -> list[tuple[str, NDArray[np.uint8]]]:
+    """The scene seen from :func:`_viewpoints` by the simulation's renderer: a list of
+    (title, (height, width, 3) uint8 sRGB image).
+
+    Raises:
+        RenderError: no OpenGL (EGL) is available.
+    """
+    from roslan.render.gl import get_renderer
+    from roslan.sensors.camera import encode_linear, srgb_lut
+
+    r = get_renderer(scene)
+    f = 0.5 * width / math.tan(math.radians(PREVIEW_FOV_DEG) / 2)
+    K = np.array([[f, 0.0, (width - 1) / 2], [0.0, f, (height - 1) / 2], [0.0, 0.0, 1.0]])
+    lut = srgb_lut("srgb")
+    out = []
+    for title, eye, target in _viewpoints(scene):
+        res = r.render(look_at(eye, target), K, width, height, color=True, depth=False)
+        assert res.color is not None
+        out.append((title, encode_linear(res.color, lut)))
+    return out
+
+
+def write_preview(scene: Scene, path: Path, *, dpi: int = 120, rendered: bool = True) -> None:
     """PNG top view: every triangle projected on x-y, coloured by its top height (floors
-    and roofs left out), the goal with the goal frame's x axis, and the approach zone.
+    and roofs left out), the goal with the goal frame's x axis, and the approach zone;
+    with ``rendered``, beside it the views of :func:`render_views` (left out, with a
+    warning, where no OpenGL is available).
 
     Raises:
         OutputError: the file cannot be written.
@@ -65,7 +139,23 @@ def write_preview(scene: Scene, path: Path, *, dpi: int = 120) -> None:
         t = v[o.faces]
         tris.append(t[:, :, :2])
         tops.append(t[:, :, 2].max(axis=1))
-    fig, ax = plt.subplots(figsize=(9, 7))
+    views: list[tuple[str, NDArray[np.uint8]]] = []
+    if rendered:
+        try:
+            views = render_views(scene)
+        except RenderError as err:
+            warnings.warn(f"preview without rendered views: {err}", stacklevel=2)
+    if views:
+        fig = plt.figure(figsize=(15, 7), layout="constrained")
+        grid = fig.add_gridspec(len(views), 2, width_ratios=(1.25, 1.0))
+        ax = fig.add_subplot(grid[:, 0])
+        for k, (title, img) in enumerate(views):
+            axr = fig.add_subplot(grid[k, 1])
+            axr.imshow(img)
+            axr.set_title(f"rendered: {title}", fontsize=9)
+            axr.set_axis_off()
+    else:
+        fig, ax = plt.subplots(figsize=(9, 7))
     if tris:
         allt = np.concatenate(tris)
         allz = np.concatenate(tops)
