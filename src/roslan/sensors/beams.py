@@ -17,11 +17,14 @@ within 1e-9 m / 1e-9 rad of the exact pose for the flapping landing trajectories
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal, NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
+
+from roslan.sensors.base import Message, SimContext, StaticTransform, TopicSpec, sample_times_ns
 
 if TYPE_CHECKING:
     from roslan.io.messages import MessageStore
@@ -29,8 +32,10 @@ if TYPE_CHECKING:
     from roslan.trajectory.generator import Trajectory
 
 __all__ = [
+    "POINTCLOUD2",
     "XYZIRT",
     "Measurement",
+    "PointCloudSensor",
     "ScanWriter",
     "measure",
     "pointcloud2",
@@ -50,6 +55,8 @@ XYZIRT = np.dtype(
     }
 )
 """velodyne_pointcloud's PointXYZIRT wire layout: packed, 22 bytes per point."""
+
+POINTCLOUD2 = "sensor_msgs/msg/PointCloud2"
 
 _POINTFIELD_TYPE = {np.dtype("<f4"): 7, np.dtype("<u2"): 4, np.dtype("<f8"): 8, np.dtype("u1"): 2}
 
@@ -303,3 +310,54 @@ class ScanWriter:
         if self._fh is not None:
             self._fh.close()
             self._fh = None
+
+
+class PointCloudSensor:
+    """The stream shared by the point-cloud sensors (``lidar``, ``solid_state_lidar``):
+    one :meth:`scan` every ``1 / config.rate`` s from t = 0, each a PointCloud2 on
+    ``config.topic`` in ``config.frame`` stamped at the scan start, and its
+    :class:`ScanWriter` files in ``lidar/<name>/``. Subclasses provide ``config`` and
+    ``scan``, and :meth:`cloud_layout` for organized clouds."""
+
+    config: Any
+    _writer: ScanWriter | None = None
+
+    def scan(
+        self, trajectory: Any, caster: Any, t0_ns: int, rng: np.random.Generator
+    ) -> NDArray[Any]:  # pragma: no cover - every subclass has one
+        raise NotImplementedError
+
+    def cloud_layout(self) -> tuple[int, bool]:
+        """(PointCloud2 height, is_dense): unorganized by default."""
+        return 1, True
+
+    def topics(self) -> list[TopicSpec]:
+        return [TopicSpec(self.config.topic, POINTCLOUD2)]
+
+    def static_transforms(self) -> list[StaticTransform]:
+        return []  # base_link -> frame comes from the extrinsics (pipeline)
+
+    def messages(self, ctx: SimContext) -> Iterator[Message]:
+        cfg = self.config
+        caster = ctx.raycaster()
+        rng = ctx.rng(cfg.name)
+        index = ctx.path(f"lidar/{cfg.name}/timestamps.txt")
+        self._writer = ScanWriter(index.parent, index)
+        height, dense = self.cloud_layout()
+        for seq, t0 in enumerate(sample_times_ns(cfg.rate, ctx.trajectory.duration_ns).tolist()):
+            pts = self.scan(ctx.trajectory, caster, t0, rng)
+            self._writer.write(t0, pts)
+            stamp = ctx.stamp(t0)
+
+            def build(
+                store: Any, pts: NDArray[Any] = pts, stamp: int = stamp, seq: int = seq
+            ) -> Any:
+                return pointcloud2(
+                    store, stamp, cfg.frame, pts, height=height, seq=seq, is_dense=dense
+                )
+
+            yield Message(t0, cfg.topic, POINTCLOUD2, build)
+
+    def close(self, ctx: SimContext) -> None:
+        if self._writer is not None:
+            self._writer.close()

@@ -25,7 +25,6 @@ order; ``organized: true`` gives ``height = rings`` rows (ring order) by
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import Annotated, Any, Literal
 
@@ -35,15 +34,10 @@ from pydantic import Field, model_validator
 
 from roslan.config.base import FiniteFloat
 from roslan.sensors.base import (
-    Message,
     SensorConfig,
-    SimContext,
-    StaticTransform,
     TopicName,
-    TopicSpec,
-    sample_times_ns,
 )
-from roslan.sensors.beams import XYZIRT, ScanWriter, measure, pointcloud2, rays_in_world
+from roslan.sensors.beams import XYZIRT, PointCloudSensor, measure, rays_in_world
 
 __all__ = [
     "HDL32E_ELEVATIONS_DEG",
@@ -54,7 +48,6 @@ __all__ = [
     "LidarSpec",
 ]
 
-PointCloud2 = "sensor_msgs/msg/PointCloud2"
 
 
 # fmt: off
@@ -246,7 +239,7 @@ class LidarConfig(SensorConfig):
         )
 
 
-class Lidar:
+class Lidar(PointCloudSensor):
     """Spinning LiDAR sensor (see module docstring for timing and output conventions)."""
 
     def __init__(self, config: LidarConfig) -> None:
@@ -274,18 +267,11 @@ class Lidar:
             laser_of_ring[:, None] + s.n_lasers * np.arange(s.azimuth_steps)[None, :]
         ).reshape(-1)
         self.T_body_sensor = config.pose.matrix()
-        self._writer: ScanWriter | None = None
 
     # ------------------------------------------------------------------ interface
-    def topics(self) -> list[TopicSpec]:
-        return [TopicSpec(self.config.topic, PointCloud2)]
-
-    def static_transforms(self) -> list[StaticTransform]:
-        return []  # base_link -> frame comes from the extrinsics (pipeline)
-
-    def scan_times_ns(self, duration_ns: int) -> NDArray[np.int64]:
-        """Start instants of the turns within [0, duration] (trajectory ns)."""
-        return sample_times_ns(self.spec.rate, duration_ns)
+    def cloud_layout(self) -> tuple[int, bool]:
+        """Organized: one row per ring, NaN where nothing returned (not dense)."""
+        return (self.spec.n_lasers, False) if self.config.organized else (1, True)
 
     def scan(
         self, trajectory: Any, caster: Any, t0_ns: int, rng: np.random.Generator
@@ -335,29 +321,3 @@ class Lidar:
         pts["ring"] = self._ring_flat[sel]
         pts["time"] = self._off32[sel]
         return pts
-
-    def messages(self, ctx: SimContext) -> Iterator[Message]:
-        cfg = self.config
-        caster = ctx.raycaster()
-        rng = ctx.rng(cfg.name)
-        index = ctx.path(f"lidar/{cfg.name}/timestamps.txt")
-        self._writer = ScanWriter(index.parent, index)
-        n_rows = self.spec.n_lasers if cfg.organized else 1
-        for seq, t0 in enumerate(self.scan_times_ns(ctx.trajectory.duration_ns).tolist()):
-            pts = self.scan(ctx.trajectory, caster, t0, rng)
-            self._writer.write(t0, pts)
-            stamp = ctx.stamp(t0)
-
-            def build(
-                store: Any, pts: NDArray[Any] = pts, stamp: int = stamp, seq: int = seq
-            ) -> Any:
-                return pointcloud2(
-                    store, stamp, cfg.frame, pts, height=n_rows, seq=seq,
-                    is_dense=not cfg.organized,
-                )  # fmt: skip
-
-            yield Message(t0, cfg.topic, PointCloud2, build)
-
-    def close(self, ctx: SimContext) -> None:
-        if self._writer is not None:
-            self._writer.close()

@@ -28,7 +28,6 @@ in [0, 1/rate)), points in the sensor frame at their own instants; dataset files
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import Annotated, Any, Literal
 
@@ -38,19 +37,13 @@ from pydantic import Field, model_validator
 
 from roslan.config.base import FiniteFloat
 from roslan.sensors.base import (
-    Message,
     SensorConfig,
-    SimContext,
-    StaticTransform,
     TopicName,
-    TopicSpec,
-    sample_times_ns,
 )
-from roslan.sensors.beams import XYZIRT, ScanWriter, measure, pointcloud2, rays_in_world
+from roslan.sensors.beams import XYZIRT, PointCloudSensor, measure, rays_in_world
 
 __all__ = ["SOLID_STATE_PRESETS", "SolidStateLidar", "SolidStateLidarConfig", "SolidStatePreset"]
 
-PointCloud2 = "sensor_msgs/msg/PointCloud2"
 _INSTANTS_PER_KNOT = 64
 
 
@@ -145,7 +138,7 @@ def rosette_directions(t: NDArray[np.float64], spec: SolidStatePreset) -> NDArra
     return np.stack([np.cos(theta), s * u, s * v], axis=-1)
 
 
-class SolidStateLidar:
+class SolidStateLidar(PointCloudSensor):
     """Livox-like solid-state LiDAR (see module docstring)."""
 
     def __init__(self, config: SolidStateLidarConfig) -> None:
@@ -155,13 +148,6 @@ class SolidStateLidar:
         self.firing_dt = s.lines / s.point_rate  # s between instants
         self.instants = math.floor(1.0 / (config.rate * self.firing_dt) + 1e-9)
         self.T_body_sensor = config.pose.matrix()
-        self._writer: ScanWriter | None = None
-
-    def topics(self) -> list[TopicSpec]:
-        return [TopicSpec(self.config.topic, PointCloud2)]
-
-    def static_transforms(self) -> list[StaticTransform]:
-        return []  # base_link -> frame comes from the extrinsics (pipeline)
 
     def scan(
         self, trajectory: Any, caster: Any, t0_ns: int, rng: np.random.Generator
@@ -200,25 +186,3 @@ class SolidStateLidar:
         pts["ring"] = (sel % s.lines).astype(np.uint16)
         pts["time"] = off[sel // s.lines]
         return pts
-
-    def messages(self, ctx: SimContext) -> Iterator[Message]:
-        cfg = self.config
-        caster = ctx.raycaster()
-        rng = ctx.rng(cfg.name)
-        index = ctx.path(f"lidar/{cfg.name}/timestamps.txt")
-        self._writer = ScanWriter(index.parent, index)
-        for seq, t0 in enumerate(sample_times_ns(cfg.rate, ctx.trajectory.duration_ns).tolist()):
-            pts = self.scan(ctx.trajectory, caster, t0, rng)
-            self._writer.write(t0, pts)
-            stamp = ctx.stamp(t0)
-
-            def build(
-                store: Any, pts: NDArray[Any] = pts, stamp: int = stamp, seq: int = seq
-            ) -> Any:
-                return pointcloud2(store, stamp, cfg.frame, pts, seq=seq)
-
-            yield Message(t0, cfg.topic, PointCloud2, build)
-
-    def close(self, ctx: SimContext) -> None:
-        if self._writer is not None:
-            self._writer.close()
