@@ -127,9 +127,8 @@ def _is_numeric_line(line: str, delimiter: str | None) -> bool:
 
 
 # ---------------------------------------------------------------- run.json / config
-def load_run(outdir: Path) -> dict[str, Any] | None:
-    """``run.json`` as a dict, or None when the run has none."""
-    path = outdir / "run.json"
+def _load_json(path: Path) -> dict[str, Any] | None:
+    """A JSON object file as a dict; None when the file is missing or not an object."""
     if not path.is_file():
         return None
     try:
@@ -138,19 +137,16 @@ def load_run(outdir: Path) -> dict[str, Any] | None:
         msg = f"{path}: not valid JSON: {err}"
         raise PlotError(msg) from err
     return data if isinstance(data, dict) else None
+
+
+def load_run(outdir: Path) -> dict[str, Any] | None:
+    """``run.json`` as a dict, or None when the run has none."""
+    return _load_json(outdir / "run.json")
 
 
 def load_summary(outdir: Path) -> dict[str, Any] | None:
     """``summary.json`` (trajectory summary: touchdown_time, tau0, k...) or None."""
-    path = outdir / "summary.json"
-    if not path.is_file():
-        return None
-    try:
-        data = json.loads(path.read_text())
-    except (OSError, ValueError) as err:
-        msg = f"{path}: not valid JSON: {err}"
-        raise PlotError(msg) from err
-    return data if isinstance(data, dict) else None
+    return _load_json(outdir / "summary.json")
 
 
 def resolved_config(run: dict[str, Any] | None) -> dict[str, Any] | None:
