@@ -255,6 +255,13 @@ class EventGenerator:
         np.log(lbuf, out=lbuf)
         return self._step(lbuf, flat, int(t_ns), ebuf)
 
+    def _start(self, L: F64, t_ns: int) -> None:
+        """The first frame: the pixels' state (low-pass, signal, reference) starts at it."""
+        self.lp = L.astype(np.float64, copy=True)
+        self.signal = self._signal(self.lp, t_ns)
+        self.ref = self.signal - self._leak_phase
+        self.t_ns = t_ns
+
     def update_log(
         self, L: F64, t_ns: int, *, intensity: NDArray[np.floating] | None = None
     ) -> EventBatch:
@@ -264,10 +271,7 @@ class EventGenerator:
         """
         t_ns = int(t_ns)
         if self.t_ns is None:
-            self.lp = L.astype(np.float64, copy=True)
-            self.signal = self._signal(self.lp, t_ns)
-            self.ref = self.signal - self._leak_phase
-            self.t_ns = t_ns
+            self._start(L, t_ns)
             self._cand = np.empty(self.n_pixels, np.int64)
             self._flag = np.empty(self.n_pixels, np.uint8)
             self._dense = False
@@ -462,10 +466,7 @@ class NumpyEventGenerator(EventGenerator):
         p = self.params
         t_ns = int(t_ns)
         if self.t_ns is None:
-            self.lp = L.astype(np.float64, copy=True)
-            self.signal = self._signal(self.lp, t_ns)
-            self.ref = self.signal - self._leak_phase
-            self.t_ns = t_ns
+            self._start(L, t_ns)
             return EventBatch.empty()
         t0 = self.t_ns
         if t_ns <= t0:
