@@ -1,5 +1,6 @@
-"""Event-camera simulation core (pure NumPy, no rendering): the ESIM pixel model with
-v2e-style non-idealities, adaptive sampling, ROS packing and streaming event files."""
+"""Event-camera simulation core (NumPy and numba kernels, no rendering): the ESIM pixel
+model with v2e-style non-idealities, adaptive sampling, ROS packing and streaming event
+files."""
 
 from __future__ import annotations
 
@@ -9,10 +10,17 @@ from roslan.events.model import (
     EventBatch,
     EventGenerator,
     EventModelParams,
+    NumpyEventGenerator,
     log_intensity,
 )
 from roslan.events.ros import EVENT_ARRAY, pack_event_array
-from roslan.events.sampling import AdaptiveSampler, camera_twist, motion_field, pixel_rays
+from roslan.events.sampling import (
+    AdaptiveSampler,
+    camera_twist,
+    max_flow_speed,
+    motion_field,
+    pixel_rays,
+)
 
 __all__ = [
     "EVENT_ARRAY",
@@ -23,9 +31,11 @@ __all__ = [
     "EventH5Writer",
     "EventModelParams",
     "EventTextWriter",
+    "NumpyEventGenerator",
     "camera_twist",
     "format_events_txt",
     "log_intensity",
+    "max_flow_speed",
     "motion_field",
     "pack_event_array",
     "pixel_rays",

@@ -258,7 +258,7 @@ def pointcloud2(
         fdt, off = dt.fields[name][0], dt.fields[name][1]
         fields.append(PointField(name=name, offset=off, datatype=_POINTFIELD_TYPE[fdt], count=1))
     width = points.shape[0] // max(height, 1) if height else 0
-    data = np.frombuffer(np.ascontiguousarray(points).tobytes(), dtype=np.uint8)
+    data = np.ascontiguousarray(points).view(np.uint8).reshape(-1)  # no copy
     return store.new(
         "sensor_msgs/msg/PointCloud2",
         header=store.header(stamp_ns, frame_id, seq),
