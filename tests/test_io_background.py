@@ -59,3 +59,25 @@ def test_error_is_raised_by_the_next_submit() -> None:
         threading.Event().wait(0.01)
     with pytest.raises(ValueError, match="bad"):
         sink.submit(print, "never")
+
+
+def test_abort_drops_waiting_calls_and_stops_the_thread() -> None:
+    ran: list[int] = []
+    gate, started = threading.Event(), threading.Event()
+
+    def work(i: int) -> None:
+        started.set()
+        gate.wait(5)
+        ran.append(i)
+
+    sink = BackgroundSink("t", backlog=8)
+    for i in range(5):
+        sink.submit(work, i)
+    assert started.wait(5)  # call 0 is running, calls 1-4 wait
+    threading.Timer(0.05, gate.set).start()
+    sink.abort()  # the running call finishes; the four waiting ones never run
+    assert ran == [0]
+    assert not any(t.name == "t" and t.is_alive() for t in threading.enumerate())
+    sink.close()  # no error after an abort
+    with pytest.raises(RuntimeError, match="closed"):
+        sink.submit(work, 9)

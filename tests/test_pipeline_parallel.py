@@ -218,6 +218,31 @@ def test_sensor_error_in_child_is_reraised(tmp_path: Path, monkeypatch: pytest.M
     assert list(tmp_path.iterdir()) == []
 
 
+def test_failed_run_stops_the_event_cameras_file_thread(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # in one process, another sensor fails while the event camera's background thread
+    # still has queued writes: they must not land (or recreate folders) after the
+    # temporary OUTDIR is removed
+    import threading
+
+    from roslan.sensors.event_camera import EventCamera
+
+    real_write = EventCamera._write_events
+
+    def slow_write(self: EventCamera, batch: Any) -> None:
+        time.sleep(0.05)
+        real_write(self, batch)
+
+    monkeypatch.setattr(EventCamera, "_write_events", slow_write)
+    _patch_camera(monkeypatch, ErrorCamera)
+    with pytest.raises(SensorError, match="lens fell off at frame 3"):
+        run_simulation(tiny_config(), tmp_path / "out", quiet=True, workers=0, overview=False)
+    assert not [t for t in threading.enumerate() if t.name.endswith("-files")]
+    time.sleep(0.3)  # a write that escaped would show up now
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_bug_in_child_keeps_type_and_traceback(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:

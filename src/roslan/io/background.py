@@ -8,7 +8,8 @@ runs those writes on one worker thread so they overlap with the next frame: the 
 run one at a time in submission order, so the files are byte-identical to writing
 inline. At most ``backlog`` calls wait (bounded memory); the first exception of a call is
 raised again in the submitting thread by the next :meth:`BackgroundSink.submit` or by
-:meth:`BackgroundSink.close`.
+:meth:`BackgroundSink.close`; :meth:`BackgroundSink.abort` stops it for a failed run
+before its output folder is removed.
 """
 
 from __future__ import annotations
@@ -37,13 +38,14 @@ class BackgroundSink:
         self._thread = threading.Thread(target=self._run, name=name, daemon=True)
         self._thread.start()
         self._closed = False
+        self._aborted = False
 
     def _run(self) -> None:
         while True:
             item = self._q.get()
             if item is _STOP:
                 return
-            if self._error is not None:
+            if self._error is not None or self._aborted:
                 continue  # drain without running: the first error is reported
             fn, args = item
             try:
@@ -69,3 +71,13 @@ class BackgroundSink:
         err, self._error = self._error, None
         if err is not None:
             raise err
+
+    def abort(self) -> None:
+        """Drop the calls still waiting, let the running one finish, stop the thread (for
+        a failed run: afterwards nothing writes into its folder any more); no error."""
+        if not self._closed:
+            self._aborted = True
+            self._closed = True
+            self._q.put(_STOP)
+            self._thread.join()
+        self._error = None

@@ -488,6 +488,7 @@ def run_simulation(
     writers: MultiBagWriter | None = None
     progress: _Progress | None = None
     plot: _BackgroundPlot | None = None
+    streams: list[_Stream] = []
     try:
         with _sigterm_as_interrupt():
             from roslan.trajectory.export import write_trajectory_files
@@ -658,6 +659,11 @@ def run_simulation(
             pool.kill()  # before removing tmp: the children write into it
         if plot is not None:
             plot.kill()
+        for st in streams:  # sensors stop their own writer threads (before removing tmp)
+            close = getattr(st.gen, "close", None)
+            if close is not None:
+                with contextlib.suppress(BaseException):
+                    close()
         if progress is not None:
             progress.stop()
         if writers is not None:

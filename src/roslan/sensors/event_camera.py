@@ -339,6 +339,15 @@ class EventCamera:
 
     # -------------------------------------------------------------- stream
     def messages(self, ctx: SimContext) -> Iterator[Message]:
+        try:
+            yield from self._stream(ctx)
+        except BaseException:  # failed or abandoned run: no more writes into its folder
+            if self._sink is not None:
+                sink, self._sink = self._sink, None
+                sink.abort()
+            raise
+
+    def _stream(self, ctx: SimContext) -> Iterator[Message]:
         c = self.config
         cam = self.camera
         W, H = cam.width, cam.height
