@@ -60,13 +60,18 @@ def stages(r: gl.Renderer, T: np.ndarray, K: np.ndarray, w: int, h: int, ns: int
     T_cw = np.linalg.inv(T)
     P = gl.projection_from_K(K, w, h, r.near, 80.0)  # (the far plane culls nothing here)
     clip = P @ T_cw
-    first, count, group = r.visible_ranges(clip, T[:3, 3])  # front to back, as render()
+    # front to back with back faces culled, as render() (the near plane's reach is
+    # irrelevant here: the camera is far from every object's box)
+    first, count, group, bfc = r.visible_ranges(clip, T[:3, 3])
+    no_bfc = np.zeros_like(bfc)
     all_first, all_count, all_group = r._c_first, r._c_count, r._c_group
+    all_bfc = np.zeros(all_first.size, dtype=bool)
     n_vis = int(count.sum()) // 3
     cull_ms = _ms(lambda: r.visible_ranges(clip, T[:3, 3]))
     print(
         f"  culling: {n_vis} of {r.scene.n_triangles} triangles in {first.size} draws "
-        f"({r.n_clusters} clusters); cull test + sort {cull_ms:.2f} ms"
+        f"({r.n_clusters} clusters), {int(count[bfc].sum()) // 3} of them back-face "
+        f"culled; frustum test + sort {cull_ms:.2f} ms"
     )
     r.render(T, K, w, h, samples=ns)  # targets and programs
     t = r._targets[(w, h, ns, False, True, r._rgb_target)]
@@ -82,7 +87,12 @@ def stages(r: gl.Renderer, T: np.ndarray, K: np.ndarray, w: int, h: int, ns: int
         ctx.finish()
 
     def draw(
-        fs: np.ndarray, cs: np.ndarray, gs: np.ndarray, vao: Any = vao, one: bool = False
+        fs: np.ndarray,
+        cs: np.ndarray,
+        gs: np.ndarray,
+        bs: np.ndarray,
+        vao: Any = vao,
+        one: bool = False,
     ) -> Callable[[], None]:
         def f() -> None:
             fbo.use()
@@ -90,14 +100,19 @@ def stages(r: gl.Renderer, T: np.ndarray, K: np.ndarray, w: int, h: int, ns: int
             fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
             ctx.enable_only(ctx.DEPTH_TEST)
             ctx.depth_func = "<"
+            ctx.front_face = "cw"
             r._shadow_tex.use(1)
             if one:
                 r._group_tex[0].use(0)
                 vao.render(ctx.TRIANGLES)
             else:
-                for a, b, g in zip(fs.tolist(), cs.tolist(), gs.tolist(), strict=True):
+                for a, b, g, c in zip(
+                    fs.tolist(), cs.tolist(), gs.tolist(), bs.tolist(), strict=True
+                ):
                     r._group_tex[g].use(0)
+                    (ctx.enable if c else ctx.disable)(ctx.CULL_FACE)
                     vao.render(ctx.TRIANGLES, vertices=b, first=a)
+            ctx.disable(ctx.CULL_FACE)
             ctx.finish()
 
         return f
@@ -108,9 +123,10 @@ def stages(r: gl.Renderer, T: np.ndarray, K: np.ndarray, w: int, h: int, ns: int
     def report(name: str, f: Callable[[], None]) -> None:
         print(f"  {name}: {_ms(f) - clear_ms:.1f} ms")
 
-    report("draw, culled, merged runs (the renderer)", draw(first, count, group))
-    report("draw, all clusters, one draw each", draw(all_first, all_count, all_group))
-    report("draw, no culling, one draw", draw(first, count, group, one=True))
+    report("draw, culled, merged runs (the renderer)", draw(first, count, group, bfc))
+    report("draw, no back-face culling", draw(first, count, group, no_bfc))
+    report("draw, all clusters, one draw each", draw(all_first, all_count, all_group, all_bfc))
+    report("draw, no culling, one draw", draw(first, count, group, no_bfc, one=True))
     # shader ablations (same culled draws)
     for name, old, new in [
         ("no shadow lookup", "texture(u_shadow, v_light)", "1.0"),
@@ -134,7 +150,7 @@ def stages(r: gl.Renderer, T: np.ndarray, K: np.ndarray, w: int, h: int, ns: int
             for f, a in zip(("3f", "3f", "2f", "3f"), ATTRS, strict=True)
         )
         v2 = ctx.vertex_array(p2, [(r._vbo, fmt, *attrs)], r._ibo, index_element_size=4)
-        report(f"draw, {name}", draw(first, count, group, vao=v2))
+        report(f"draw, {name}", draw(first, count, group, bfc, vao=v2))
         v2.release()
         p2.release()
     if ns > 1:

@@ -224,7 +224,7 @@ def test_culling_keeps_every_visible_triangle() -> None:
         eye = T[:3, 3]
         drawn_by: list[np.ndarray] = []
         for order_eye in (None, eye):
-            first, count, _ = r.visible_ranges(P, order_eye)
+            first, count, _, _ = r.visible_ranges(P, order_eye)
             drawn = np.zeros(len(objs), bool)
             nearest = []  # per run: distance of its nearest quad centre
             for f, n in zip(first.tolist(), count.tolist(), strict=True):
@@ -354,3 +354,104 @@ def test_render_into_a_callers_buffer(board: Scene) -> None:
     for bad in (np.empty((60, 80), np.float32), np.empty((60, 80, 3)), buf[:, ::-1]):
         with pytest.raises(RenderError, match=r"render\(out=\).*\(60, 80, 3\)"):
             r.render(T, K, 80, 60, depth=False, out=bad)
+
+
+def _solids_scene() -> Scene:
+    """Separate closed solids (no touching faces), a ground slab, an open inside-out box
+    and a closed room: a back-face culling test bed."""
+    from roslan.scene import mesh as m
+
+    rng = np.random.default_rng(3)
+    checker = np.kron((np.indices((8, 8)).sum(axis=0) % 2) * 200 + 30, np.ones((8, 8)))
+    tex = np.repeat(checker[..., None], 3, axis=2).astype(np.uint8)
+    ground = m.box((80.0, 80.0, 0.2), (0.0, 0.0, -0.1))
+    objs = [m.place("ground", ground, Material(texture=tex, texture_scale=0.5))]
+    shapes = [
+        m.box((1.5, 1.0, 2.0)),
+        m.sphere(0.8),
+        m.cylinder(0.5, 2.5, 16),
+        m.ring(0.4, 1.0, 0.3),
+    ]
+    for i in range(16):
+        pose = m.pose_matrix(
+            (*rng.uniform(-25, 25, size=2), rng.uniform(1.5, 6.0)), rng.uniform(-3, 3, size=3)
+        )
+        mat = Material(color=tuple(rng.uniform(0.2, 1.0, size=3)), texture=tex)
+        objs.append(m.place(f"s{i}", shapes[i % 4], mat, pose))
+    inv = m.box((2.0, 2.0, 2.0))
+    inv = m.LocalMesh(inv.vertices, -inv.normals, inv.uvs, inv.faces[:, ::-1].copy())
+    objs.append(
+        m.place("inside_out", inv, Material(color=(0.9, 0.2, 0.2)), m.pose_matrix((8, 8, 3)))
+    )
+    objs.append(
+        m.place(
+            "room", m.box((4.0, 4.0, 3.0)), Material(texture=tex), m.pose_matrix((-8, -8, 1.52))
+        )
+    )
+    return Scene("solids", tuple(objs), Lights(sun_direction=(0.3, 0.2, -1.0)))
+
+
+def test_back_face_culling_changes_no_pixel() -> None:
+    # Closed solids seen from outside hide their back faces, so culling them must give
+    # the same image, luminance and depth, bit for bit; an inside-out object stays
+    # two-sided; from inside the room (a closed box), its walls must still show.
+    scene = _solids_scene()
+    r = gl.Renderer(scene)
+    try:
+        assert r.closed_solids == {o.name for o in scene.objects} - {"inside_out"}
+        rng = np.random.default_rng(7)
+        K = np.array([[120.0, 0, 79.5], [0, 110.0, 59.5], [0, 0, 1]])
+        poses = [
+            look_down(x, y, z, tilt)
+            for x, y, z, tilt in rng.uniform([-20, -20, 2, 0.3], [20, 20, 12, 1.2], size=(10, 4))
+        ]
+        room = look_down(-8.0, -8.0, 1.5, 1.4)  # inside the room, looking at a wall
+        # just outside the room, the near plane inside its wall: the cut shows the inside
+        near_wall = look_down(-8.0, -10.0 - r.near * 0.5, 1.5, 1.5707963)
+        counts = []
+        for T in [*poses, room, near_wall]:
+            out = {}
+            for cull in (True, False):  # (culled first: a stale target would show)
+                r.cull_back_faces = cull
+                res = r.render(T, K, 160, 120, depth=True, luminance=True)
+                lum = r.render(T, K, 160, 120, color=False, depth=False, luminance=True)
+                dep = r.render(T, K, 160, 120, color=False, depth=True)
+                out[cull] = (res.color, res.depth, lum.luminance, dep.depth)
+                clip = gl.projection_from_K(K, 160, 120, r.near, 500.0) @ np.linalg.inv(T)
+                counts.append(int(r.visible_ranges(clip, T[:3, 3])[3].sum()))
+            for a, b in zip(out[False], out[True], strict=True):
+                assert a is not None
+                assert b is not None
+                np.testing.assert_array_equal(a, b)
+        assert np.isfinite(out[True][1]).all()  # the room's walls, not the sky (inf)
+        assert max(counts) > 0  # culling was on for some views
+    finally:
+        r.release()
+
+
+def test_back_face_culling_on_builtin_scene_only_settles_coplanar_ties() -> None:
+    # The warehouse's parts touch (boxes on shelves, beams on beams): where a back face
+    # lies in the plane of another part's front face, the depth test used to pick either.
+    # With culling only such ties may change: few pixels, depth within the buffer's step.
+    from roslan.scene import load_scene
+
+    scene = load_scene("warehouse")
+    r = gl.get_renderer(scene)
+    K = np.array([[160.0, 0, 159.5], [0, 160.0, 119.5], [0, 0, 1]])
+    goal = np.asarray(scene.goal_position)
+    try:
+        for dx, dy, z, tilt in ((-6, 1, 3, 0.9), (4, -8, 6, 1.1), (10, 12, 1.5, 1.5)):
+            T = look_down(goal[0] + dx, goal[1] + dy, z, tilt)
+            r.cull_back_faces = False
+            a = r.render(T, K, 320, 240, depth=True)
+            r.cull_back_faces = True
+            b = r.render(T, K, 320, 240, depth=True)
+            assert a.depth is not None
+            assert b.depth is not None
+            diff = a.depth != b.depth
+            assert diff.mean() < 0.005
+            z0 = a.depth[diff]
+            # 24-bit depth buffer step at z: ~ z^2 / (near * 2^24); allow a few steps
+            assert np.all(np.abs(b.depth[diff] - z0) <= 8 * z0**2 / (r.near * 2**24) + 1e-6)
+    finally:
+        r.cull_back_faces = True

@@ -180,3 +180,61 @@ def test_builtins_deterministic_and_seed_varies_only_random_parts(name: str) -> 
     ]
     assert differ
     assert a.goal_position == c.goal_position
+
+
+def _flipped(mesh: m.LocalMesh) -> m.LocalMesh:
+    return m.LocalMesh(mesh.vertices, -mesh.normals, mesh.uvs, mesh.faces[:, ::-1].copy())
+
+
+def test_closed_solid_primitives_and_their_failures() -> None:
+    box = m.box((1.0, 2.0, 0.5), (3.0, -1.0, 2.0))
+    assert m.closed_solid(box.vertices, box.faces)
+    assert m.closed_solid(m.cylinder(0.3, 1.0, 12).vertices, m.cylinder(0.3, 1.0, 12).faces)
+    for solid in (m.sphere(0.4), m.capsule(0.2, 1.0), m.ring(0.2, 0.5, 0.1)):
+        assert m.closed_solid(solid.vertices, solid.faces)
+    # open surfaces: a plane, an uncapped tube, a box missing one face
+    pl = m.plane((2.0, 2.0))
+    tube = m.cylinder(0.3, 1.0, 12, caps=False)
+    assert not m.closed_solid(pl.vertices, pl.faces)
+    assert not m.closed_solid(tube.vertices, tube.faces)
+    assert not m.closed_solid(box.vertices, box.faces[2:])
+    # inside out (clockwise from outside), and a two-sided sheet (closed, no volume)
+    inv = _flipped(box)
+    assert not m.closed_solid(inv.vertices, inv.faces)
+    sheet = m.merge([pl, _flipped(pl)])
+    assert not m.closed_solid(sheet.vertices, sheet.faces)
+    # a corner copy moved by 1 mm leaves a crack; by a float32 ulp it still merges
+    v = box.vertices.astype(np.float32).copy()
+    v[0, 0] = np.nextafter(v[0, 0], np.float32(10.0))
+    assert m.closed_solid(v, box.faces)
+    v[0, 0] += 1e-3
+    assert not m.closed_solid(v, box.faces)
+    assert not m.closed_solid(np.zeros((0, 3)), np.zeros((0, 3), np.int64))
+
+
+def test_closed_solid_compound_parts() -> None:
+    a = m.box((1.0, 1.0, 1.0), (0.0, 0.0, 0.0))
+    touching = m.box((1.0, 1.0, 1.0), (1.0, 1.0, 0.0))  # shares the edge x = y = 0.5
+    overlapping = m.box((1.0, 1.0, 1.0), (0.3, 0.2, 0.1))
+    far = m.cylinder(0.2, 0.5, 8)
+    for parts in ([a, touching], [a, overlapping], [a, transformed_far(far)]):
+        mesh = m.merge(parts)
+        assert m.closed_solid(mesh.vertices, mesh.faces)
+    # one part inside out: not a solid seen from outside, even though every edge matches
+    mixed = m.merge([a, _flipped(m.box((0.5, 0.5, 0.5), (3.0, 0.0, 0.0)))])
+    assert not m.closed_solid(mixed.vertices, mixed.faces)
+    # conservative: a hollow box (cavity faces turned into the cavity) would be safe to
+    # cull from outside, but its cavity is a part of negative volume like an inside-out one
+    hollow = m.merge([m.box((2.0, 2.0, 2.0)), _flipped(m.box((1.0, 1.0, 1.0)))])
+    assert not m.closed_solid(hollow.vertices, hollow.faces)
+
+
+def transformed_far(mesh: m.LocalMesh) -> m.LocalMesh:
+    return m.transformed(mesh, m.pose_matrix((5.0, 0.0, 0.0), (0.3, 0.2, 0.1)))
+
+
+@pytest.mark.parametrize("name", ["warehouse", "refinery"])
+def test_builtin_objects_are_closed_solids(name: str) -> None:
+    # every built-in object is made of closed primitives: the renderer culls their back faces
+    s = load_scene(name)
+    assert all(m.closed_solid(o.vertices, o.faces) for o in s.objects)

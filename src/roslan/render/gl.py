@@ -7,7 +7,11 @@ vertex/index buffer, its triangles grouped by texture and, inside each group, in
 spatial clusters (one object's triangles in one grid cell) with bounding boxes; every
 frame draws only the clusters whose box meets the view frustum, nearest first (so that
 the early depth test rejects hidden fragments), consecutive ones merged into one draw
-call. The sun's shadow map is rendered once at upload (scene and sun are static).
+call. Objects that are closed solids (:func:`~roslan.scene.mesh.closed_solid`: no
+border, faces counter-clockwise seen from outside) are drawn with back faces culled
+while the camera is outside their bounding box, so their far sides are neither
+rasterized nor shaded; open surfaces (planes, user meshes with holes) stay two-sided.
+The sun's shadow map is rendered once at upload (scene and sun are static).
 
 Shading: textured Lambert, ``albedo * texture * (ambient + sun * max(0, n.l) * lit)``
 in LINEAR radiance (textures are sRGB-decoded by the sampler), two-sided (the side
@@ -64,6 +68,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from roslan.errors import RenderError
+from roslan.scene.mesh import closed_solid
 
 if TYPE_CHECKING:
     from roslan.scene.model import Scene
@@ -504,6 +509,11 @@ class Renderer:
             order, for benchmarks), see :meth:`visible_ranges`.
         flush_chunks: flush the colour pass to the rasterizer in this many parts
             (:data:`FLUSH_CHUNKS` on llvmpipe, 1 on GPUs); the image is the same.
+        cull_back_faces: skip the back faces of closed solids seen from outside their
+            bounding box (default; same image, see :meth:`visible_ranges`; False: draw
+            every face, for benchmarks).
+        closed_solids: names of the scene objects whose back faces may be culled
+            (:func:`~roslan.scene.mesh.closed_solid`).
     """
 
     def __init__(self, scene: Scene, *, samples: int | None = None) -> None:
@@ -522,6 +532,7 @@ class Renderer:
         self.samples = self._clamp_samples(default_samples(self.software, samples))
         self.anisotropy = 1.0 if self.software else 16.0
         self.front_to_back = True
+        self.cull_back_faces = True
         # image load/store (GL 4.2) for the edge filter's point loads
         self._image = int(ctx.version_code) >= 420
         self._flush = _gl_flush()
@@ -574,6 +585,11 @@ class Renderer:
         c_group: list[int] = []
         c_lo: list[F32] = []
         c_hi: list[F32] = []
+        c_obj: list[int] = []  # per cluster: index into o_lo/o_hi/o_closed
+        o_lo: list[F32] = []  # per drawn object: bounding box, closed solid
+        o_hi: list[F32] = []
+        o_closed: list[bool] = []
+        closed_names: list[str] = []
         offset = 0
         first = 0
         white = ctx.texture((1, 1), 3, bytes([255, 255, 255]), internal_format=_GL_SRGB8)
@@ -607,6 +623,12 @@ class Renderer:
                 c_first.extend((first + count + 3 * starts).tolist())
                 c_count.extend((3 * sizes).tolist())
                 c_group.extend([g] * sizes.size)
+                c_obj.extend([len(o_closed)] * sizes.size)
+                o_lo.append(tri.min(axis=(0, 1)))
+                o_hi.append(tri.max(axis=(0, 1)))
+                o_closed.append(closed_solid(o.vertices, o.faces))
+                if o_closed[-1]:
+                    closed_names.append(o.name)
                 offset += nv
                 count += 3 * nf
             if count == 0:
@@ -633,6 +655,11 @@ class Renderer:
         self._c_first = np.asarray(c_first, dtype=np.int64)
         self._c_count = np.asarray(c_count, dtype=np.int64)
         self._c_group = np.asarray(c_group, dtype=np.int64)
+        self.closed_solids = frozenset(closed_names)
+        self._c_obj = np.asarray(c_obj, dtype=np.int64)
+        self._c_closed = np.asarray(o_closed, dtype=bool)[self._c_obj]
+        self._o_lo = np.asarray(o_lo, dtype=np.float64).reshape(-1, 3)
+        self._o_hi = np.asarray(o_hi, dtype=np.float64).reshape(-1, 3)
         if offset == 0:
             self._vbo = self._ibo = None
             self._vao_depth = self._vao_shadow = None
@@ -778,22 +805,37 @@ class Renderer:
             raise RenderError(msg)
 
     def visible_ranges(
-        self, clip_from_world: F64, eye: F64 | None = None
-    ) -> tuple[NDArray[np.int64], ...]:
+        self,
+        clip_from_world: F64,
+        eye: F64 | None = None,
+        *,
+        sort: bool = True,
+        near_reach: float = 0.0,
+    ) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.int64], NDArray[np.bool_]]:
         """Index ranges to draw for a view: clusters whose box meets the frustum.
 
-        With ``eye``, the clusters are ordered front to back (by the distance from
-        ``eye`` to their box) so that the depth test rejects hidden fragments before
-        shading (llvmpipe tests depth early: 1.31 instead of 1.80 shaded fragments per
-        pixel on the warehouse view of bench_camera.py); consecutive clusters that are
-        also adjacent in the index buffer with the same texture still merge into one run.
+        With ``eye`` and ``sort``, the clusters are ordered front to back (by the
+        distance from ``eye`` to their box) so that the depth test rejects hidden
+        fragments before shading (llvmpipe tests depth early: 1.31 instead of 1.80
+        shaded fragments per pixel on the warehouse view of bench_camera.py);
+        consecutive clusters that are also adjacent in the index buffer with the same
+        texture and culling still merge into one run.
+
+        Back-face culling: a run may skip back faces if its object is a closed solid
+        and ``eye`` lies outside the object's bounding box grown by ``near_reach``
+        (the farthest point of the near-clipping rectangle from the eye): seen from
+        outside a closed solid, each back face is behind a front face of the same
+        object (and the near plane cuts no solid open), so the image is the same.
 
         Args:
             clip_from_world: (4, 4) clip matrix ``P @ T_cam_world``.
-            eye: (3,) camera position in the world (m), or None for index order.
+            eye: (3,) camera position in the world (m), or None (index order, no culling).
+            sort: order front to back (needs ``eye``).
+            near_reach: distance (m) from ``eye`` to the near plane's corners.
         Returns:
-            ``(first, count, group)``: (R,) first index, index count and texture group of
-            each run of consecutive visible clusters (one draw call each).
+            ``(first, count, group, cull)``: (R,) first index, index count, texture
+            group and back-face culling flag of each run of consecutive visible
+            clusters (one draw call each).
         """
         M = np.asarray(clip_from_world, dtype=np.float64)
         planes = np.stack([M[3] + M[0], M[3] - M[0], M[3] + M[1], M[3] - M[1], M[3] + M[2]])
@@ -803,17 +845,31 @@ class Renderer:
         idx = np.flatnonzero(np.all(s + r >= 0.0, axis=1))
         if idx.size == 0:
             e = np.zeros(0, dtype=np.int64)
-            return e, e, e
-        if eye is not None:
-            gap = np.abs(self._c_centre[idx] - np.asarray(eye, dtype=np.float64))
-            gap = np.maximum(gap - self._c_half[idx], 0.0)  # 0 inside the box
-            idx = idx[np.argsort(np.einsum("ij,ij->i", gap, gap), kind="stable")]
-        brk = np.flatnonzero((np.diff(idx) != 1) | (np.diff(self._c_group[idx]) != 0)) + 1
-        starts = idx[np.concatenate([[0], brk])]
+            return e, e, e, np.zeros(0, dtype=bool)
+        if eye is None or not self.cull_back_faces:
+            cull = np.zeros(idx.size, dtype=bool)
+        else:
+            eye = np.asarray(eye, dtype=np.float64)
+            if sort:
+                gap = np.abs(self._c_centre[idx] - eye)
+                gap = np.maximum(gap - self._c_half[idx], 0.0)  # 0 inside the box
+                idx = idx[np.argsort(np.einsum("ij,ij->i", gap, gap), kind="stable")]
+        if eye is not None and self.cull_back_faces:
+            m = float(near_reach) + 1e-6
+            inside = np.all((eye >= self._o_lo - m) & (eye <= self._o_hi + m), axis=1)
+            cull = self._c_closed[idx] & ~inside[self._c_obj[idx]]
+        brk = (
+            np.flatnonzero(
+                (np.diff(idx) != 1) | (np.diff(self._c_group[idx]) != 0) | (cull[1:] != cull[:-1])
+            )
+            + 1
+        )
+        begin = np.concatenate([[0], brk])
+        starts = idx[begin]
         ends = idx[np.concatenate([brk - 1, [idx.size - 1]])]
         first = self._c_first[starts]
         count = self._c_first[ends] + self._c_count[ends] - first
-        return first, count, self._c_group[starts]
+        return first, count, self._c_group[starts], cull[begin]
 
     def render(
         self,
@@ -869,14 +925,25 @@ class Renderer:
         clip = P @ T_cam_world
         mvp = _gl_mat(clip)
         zrow = tuple(float(x) for x in T_cam_world[2])
-        first, count, group = self.visible_ranges(clip, cam_pos if self.front_to_back else None)
+        # the near plane's corners: x/z, y/z at the image corners, z = near
+        Kf = np.asarray(K, dtype=np.float64)
+        uv = np.array(
+            [[-0.5, -0.5], [width - 0.5, -0.5], [-0.5, height - 0.5], [width - 0.5, height - 0.5]]
+        )
+        y = (uv[:, 1] - Kf[1, 2]) / Kf[1, 1]
+        x = (uv[:, 0] - Kf[0, 2] - Kf[0, 1] * y) / Kf[0, 0]
+        reach = self.near * float(np.sqrt(np.max(x * x + y * y)) + 1.0)
+        first, count, group, cull = self.visible_ranges(
+            clip, cam_pos, sort=self.front_to_back, near_reach=reach
+        )
         ctx = self.ctx
         # No ctx.viewport here: in moderngl it writes the viewport of whichever framebuffer
         # is bound *now* (another resolution's), corrupting that target for its next frame.
         # Each target framebuffer keeps its own full-size viewport, applied by fbo.use().
 
         if not (color or luminance):
-            return RenderResult(None, self._render_depth(width, height, mvp, zrow, first, count))
+            inv = self._render_depth(width, height, mvp, zrow, first, count, cull)
+            return RenderResult(None, inv)
 
         lum = luminance and not color
         ns = self.samples if samples is None else self._clamp_samples(samples)
@@ -892,6 +959,10 @@ class Renderer:
             prog, vao = self._program(lum, depth)
             ctx.enable_only(ctx.DEPTH_TEST)
             ctx.depth_func = "<"
+            # outward faces are counter-clockwise seen from outside; the projection
+            # keeps image row 0 at window row 0 (a mirror), so on screen they run clockwise
+            ctx.front_face = "cw"
+            culling = False
             prog["u_mvp"].write(mvp)
             if depth:
                 prog["u_zrow"].value = zrow
@@ -908,19 +979,22 @@ class Renderer:
                 step = cum[-1] / self.flush_chunks
                 marks = set(np.searchsorted(cum, step * np.arange(1, self.flush_chunks)).tolist())
                 marks.discard(len(cum) - 1)
-            for i, (f, n, g) in enumerate(
-                zip(first.tolist(), count.tolist(), group.tolist(), strict=True)
+            for i, (f, n, g, c) in enumerate(
+                zip(first.tolist(), count.tolist(), group.tolist(), cull.tolist(), strict=True)
             ):
                 if g != bound:
                     self._group_tex[g].use(0)
                     bound = g
+                if c != culling:
+                    (ctx.enable if c else ctx.disable)(ctx.CULL_FACE)
+                    culling = c
                 vao.render(ctx.TRIANGLES, vertices=n, first=f)
                 if i in marks:
                     flush()  # type: ignore[misc]
         if ns > 1:
             # resolve: average colour samples, nearest depth sample
             t.out_fbo.use()
-            ctx.disable(ctx.DEPTH_TEST)
+            ctx.disable(ctx.DEPTH_TEST | ctx.CULL_FACE)
             rprog, quad = self._resolve(lum, depth)
             rprog["u_samples"].value = ns
             t.ms_color.use(0)
@@ -931,7 +1005,7 @@ class Renderer:
         else:
             # edge filter (FXAA-style) in place of MSAA
             t.aa_fbo.use()
-            ctx.disable(ctx.DEPTH_TEST)
+            ctx.disable(ctx.DEPTH_TEST | ctx.CULL_FACE)
             aprog, quad = self._edge_filter(lum)
             aprog["u_texel"].value = (1.0 / width, 1.0 / height)
             t.out_color.use(0)
@@ -964,6 +1038,7 @@ class Renderer:
         zrow: tuple[float, ...],
         first: NDArray[np.int64],
         count: NDArray[np.int64],
+        cull: NDArray[np.bool_],
     ) -> F32:
         """Depth-only pass (no MSAA, fragments at pixel centres): (H, W) z-depth, inf."""
         ctx = self.ctx
@@ -979,11 +1054,17 @@ class Renderer:
         if first.size and self._vao_depth is not None:
             ctx.enable_only(ctx.DEPTH_TEST)
             ctx.depth_func = "<"
+            ctx.front_face = "cw"  # (see render)
             self._prog_depth["u_mvp"].write(mvp)
             self._prog_depth["u_zrow"].value = zrow
             # one draw over the merged runs of all texture groups
-            for f, n in _merge_runs(first, count):
+            culling = False
+            for f, n, c in _merge_runs(first, count, cull):
+                if c != culling:
+                    (ctx.enable if c else ctx.disable)(ctx.CULL_FACE)
+                    culling = c
                 self._vao_depth.render(ctx.TRIANGLES, vertices=n, first=f)
+            ctx.disable(ctx.CULL_FACE)
         inv = np.empty((height, width), dtype=np.float32)
         fbo.read_into(inv, components=1, dtype="f4", attachment=0)
         with np.errstate(divide="ignore"):
@@ -1050,14 +1131,17 @@ def _out_array(out: F32 | None, shape: tuple[int, ...]) -> F32:
     return out
 
 
-def _merge_runs(first: NDArray[np.int64], count: NDArray[np.int64]) -> list[tuple[int, int]]:
-    """Index ranges ``(first, count)`` with adjacent ones joined (texture-free passes)."""
-    out: list[tuple[int, int]] = []
-    for f, n in zip(first.tolist(), count.tolist(), strict=True):
-        if out and out[-1][0] + out[-1][1] == f:
-            out[-1] = (out[-1][0], out[-1][1] + n)
+def _merge_runs(
+    first: NDArray[np.int64], count: NDArray[np.int64], cull: NDArray[np.bool_]
+) -> list[tuple[int, int, bool]]:
+    """Index ranges ``(first, count, cull)`` with adjacent ones of the same culling
+    joined (texture-free passes)."""
+    out: list[tuple[int, int, bool]] = []
+    for f, n, c in zip(first.tolist(), count.tolist(), cull.tolist(), strict=True):
+        if out and out[-1][0] + out[-1][1] == f and out[-1][2] == c:
+            out[-1] = (out[-1][0], out[-1][1] + n, c)
         else:
-            out.append((f, n))
+            out.append((f, n, c))
     return out
 
 

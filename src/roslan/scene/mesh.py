@@ -22,6 +22,7 @@ __all__ = [
     "LocalMesh",
     "box",
     "capsule",
+    "closed_solid",
     "cylinder",
     "cylinder_between",
     "merge",
@@ -275,6 +276,49 @@ def merge(parts: Sequence[LocalMesh]) -> LocalMesh:
         np.concatenate([p.uvs for p in parts]),
         np.concatenate([p.faces + o for p, o in zip(parts, offsets, strict=True)]).astype(np.int64),
     )
+
+
+def closed_solid(vertices: ArrayLike, faces: ArrayLike) -> bool:
+    """True if the triangles bound solids and face outwards: then, seen from outside
+    the solids, every back face (one turned away from the viewer) is hidden behind a
+    front face of the same mesh, and a renderer may skip back faces.
+
+    Conditions, after merging vertices closer than ~1e-6 of the mesh's coordinates
+    (duplicate corners of primitives, lathe seams and poles) and dropping the faces
+    that merging collapses: every directed edge a -> b is matched by an edge b -> a
+    (no border; also where two closed parts touch along an edge), and each connected
+    part encloses a positive volume (faces counter-clockwise seen from outside).
+    Conservative: open surfaces (planes, uncapped tubes, meshes with cracks),
+    inside-out parts, zero-volume double-sided sheets, and also hollow solids (their
+    cavity is a part of negative volume) are not closed solids.
+    """
+    v = np.asarray(vertices, dtype=np.float64)
+    f = np.asarray(faces, dtype=np.int64)
+    if f.ndim != 2 or f.shape[0] == 0 or f.shape[1] != 3 or not np.isfinite(v).all():
+        return False
+    scale = max(float(np.abs(v).max()), float(np.ptp(v, axis=0).max()), 1e-12)
+    _, vid = np.unique(np.round(v * (2.0**20 / scale)), axis=0, return_inverse=True)
+    mf = vid.reshape(-1)[f]  # (F, 3) merged vertex ids
+    keep = (mf[:, 0] != mf[:, 1]) & (mf[:, 1] != mf[:, 2]) & (mf[:, 2] != mf[:, 0])
+    if not keep.any():
+        return False
+    a = mf[keep].reshape(-1)
+    b = mf[keep][:, [1, 2, 0]].reshape(-1)
+    n = int(vid.max()) + 1
+    if not np.array_equal(np.sort(a * n + b), np.sort(b * n + a)):
+        return False
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    graph = coo_matrix((np.ones(a.size, dtype=np.int8), (a, b)), shape=(n, n))
+    _, label = connected_components(graph, directed=False)
+    tri = v[f[keep]]
+    tri -= 0.5 * (tri.min(axis=(0, 1)) + tri.max(axis=(0, 1)))  # conditioning
+    vol6 = np.einsum("ij,ij->i", tri[:, 0], np.cross(tri[:, 1], tri[:, 2]))
+    part = label[mf[keep][:, 0]]
+    per_part = np.bincount(part, weights=vol6)
+    used = np.bincount(part) > 0
+    return bool(np.all(per_part[used] > 0.0))
 
 
 def _frozen(a: NDArray[np.generic]) -> NDArray[np.generic]:
