@@ -167,12 +167,11 @@ def stages(r: gl.Renderer, T: np.ndarray, K: np.ndarray, w: int, h: int, ns: int
 
         print(f"  resolve (RGB + depth): {_ms(resolve):.1f} ms")
     else:
-        aprog, aquad = r._edge_filter(False)
+        _, aquad = r._edge_filter(False)
 
         def edge_filter() -> None:
             t.aa_fbo.use()
             ctx.disable(ctx.DEPTH_TEST)
-            aprog["u_texel"].value = (1.0 / w, 1.0 / h)
             t.out_color.use(0)
             if r._image:  # the point loads read the same texture as an image
                 t.out_color.bind_to_image(0, read=True, write=False)

@@ -352,7 +352,6 @@ _FRAG_EDGE_AA = """
 // IMAGE: the same texture bound as a read-only image too (GL >= 4.2): llvmpipe's
 // imageLoad is ~1/3 cheaper than texelFetch (no sampler path), same values.
 uniform sampler2D u_color;
-uniform vec2 u_texel;        // 1 / size
 #ifdef LUM
 layout(location = 0) out float o_color;
 #define ZCH 1
@@ -400,13 +399,15 @@ void main() {
         bool horz = abs(n + s - 2.0 * m) >= abs(e + w - 2.0 * m);  // step across in y
         float l1 = horz ? s : w;
         float l2 = horz ? n : e;
-        vec2 dir = horz ? vec2(0.0, u_texel.y) : vec2(u_texel.x, 0.0);
-        if (abs(l1 - m) >= abs(l2 - m)) dir = -dir;
+        // the neighbour across the edge, towards the larger luma step
+        vec4 t = abs(l1 - m) >= abs(l2 - m) ? (horz ? ts : tw) : (horz ? tn : te);
         // sub-pixel coverage estimate from the neighbourhood
         float sub = clamp(abs(0.25 * (n + s + e + w) - m) / max(range, 1e-6), 0.0, 1.0);
         sub = smoothstep(0.0, 1.0, sub);
-        // resample bilinearly across the edge, from this pixel's centre
-        c = texture(u_color, gl_FragCoord.xy * u_texel + dir * max(sub * sub * 0.75, 0.25));
+        // resample linearly across the edge, from this pixel's centre: the bilinear
+        // sample at an offset along one axis, from the texels already loaded (llvmpipe
+        // runs a sampler call in a branch for every pixel of a mixed SIMD group)
+        c = mix(tm, t, max(sub * sub * 0.75, 0.25));
     }
 #ifdef LUM
     o_color = c.r;
@@ -1006,8 +1007,7 @@ class Renderer:
             # edge filter (FXAA-style) in place of MSAA
             t.aa_fbo.use()
             ctx.disable(ctx.DEPTH_TEST | ctx.CULL_FACE)
-            aprog, quad = self._edge_filter(lum)
-            aprog["u_texel"].value = (1.0 / width, 1.0 / height)
+            _, quad = self._edge_filter(lum)
             t.out_color.use(0)
             if self._image:
                 t.out_color.bind_to_image(0, read=True, write=False)
