@@ -238,3 +238,21 @@ def test_builtin_objects_are_closed_solids(name: str) -> None:
     # every built-in object is made of closed primitives: the renderer culls their back faces
     s = load_scene(name)
     assert all(m.closed_solid(o.vertices, o.faces) for o in s.objects)
+
+
+def test_components_match_scipy() -> None:
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    rng = np.random.default_rng(5)
+    for n, e in ((50, 20), (400, 380), (2000, 1990), (30, 0)):
+        a = rng.integers(0, n, size=e)
+        b = rng.integers(0, n, size=e)
+        label = m._components(n, a, b)
+        k, ref = connected_components(
+            coo_matrix((np.ones(e), (a, b)), shape=(n, n)), directed=False
+        )
+        # same partition: a bijection between the labellings
+        pairs = np.unique(np.stack([label, ref], axis=1), axis=0)
+        assert len(pairs) == k == np.unique(label).size
+        assert np.all(label <= np.arange(n))  # the smallest vertex of each part

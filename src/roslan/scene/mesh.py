@@ -296,8 +296,10 @@ def closed_solid(vertices: ArrayLike, faces: ArrayLike) -> bool:
     f = np.asarray(faces, dtype=np.int64)
     if f.ndim != 2 or f.shape[0] == 0 or f.shape[1] != 3 or not np.isfinite(v).all():
         return False
+    # vertices within 2^-20 of the largest coordinate merge: one int64 key per vertex
     scale = max(float(np.abs(v).max()), float(np.ptp(v, axis=0).max()), 1e-12)
-    _, vid = np.unique(np.round(v * (2.0**20 / scale)), axis=0, return_inverse=True)
+    q = np.round(v * (2.0**20 / scale)).astype(np.int64) + 2**20  # 0 .. 2^21
+    _, vid = np.unique((q[:, 0] << 42) | (q[:, 1] << 21) | q[:, 2], return_inverse=True)
     mf = vid.reshape(-1)[f]  # (F, 3) merged vertex ids
     keep = (mf[:, 0] != mf[:, 1]) & (mf[:, 1] != mf[:, 2]) & (mf[:, 2] != mf[:, 0])
     if not keep.any():
@@ -307,11 +309,7 @@ def closed_solid(vertices: ArrayLike, faces: ArrayLike) -> bool:
     n = int(vid.max()) + 1
     if not np.array_equal(np.sort(a * n + b), np.sort(b * n + a)):
         return False
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
-
-    graph = coo_matrix((np.ones(a.size, dtype=np.int8), (a, b)), shape=(n, n))
-    _, label = connected_components(graph, directed=False)
+    label = _components(n, a, b)
     tri = v[f[keep]]
     tri -= 0.5 * (tri.min(axis=(0, 1)) + tri.max(axis=(0, 1)))  # conditioning
     vol6 = np.einsum("ij,ij->i", tri[:, 0], np.cross(tri[:, 1], tri[:, 2]))
@@ -319,6 +317,26 @@ def closed_solid(vertices: ArrayLike, faces: ArrayLike) -> bool:
     per_part = np.bincount(part, weights=vol6)
     used = np.bincount(part) > 0
     return bool(np.all(per_part[used] > 0.0))
+
+
+def _components(n: int, a: NDArray[np.int64], b: NDArray[np.int64]) -> NDArray[np.int64]:
+    """Connected-component label (its smallest vertex) of vertices 0..n-1 joined by the
+    edges a-b: hooking onto the smaller label, then pointer jumping, until stable."""
+    label = np.arange(n, dtype=np.int64)
+    while True:
+        la, lb = label[a], label[b]
+        low = np.minimum(la, lb)
+        new = label.copy()
+        np.minimum.at(new, la, low)
+        np.minimum.at(new, lb, low)
+        while True:
+            jumped = new[new]
+            if np.array_equal(jumped, new):
+                break
+            new = jumped
+        if np.array_equal(new, label):
+            return label
+        label = new
 
 
 def _frozen(a: NDArray[np.generic]) -> NDArray[np.generic]:
