@@ -83,24 +83,32 @@ class _Ctx:
 
 
 class _Timer:
-    """Best wall time and mean process CPU time per call, over interleaved rounds."""
+    """Best and median wall time and mean process CPU time per call, over interleaved
+    rounds."""
 
     def __init__(self) -> None:
-        self.best: dict[str, float] = {}
+        self.walls: dict[str, list[float]] = {}
         self.cpu: dict[str, list[float]] = {}
 
     def run(self, name: str, f: Callable[[], object], n: int = 10) -> None:
         f()
         c0 = time.process_time()
+        walls = self.walls.setdefault(name, [])
         for _ in range(n):
             t = time.perf_counter()
             f()
-            self.best[name] = min(self.best.get(name, 1e9), time.perf_counter() - t)
+            walls.append(time.perf_counter() - t)
         self.cpu.setdefault(name, []).append((time.process_time() - c0) / n)
+
+    def best(self, name: str) -> float:
+        return min(self.walls[name])
 
     def ms(self, name: str) -> str:
         cpu = sum(self.cpu[name]) / len(self.cpu[name])
-        return f"{self.best[name] * 1e3:5.1f} ms (cpu {cpu * 1e3:5.1f} ms)"
+        med = float(np.median(self.walls[name]))
+        return (
+            f"{self.best(name) * 1e3:5.1f} ms, median {med * 1e3:5.1f} ms (cpu {cpu * 1e3:5.1f} ms)"
+        )
 
 
 def _camera(w: int, h: int, enc: str, dist: bool) -> Camera:
@@ -273,11 +281,11 @@ def main() -> None:
         print(f"{name}: {timer.ms(name)}")
     a, b = f"{f640}, after", f"{f640}, before"
     bare = f"  bare moderngl draw+readback {size}"
-    m = timer.best["346x260 mono8 frame, after"]
-    m_bare = timer.best["  bare moderngl draw+readback 346x260"]
+    m = timer.best("346x260 mono8 frame, after")
+    m_bare = timer.best("  bare moderngl draw+readback 346x260")
     print(
-        f"ratios: 640x480 frame after/before {timer.best[a] / timer.best[b]:.2f}; "
-        f"frame/bare {timer.best[a] / timer.best[bare]:.2f}; 346x260 mono8 frame/bare "
+        f"ratios: 640x480 frame after/before {timer.best(a) / timer.best(b):.2f}; "
+        f"frame/bare {timer.best(a) / timer.best(bare):.2f}; 346x260 mono8 frame/bare "
         f"{m / m_bare:.2f}; 346x260 mono8 {1 / m:.0f} frames/s"
     )
 

@@ -10,7 +10,8 @@ the early depth test rejects hidden fragments), consecutive ones merged into one
 call. Objects that are closed solids (:func:`~roslan.scene.mesh.closed_solid`: no
 border, faces counter-clockwise seen from outside) are drawn with back faces culled
 while the camera is outside their bounding box, so their far sides are neither
-rasterized nor shaded; open surfaces (planes, user meshes with holes) stay two-sided.
+rasterized nor shaded (same image up to ties between coplanar faces); open surfaces
+(planes, user meshes with holes, inside-out meshes) stay two-sided.
 The sun's shadow map is rendered once at upload (scene and sun are static).
 
 Shading: textured Lambert, ``albedo * texture * (ambient + sun * max(0, n.l) * lit)``
@@ -348,7 +349,7 @@ void main() {{
 
 _FRAG_EDGE_AA = """
 // Edge filter for 1-sample rendering (after FXAA 3.11, restricted to geometric edges).
-// u_color: RGB + 1/z in .a (LUM: luminance + 1/z in .rg), LINEAR filter, clamp to edge.
+// u_color: RGB + 1/z in .a (LUM: luminance + 1/z in .rg); only point loads.
 // IMAGE: the same texture bound as a read-only image too (GL >= 4.2): llvmpipe's
 // imageLoad is ~1/3 cheaper than texelFetch (no sampler path), same values.
 uniform sampler2D u_color;
@@ -826,7 +827,9 @@ class Renderer:
         and ``eye`` lies outside the object's bounding box grown by ``near_reach``
         (the farthest point of the near-clipping rectangle from the eye): seen from
         outside a closed solid, each back face is behind a front face of the same
-        object (and the near plane cuts no solid open), so the image is the same.
+        object (and the near plane cuts no solid open), so the image is the same up to
+        ties: a back face coplanar with another part's front face, a pixel centre exactly
+        on a silhouette edge.
 
         Args:
             clip_from_world: (4, 4) clip matrix ``P @ T_cam_world``.
