@@ -22,6 +22,8 @@ from roslan.sensors.base import sample_times_ns
 from roslan.sensors.camera import (
     Camera,
     CameraConfig,
+    DepthCamera,
+    DepthCameraConfig,
     StereoCamera,
     StereoCameraConfig,
     encode_image,
@@ -233,6 +235,58 @@ def test_stereo_disparity_is_fb_over_z() -> None:
     np.testing.assert_allclose(left[:, 0] - right[:, 0], 200.0 * 0.3 / Z, atol=0.3)
     tf = {t.child: t for t in cam.static_transforms()}
     np.testing.assert_allclose(tf["s_right_optical"].T[:3, 3], [0, -0.3, 0], atol=1e-12)
+
+
+@pytest.mark.parametrize(
+    ("model", "coeffs"),
+    [("plumb_bob", [-0.25, 0.08, 0.002, -0.001, 0.0]), ("equidistant", [0.05, -0.02, 0.01, 0.0])],
+)
+def test_distorted_depth_camera_is_analytic(model: str, coeffs: list[float]) -> None:
+    # Every output pixel's depth equals the z-depth of its own (distorted) ray hitting the
+    # board, off the board's outline; beyond the board nothing is hit (inf, NaN in the
+    # message). The remap interpolates 1/z (affine on planes) and takes the nearest sample
+    # at depth edges: no pixel may blend the board with the background.
+    scene = board_scene()
+    cfg = DepthCameraConfig.model_validate(
+        {
+            "type": "depth_camera",
+            "name": "d",
+            "rate": 1.0,
+            "topic": "/d",
+            "resolution": [160, 120],
+            "fx": 110.0,
+            "fy": 112.0,
+            "cx": 81.3,
+            "cy": 58.6,
+            "distortion_model": model,
+            "distortion_coeffs": coeffs,
+        }
+    )
+    cam = DepthCamera(cfg)
+    cam._plans(_Ctx(scene))  # type: ignore[arg-type]
+    e = cam._eyes[0]
+    assert e.plan is not None
+    assert not e.plan.identity
+    T = look_down(0.3, -0.2, 2.2, tilt=0.35)
+    T_wb = T @ np.linalg.inv(T_LINK_OPTICAL)
+    z = cam.render_depth(gl.get_renderer(scene), e, T_wb)
+    u, v = np.meshgrid(np.arange(160.0), np.arange(120.0))
+    xy = e.model.undistort_normalized(np.stack([u.ravel(), v.ravel()], 1)).reshape(120, 160, 2)
+    rays = np.concatenate([xy, np.ones((120, 160, 1))], axis=-1) @ T[:3, :3].T
+    s = -T[2, 3] / rays[..., 2]  # the plane z = 0; z-depth = s (optical z of the ray is 1)
+    hit = T[:3, 3] + s[..., None] * rays
+    half = np.array([(7 + 3) * 0.25, (5 + 3) * 0.25])
+    margin = 0.08  # ~2.5 render pixels at this range (nearest samples within 2 of an edge)
+    inside = np.all(np.abs(hit[..., :2]) < half - margin, axis=-1)
+    outside = np.any(np.abs(hit[..., :2]) > half + margin, axis=-1)
+    assert inside.sum() > 4000
+    assert outside.sum() > 1000
+    np.testing.assert_allclose(z[inside], s[inside], rtol=2e-4)
+    assert np.all(np.isinf(z[outside]))
+    edge = ~inside & ~outside  # the outline: the board's depth or nothing, never a blend
+    ze = z[edge]
+    board = np.isfinite(ze)
+    np.testing.assert_allclose(ze[board], s[edge][board], rtol=0.02)
 
 
 def test_calibration_round_trip(tmp_path: Path) -> None:

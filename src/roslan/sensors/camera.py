@@ -264,6 +264,18 @@ def encode_image(img: F32, lut: U8, *, gain: float = 1.0, reverse: bool = False)
     return out
 
 
+def _non_affine(inv: F32, tol: float = 1e-3) -> F32:
+    """1.0 where inverse depth ``inv`` (H, W; 0 = nothing hit) is not affine across a
+    pixel's 4-neighbourhood: a second difference above ``tol`` times the largest of the
+    five values (float32 rounding of a plane's 1/z is ~1e-7 of it), else 0.0."""
+    p = np.pad(inv, 1, mode="edge")
+    c = p[1:-1, 1:-1]
+    w, e_, n, s_ = p[1:-1, :-2], p[1:-1, 2:], p[:-2, 1:-1], p[2:, 1:-1]
+    d2 = np.maximum(np.abs(w + e_ - 2.0 * c), np.abs(n + s_ - 2.0 * c))
+    top = np.maximum(np.maximum(np.maximum(w, e_), np.maximum(n, s_)), c)
+    return (d2 > tol * top).astype(np.float32)
+
+
 _LUMA = np.array([0.2126, 0.7152, 0.0722], dtype=np.float32)  # Rec. 709, linear
 
 
@@ -575,17 +587,27 @@ class DepthCamera(_CameraBase):
             return np.asarray(z, dtype=np.float32)
         import cv2
 
-        # Inverse depth is affine in the image on planes, so bilinear interpolation of
-        # 1/z is exact there; at depth edges (neighbours disagree) take the nearest sample.
+        # Inverse depth is affine in the image on a plane, so bilinear interpolation of 1/z
+        # is exact there. Where it is not affine (silhouettes against other surfaces or
+        # nothing, creases, strong curvature) a blend would be a depth no surface has (a
+        # "flying pixel"): output pixels with such a render pixel among their bilinear
+        # taps take the nearest render pixel's depth instead.
         with np.errstate(divide="ignore"):
             inv = np.reciprocal(z)
+        flag = cv2.remap(
+            _non_affine(inv),
+            e.plan.map1,
+            e.plan.map2,
+            cv2.INTER_LINEAR,
+            borderMode=cv2.BORDER_REPLICATE,
+        )
         lin = cv2.remap(
             inv, e.plan.map1, e.plan.map2, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE
         )
         near = cv2.remap(
             inv, e.plan.mapx, e.plan.mapy, cv2.INTER_NEAREST, borderMode=cv2.BORDER_REPLICATE
         )
-        edge = np.abs(lin - near) > 0.05 * np.maximum(near, 1e-12)
+        edge = flag > 0.0
         lin[edge] = near[edge]
         with np.errstate(divide="ignore"):
             out: F32 = np.reciprocal(lin)
