@@ -223,8 +223,11 @@ def test_culling_keeps_every_visible_triangle() -> None:
         idx = np.frombuffer(r._ibo.read(), np.uint32)
         eye = T[:3, 3]
         drawn_by: list[np.ndarray] = []
-        for order_eye in (None, eye):
+        # (front to back whether back-face culling is on or off)
+        for order_eye, bfc in ((None, True), (eye, True), (eye, False)):
+            r.cull_back_faces = bfc
             first, count, _, _ = r.visible_ranges(P, order_eye)
+            r.cull_back_faces = True
             drawn = np.zeros(len(objs), bool)
             nearest = []  # per run: distance of its nearest quad centre
             for f, n in zip(first.tolist(), count.tolist(), strict=True):
@@ -241,6 +244,7 @@ def test_culling_keeps_every_visible_triangle() -> None:
                 assert np.all(np.diff(near) > -0.3)
                 assert near[0] <= near.min() + 0.3
         assert np.array_equal(drawn_by[0], drawn_by[1])  # same set, other order
+        assert np.array_equal(drawn_by[1], drawn_by[2])
 
 
 def test_bad_msaa_env(monkeypatch: pytest.MonkeyPatch) -> None:

@@ -850,17 +850,15 @@ class Renderer:
         if idx.size == 0:
             e = np.zeros(0, dtype=np.int64)
             return e, e, e, np.zeros(0, dtype=bool)
-        if eye is None or not self.cull_back_faces:
-            cull = np.zeros(idx.size, dtype=bool)
-        else:
-            eye = np.asarray(eye, dtype=np.float64)
-            if sort:
-                gap = np.abs(self._c_centre[idx] - eye)
-                gap = np.maximum(gap - self._c_half[idx], 0.0)  # 0 inside the box
-                idx = idx[np.argsort(np.einsum("ij,ij->i", gap, gap), kind="stable")]
+        if eye is not None and sort:
+            gap = np.abs(self._c_centre[idx] - np.asarray(eye, dtype=np.float64))
+            gap = np.maximum(gap - self._c_half[idx], 0.0)  # 0 inside the box
+            idx = idx[np.argsort(np.einsum("ij,ij->i", gap, gap), kind="stable")]
+        cull = np.zeros(idx.size, dtype=bool)
         if eye is not None and self.cull_back_faces:
+            e = np.asarray(eye, dtype=np.float64)
             m = float(near_reach) + 1e-6
-            inside = np.all((eye >= self._o_lo - m) & (eye <= self._o_hi + m), axis=1)
+            inside = np.all((e >= self._o_lo - m) & (e <= self._o_hi + m), axis=1)
             cull = self._c_closed[idx] & ~inside[self._c_obj[idx]]
         brk = (
             np.flatnonzero(
