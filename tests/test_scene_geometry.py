@@ -256,3 +256,17 @@ def test_components_match_scipy() -> None:
         pairs = np.unique(np.stack([label, ref], axis=1), axis=0)
         assert len(pairs) == k == np.unique(label).size
         assert np.all(label <= np.arange(n))  # the smallest vertex of each part
+
+
+def test_closed_solid_keys_do_not_collide_at_the_extremes() -> None:
+    # vertices at +-(largest coordinate) fill the key fields to their ends: an open
+    # mesh whose corners would alias another's corners must stay open
+    rng = np.random.default_rng(11)
+    for _ in range(20):
+        b = m.box(rng.uniform(0.1, 5.0, size=3), rng.uniform(-3, 3, size=3))
+        v = b.vertices
+        assert m.closed_solid(v, b.faces)
+        assert not m.closed_solid(v, b.faces[1:])
+        extreme = v / np.abs(v).max()  # every coordinate in [-1, 1], some at +-1
+        assert m.closed_solid(extreme, b.faces)
+        assert not m.closed_solid(extreme, b.faces[:-1])

@@ -283,7 +283,7 @@ def closed_solid(vertices: ArrayLike, faces: ArrayLike) -> bool:
     the solids, every back face (one turned away from the viewer) is hidden behind a
     front face of the same mesh, and a renderer may skip back faces.
 
-    Conditions, after merging vertices closer than ~1e-6 of the mesh's coordinates
+    Conditions, after merging vertices closer than ~2e-6 of the mesh's coordinates
     (duplicate corners of primitives, lathe seams and poles) and dropping the faces
     that merging collapses: every directed edge a -> b is matched by an edge b -> a
     (no border; also where two closed parts touch along an edge), and each connected
@@ -296,9 +296,10 @@ def closed_solid(vertices: ArrayLike, faces: ArrayLike) -> bool:
     f = np.asarray(faces, dtype=np.int64)
     if f.ndim != 2 or f.shape[0] == 0 or f.shape[1] != 3 or not np.isfinite(v).all():
         return False
-    # vertices within 2^-20 of the largest coordinate merge: one int64 key per vertex
+    # vertices within ~2^-19 of the largest coordinate merge: one int64 key per vertex,
+    # three 21-bit fields of 0 .. 2^20
     scale = max(float(np.abs(v).max()), float(np.ptp(v, axis=0).max()), 1e-12)
-    q = np.round(v * (2.0**20 / scale)).astype(np.int64) + 2**20  # 0 .. 2^21
+    q = np.round(v * (2.0**19 / scale)).astype(np.int64) + 2**19
     _, vid = np.unique((q[:, 0] << 42) | (q[:, 1] << 21) | q[:, 2], return_inverse=True)
     mf = vid.reshape(-1)[f]  # (F, 3) merged vertex ids
     keep = (mf[:, 0] != mf[:, 1]) & (mf[:, 1] != mf[:, 2]) & (mf[:, 2] != mf[:, 0])
