@@ -461,3 +461,36 @@ def test_back_face_culling_on_builtin_scene_only_settles_ties() -> None:
             assert np.mean(steps <= 8) >= 0.95
     finally:
         r.cull_back_faces = True
+
+
+@pytest.mark.parametrize("samples", [1, 4])
+def test_sky_where_nothing_is_hit(samples: int) -> None:
+    # The scene's sky radiance fills every pixel without a surface (colour, luminance), the
+    # depth there stays inf, and silhouettes blend the square's white with the sky's blue
+    # (not with black)
+    sq = _square_scene()
+    sky = (0.1, 0.3, 0.6)
+    scene = Scene("sky", sq.objects, Lights(sun_intensity=0.0, ambient=1.0, sky=sky))
+    r = gl.Renderer(scene)
+    try:
+        K = np.array([[30.0, 0, 31.5], [0, 30.0, 23.5], [0, 0, 1]])
+        T = look_down(0.0, 0.0, 4.0)
+        res = r.render(T, K, 64, 48, depth=True, luminance=True, samples=samples)
+        lum = r.render(T, K, 64, 48, color=False, depth=True, luminance=True, samples=samples)
+        assert res.color is not None
+        assert res.depth is not None
+        assert lum.luminance is not None
+        assert lum.depth is not None
+        out = np.isinf(res.depth)
+        assert out.sum() > 1000
+        tol = 1e-6 if samples == 1 else 1e-3  # (MSAA colour targets are half floats)
+        np.testing.assert_allclose(res.color[:3, :], np.broadcast_to(sky, (3, 64, 3)), atol=tol)
+        np.testing.assert_allclose(lum.luminance[:3, :], float(np.dot(sky, gl.LUMA)), atol=tol)
+        np.testing.assert_array_equal(np.isinf(lum.depth), out)
+        assert np.all(res.color[20:28, 28:36] > 0.999)  # the square itself is unchanged
+        # edge pixels: between sky and white in every channel
+        edge = (res.color[..., 2] > sky[2] + 0.02) & (res.color[..., 2] < 0.98)
+        assert edge.sum() > 20
+        assert np.all(res.color[edge] >= np.array(sky) - tol)
+    finally:
+        r.release()

@@ -40,7 +40,11 @@ def folder(tmp_path: Path) -> Path:
 def _doc(**extra: object) -> dict:
     doc: dict = {
         "name": "test_scene",
-        "lights": {"sun": {"direction": [0.3, 0.2, -1.0], "intensity": 1.0}, "ambient": 0.3},
+        "lights": {
+            "sun": {"direction": [0.3, 0.2, -1.0], "intensity": 1.0},
+            "ambient": 0.3,
+            "sky": [0.2, 0.3, 0.45],
+        },
         "goal": {"position": [1.0, 0.0, 0.0], "rpy": [0.0, 0.0, 0.5]},
         "objects": [
             {
@@ -230,6 +234,7 @@ def _assert_same(a, b) -> None:  # type: ignore[no-untyped-def]
             assert ob.material.texture is None
         else:
             assert np.array_equal(oa.material.texture, ob.material.texture)
+    assert a.lights == b.lights
     assert a.goal_position == b.goal_position
     assert a.goal_rpy == b.goal_rpy
     assert np.array_equal(a.triangles[0], b.triangles[0])

@@ -29,6 +29,9 @@ is resampled bilinearly across the edge by its sub-pixel coverage estimate; text
 detail on planes is left untouched. Sub-pixel geometry (wires, lines thinner than a
 pixel) needs MSAA: ``ROSLAN_MSAA_SAMPLES=4``.
 
+Where no surface is hit, colour and luminance are the scene's sky radiance
+(:attr:`~roslan.scene.model.Lights.sky`) and depth is ``inf``.
+
 Outputs (keywords of :meth:`Renderer.render`): linear RGB, Rec. 709 luminance (one
 channel: what grayscale and event cameras need, computed in the shader, a quarter of
 the readback), metric depth; each is computed and read back only when requested.
@@ -538,6 +541,8 @@ class Renderer:
         # image load/store (GL 4.2) for the edge filter's point loads
         self._image = int(ctx.version_code) >= 420
         self._flush = _gl_flush()
+        self._clear_buffer = _gl_clear_buffer()
+        self.sky = tuple(float(x) for x in scene.lights.sky)
         self.flush_chunks = FLUSH_CHUNKS if self.software else 1
         self._rgb_target = True  # RGB32F edge-filter output where renderable
         self._targets: dict[tuple[int, int, int, bool, bool, bool], _Targets] = {}
@@ -956,7 +961,7 @@ class Renderer:
             self._targets[key] = t
         fbo = t.ms_fbo if ns > 1 else t.out_fbo
         fbo.use()
-        fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
+        self._clear(fbo, lum, depth)
         if first.size:
             prog, vao = self._program(lum, depth)
             ctx.enable_only(ctx.DEPTH_TEST)
@@ -1030,6 +1035,20 @@ class Renderer:
                 with np.errstate(divide="ignore"):
                     np.reciprocal(dep, out=dep)  # 1/0 -> inf: nothing hit
         return RenderResult(col, dep, lum_out)
+
+    def _clear(self, fbo: Any, lum: bool, depth: bool) -> None:
+        """Clear a colour-pass target: colour = the sky (luminance: its luma) with 1/z = 0
+        (nothing hit), the 1/z attachment (``depth``) = 0, depth buffer = far."""
+        sky = self.sky
+        if not any(sky) or self._clear_buffer is None:
+            fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
+            return
+        fl4 = ctypes.c_float * 4
+        value = (float(np.dot(sky, LUMA)), 0.0, 0.0, 0.0) if lum else (*sky, 0.0)
+        self._clear_buffer(_GL_COLOR, 0, fl4(*value))
+        if depth:
+            self._clear_buffer(_GL_COLOR, 1, fl4(0.0, 0.0, 0.0, 0.0))
+        self._clear_buffer(_GL_DEPTH, 0, fl4(1.0, 0.0, 0.0, 0.0))
 
     def _render_depth(
         self,
@@ -1146,18 +1165,37 @@ def _merge_runs(
     return out
 
 
-def _gl_flush() -> Callable[[], None] | None:
-    """``glFlush`` of the current EGL context (moderngl has none), or None."""
+def _gl_proc(name: bytes, *argtypes: Any) -> Any:
+    """A GL entry point of the current EGL context that moderngl does not wrap, as a
+    ctypes function returning nothing, or None."""
     try:
         egl = ctypes.CDLL(ctypes.util.find_library("EGL") or "libEGL.so.1")
         egl.eglGetProcAddress.restype = ctypes.c_void_p
         egl.eglGetProcAddress.argtypes = [ctypes.c_char_p]
-        addr = egl.eglGetProcAddress(b"glFlush")
+        addr = egl.eglGetProcAddress(name)
     except (OSError, AttributeError):
         return None
     if not addr:
         return None
-    fn: Callable[[], None] = ctypes.CFUNCTYPE(None)(addr)
+    return ctypes.CFUNCTYPE(None, *argtypes)(addr)
+
+
+def _gl_flush() -> Callable[[], None] | None:
+    """``glFlush`` (moderngl has none), or None."""
+    fn: Callable[[], None] | None = _gl_proc(b"glFlush")
+    return fn
+
+
+_GL_COLOR = 0x1800
+_GL_DEPTH = 0x1801
+
+
+def _gl_clear_buffer() -> Callable[[int, int, Any], None] | None:
+    """``glClearBufferfv(buffer, drawbuffer, value)`` (one attachment of the bound
+    framebuffer; moderngl clears all colour attachments with one colour), or None."""
+    fn: Callable[[int, int, Any], None] | None = _gl_proc(
+        b"glClearBufferfv", ctypes.c_uint, ctypes.c_int, ctypes.POINTER(ctypes.c_float)
+    )
     return fn
 
 

@@ -36,7 +36,7 @@ from roslan.scene.mesh import (
     sphere,
     transformed,
 )
-from roslan.scene.model import Lights, Material, Scene, SceneObject
+from roslan.scene.model import DAYLIGHT_SKY, Lights, Material, Scene, SceneObject
 from roslan.scene.perch import perch_object
 
 __all__ = [
@@ -211,9 +211,10 @@ def _mat(
 
 # --------------------------------------------------------------------------- warehouse
 def warehouse(seed: int = 0) -> Scene:
-    """A 60 x 40 x 10 m warehouse: concrete floor with lane markings, clad walls, roof and
-    roof beams, steel columns, 7 pallet racks with boxes, pallets, barrels, a forklift and
-    a helipad-style landing marker at :data:`WAREHOUSE_GOAL`."""
+    """A 60 x 40 x 10 m warehouse: concrete floor with lane markings, clad walls, a roof
+    with two skylight bands, roof beams, steel columns, 7 pallet racks with boxes,
+    pallets, barrels, a forklift and a helipad-style landing marker at
+    :data:`WAREHOUSE_GOAL`."""
     rng = tx.rng_for(seed, "warehouse")
     b = _Builder(WAREHOUSE_GOAL)
     concrete = _mat("concrete", (1, 1, 1), tx.concrete(seed, 512), 0.25, 0.35)
@@ -242,7 +243,15 @@ def warehouse(seed: int = 0) -> Scene:
         ]
     )
     b.add("walls", walls, cladding, check=False)
-    b.add("roof", box((L + 0.6, W + 0.6, 0.2), (0.0, 0.0, H + 0.1)), roof, check=False)
+    # roof with two open skylight bands along x (y = -7..-5 and 5..7): the sun reaches the
+    # floor in stripes crossed by the trusses' shadows (a closed roof would leave the
+    # whole hall in shadow, lit by the ambient term alone)
+    edges = (-W / 2 - 0.3, -7.0, -5.0, 5.0, 7.0, W / 2 + 0.3)
+    slabs = [
+        box((L + 0.6, y1 - y0, 0.2), (0.0, (y0 + y1) / 2, H + 0.1))
+        for y0, y1 in zip(edges[0::2], edges[1::2], strict=True)
+    ]
+    b.add("roof", merge(slabs), roof, check=False)
     # roof trusses across y every 6 m: top and bottom chords plus diagonals
     truss_parts = []
     for x in np.arange(-27.0, 27.1, 6.0):
@@ -392,7 +401,9 @@ def warehouse(seed: int = 0) -> Scene:
             (x, y, 0.0),
             yaw,
         )
-    lights = Lights(sun_direction=(0.2, 0.1, -1.0), sun_intensity=0.7, ambient=0.45)
+    lights = Lights(
+        sun_direction=(0.2, 0.1, -1.0), sun_intensity=0.7, ambient=0.45, sky=DAYLIGHT_SKY
+    )
     return b.scene("warehouse", lights, WAREHOUSE_GOAL)
 
 
@@ -622,7 +633,9 @@ def refinery(seed: int = 0) -> Scene:
         seed=seed,
     )
     b.objects.append(perch)
-    lights = Lights(sun_direction=(0.4, 0.3, -0.8), sun_intensity=1.0, ambient=0.35)
+    lights = Lights(
+        sun_direction=(0.4, 0.3, -0.8), sun_intensity=1.0, ambient=0.35, sky=DAYLIGHT_SKY
+    )
     return b.scene("refinery", lights, REFINERY_GOAL)
 
 
@@ -634,7 +647,7 @@ def empty(seed: int = 0) -> Scene:
     return Scene(
         name="empty",
         objects=(obj,),
-        lights=Lights(),
+        lights=Lights(sky=DAYLIGHT_SKY),
         goal_position=(0.0, 0.0, 0.0),
         goal_rpy=(0.0, 0.0, 0.0),
     )

@@ -184,6 +184,7 @@ def _write(scene: Scene, out: Path) -> None:
                 "intensity": float(lights.sun_intensity),
             },
             "ambient": float(lights.ambient),
+            "sky": _floats(lights.sky),
         },
         "goal": {"position": _floats(scene.goal_position), "rpy": _floats(scene.goal_rpy)},
         "objects": objects,

@@ -310,6 +310,7 @@ def build_scene(
         sun_direction=spec.lights.sun.direction,
         sun_intensity=spec.lights.sun.intensity,
         ambient=spec.lights.ambient,
+        sky=spec.lights.sky,
     )
     return Scene(
         name=spec.name,

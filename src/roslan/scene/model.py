@@ -78,11 +78,18 @@ class SceneObject:
 
 @dataclass(frozen=True)
 class Lights:
-    """Directional sun (direction the light travels, world frame) plus ambient term."""
+    """Directional sun (direction the light travels, world frame) plus ambient term, and
+    the sky: the linear RGB radiance cameras see where no surface is hit (black by
+    default; the built-in scenes use :data:`DAYLIGHT_SKY`)."""
 
     sun_direction: tuple[float, float, float] = (0.3, 0.2, -1.0)
     sun_intensity: float = 1.0
     ambient: float = 0.3
+    sky: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+
+DAYLIGHT_SKY = (0.45, 0.58, 0.8)
+"""Linear RGB of a clear daylight sky (sRGB ~(178, 201, 231)), as the built-in scenes use."""
 
 
 @dataclass(frozen=True, eq=False)

@@ -66,8 +66,11 @@ class SunSpec(StrictModel):
 
 
 class LightsSpec(StrictModel):
+    """``sky``: linear RGB radiance in [0, 1] seen where no surface is hit (default black)."""
+
     sun: SunSpec = SunSpec()
     ambient: Unit = 0.3
+    sky: tuple[Unit, Unit, Unit] = (0.0, 0.0, 0.0)
 
 
 class MaterialSpec(StrictModel):
