@@ -519,6 +519,7 @@ class Renderer:
             every face, for benchmarks).
         closed_solids: names of the scene objects whose back faces may be culled
             (:func:`~roslan.scene.mesh.closed_solid`).
+        sky: linear RGB radiance where no surface is hit (the scene's ``lights.sky``).
     """
 
     def __init__(self, scene: Scene, *, samples: int | None = None) -> None:
