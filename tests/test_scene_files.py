@@ -187,6 +187,15 @@ def test_scale_not_positive(folder: Path, scale: list[float]) -> None:
     assert "greater than 0" in msg
 
 
+@pytest.mark.parametrize("sky", [[0.5, 2.0, 0.1], [0.5, 0.5], [-0.1, 0.2, 0.3]])
+def test_bad_sky(folder: Path, sky: list[float]) -> None:
+    d = _doc()
+    d["lights"]["sky"] = sky
+    msg = _err(folder, d)
+    assert "bad.yaml" in msg
+    assert "lights.sky" in msg
+
+
 def test_duplicate_names(folder: Path) -> None:
     d = _doc()
     d["objects"][2]["name"] = "crate"
