@@ -270,3 +270,15 @@ def test_closed_solid_keys_do_not_collide_at_the_extremes() -> None:
         extreme = v / np.abs(v).max()  # every coordinate in [-1, 1], some at +-1
         assert m.closed_solid(extreme, b.faces)
         assert not m.closed_solid(extreme, b.faces[:-1])
+
+
+def test_closed_solid_merges_relative_to_the_mesh_not_its_position() -> None:
+    # a 1 mm plate 1 km from the origin: its faces are 1 mm apart, far more than float32
+    # steps there (~0.06 mm), so its corners must not merge (2 x 4 distinct corners)
+    plate = m.box((0.5, 0.5, 0.001), (1000.0, -800.0, 20.0))
+    v = plate.vertices.astype(np.float32)
+    assert m.closed_solid(v, plate.faces)
+    assert m._merged_ids(v).max() + 1 == 8
+    sheet = m.plane((0.5, 0.5))
+    far = m.transformed(sheet, m.pose_matrix((1000.0, -800.0, 20.0)))
+    assert not m.closed_solid(far.vertices.astype(np.float32), far.faces)

@@ -283,11 +283,12 @@ def closed_solid(vertices: ArrayLike, faces: ArrayLike) -> bool:
     the solids, every back face (one turned away from the viewer) is hidden behind a
     front face of the same mesh, and a renderer may skip back faces.
 
-    Conditions, after merging vertices closer than ~2e-6 of the mesh's coordinates
-    (duplicate corners of primitives, lathe seams and poles) and dropping the faces
-    that merging collapses: every directed edge a -> b is matched by an edge b -> a
-    (no border; also where two closed parts touch along an edge), and each connected
-    part encloses a positive volume (faces counter-clockwise seen from outside).
+    Conditions, after merging vertices closer than ~1e-6 of the mesh's size (or a few
+    float32 steps of its coordinates, if coarser: duplicate corners of primitives, lathe
+    seams and poles) and dropping the faces that merging collapses: every directed edge
+    a -> b is matched by an edge b -> a (no border; also where two closed parts touch
+    along an edge), and each connected part encloses a positive volume (faces
+    counter-clockwise seen from outside).
     Conservative: open surfaces (planes, uncapped tubes, meshes with cracks),
     inside-out parts, zero-volume double-sided sheets, and also hollow solids (their
     cavity is a part of negative volume) are not closed solids.
@@ -296,12 +297,8 @@ def closed_solid(vertices: ArrayLike, faces: ArrayLike) -> bool:
     f = np.asarray(faces, dtype=np.int64)
     if f.ndim != 2 or f.shape[0] == 0 or f.shape[1] != 3 or not np.isfinite(v).all():
         return False
-    # vertices within ~2^-19 of the largest coordinate merge: one int64 key per vertex,
-    # three 21-bit fields of 0 .. 2^20
-    scale = max(float(np.abs(v).max()), float(np.ptp(v, axis=0).max()), 1e-12)
-    q = np.round(v * (2.0**19 / scale)).astype(np.int64) + 2**19
-    _, vid = np.unique((q[:, 0] << 42) | (q[:, 1] << 21) | q[:, 2], return_inverse=True)
-    mf = vid.reshape(-1)[f]  # (F, 3) merged vertex ids
+    vid = _merged_ids(v)
+    mf = vid[f]  # (F, 3) merged vertex ids
     keep = (mf[:, 0] != mf[:, 1]) & (mf[:, 1] != mf[:, 2]) & (mf[:, 2] != mf[:, 0])
     if not keep.any():
         return False
@@ -318,6 +315,19 @@ def closed_solid(vertices: ArrayLike, faces: ArrayLike) -> bool:
     per_part = np.bincount(part, weights=vol6)
     used = np.bincount(part) > 0
     return bool(np.all(per_part[used] > 0.0))
+
+
+def _merged_ids(v: NDArray[np.float64]) -> NDArray[np.int64]:
+    """(V,) id per vertex, equal for vertices on one cell of a grid of 2^-20 of the mesh's
+    extent, or of 4 float32 steps at its largest coordinate if coarser (one int64 key per
+    vertex: three 21-bit fields of 0 .. 2^20)."""
+    lo = v.min(axis=0)
+    extent = float(np.ptp(v, axis=0).max())
+    tol = max(extent * 2.0**-20, float(np.abs(v).max()) * 2.0**-22, 1e-12)
+    q = np.round((v - lo) / tol).astype(np.int64)
+    _, vid = np.unique((q[:, 0] << 42) | (q[:, 1] << 21) | q[:, 2], return_inverse=True)
+    ids: NDArray[np.int64] = vid.reshape(-1)
+    return ids
 
 
 def _components(n: int, a: NDArray[np.int64], b: NDArray[np.int64]) -> NDArray[np.int64]:
