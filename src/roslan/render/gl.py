@@ -519,7 +519,6 @@ class Renderer:
             every face, for benchmarks).
         closed_solids: names of the scene objects whose back faces may be culled
             (:func:`~roslan.scene.mesh.closed_solid`).
-        sky: linear RGB radiance where no surface is hit (the scene's ``lights.sky``).
     """
 
     def __init__(self, scene: Scene, *, samples: int | None = None) -> None:
@@ -543,7 +542,6 @@ class Renderer:
         self._image = int(ctx.version_code) >= 420
         self._flush = _gl_flush()
         self._clear_buffer = _gl_clear_buffer()
-        self.sky = tuple(float(x) for x in scene.lights.sky)
         self.flush_chunks = FLUSH_CHUNKS if self.software else 1
         self._rgb_target = True  # RGB32F edge-filter output where renderable
         self._targets: dict[tuple[int, int, int, bool, bool, bool], _Targets] = {}
@@ -1040,10 +1038,16 @@ class Renderer:
     def _clear(self, fbo: Any, lum: bool, depth: bool) -> None:
         """Clear a colour-pass target: colour = the sky (luminance: its luma) with 1/z = 0
         (nothing hit), the 1/z attachment (``depth``) = 0, depth buffer = far."""
-        sky = self.sky
-        if not any(sky) or self._clear_buffer is None:
+        sky = tuple(float(x) for x in self.scene.lights.sky)
+        if not any(sky):
             fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
             return
+        if self._clear_buffer is None:  # (core since GL 3.0; moderngl needs 3.3)
+            msg = (
+                "this OpenGL driver gives no glClearBufferfv: a scene with a sky colour "
+                f"(lights.sky = {list(sky)}) cannot be rendered; use lights.sky = [0, 0, 0]"
+            )
+            raise RenderError(msg)
         fl4 = ctypes.c_float * 4
         value = (float(np.dot(sky, LUMA)), 0.0, 0.0, 0.0) if lum else (*sky, 0.0)
         self._clear_buffer(_GL_COLOR, 0, fl4(*value))
