@@ -1,4 +1,4 @@
-"""End-to-end speed of the default demo suite (issue 9).
+"""End-to-end speed of the default demo suite.
 
 The packaged default job (warehouse, DAVIS346 event camera with adaptive sampling,
 640x480 camera at 30 Hz, HDL-32E at 10 Hz, IMU at 1 kHz, sonar, altimeter, ground

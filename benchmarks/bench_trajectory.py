@@ -1,4 +1,4 @@
-"""Full closed-form trajectory state at 10^6 instants (issue 2: <= 0.5 s on 2 cores).
+"""Full closed-form trajectory state at 10^6 instants (target: <= 0.5 s on 2 cores).
 
 Run: .venv/bin/python benchmarks/bench_trajectory.py [N]
 Prints wall and CPU time (this process's CPU time is the fairer figure while other

@@ -1,4 +1,4 @@
-"""Rotation helpers and the Euler-rate kinematics (DESIGN.md §2)."""
+"""Rotation helpers and the Euler-rate kinematics (docs/design.md §2)."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Tau-theory generator: independent checks of the closed form (DESIGN.md §1)."""
+"""Tau-theory generator: independent checks of the closed form (docs/design.md §1)."""
 
 from __future__ import annotations
 

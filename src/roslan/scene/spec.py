@@ -1,4 +1,4 @@
-"""The scene file (YAML) model: the documented contract of issue 4.
+"""The scene file (YAML) model: the documented contract of scene files (README, Scenes).
 
 .. code-block:: yaml
 

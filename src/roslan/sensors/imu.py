@@ -1,6 +1,6 @@
 """IMU (``type: imu``): sensor_msgs/Imu from the closed-form kinematics plus Kalibr noise.
 
-Measurement model (DESIGN.md §3), for the sensor frame S at lever arm ``r`` (in
+Measurement model (docs/design.md §3), for the sensor frame S at lever arm ``r`` (in
 base_link B) with rotation ``R_bs`` (both from ``pose``)::
 
     a_s   = a_w + R_wb (alpha x r + w x (w x r))          # world accel. of the sensor point

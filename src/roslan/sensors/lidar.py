@@ -1,6 +1,6 @@
 """Spinning multi-beam LiDAR (Velodyne HDL-32E, VLP-16 or a generic one), ray cast.
 
-Timing model (DESIGN.md §3): a column (firing cycle) starts every ``P`` seconds
+Timing model (docs/design.md §3): a column (firing cycle) starts every ``P`` seconds
 (HDL-32E: 46.08 us); within it laser ``l`` (firing order) fires at ``l * dt``
 (1.152 us). Laser ``l`` of column ``c`` of the turn that starts at ``t0`` fires at
 ``t0 + c * P + l * dt``. The head turns clockwise seen from above (as a Velodyne

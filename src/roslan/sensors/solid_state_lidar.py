@@ -1,7 +1,7 @@
 """Solid-state LiDAR with a Livox-like non-repetitive rosette (``type: solid_state_lidar``).
 
 Scan model: a Risley prism pair. Two thin wedges counter-rotate at ``prism_rpm``
-(Livox Mid-40: 7294 and -4664 rpm, DESIGN.md §3); each deflects the beam by a fixed
+(Livox Mid-40: 7294 and -4664 rpm, docs/design.md §3); each deflects the beam by a fixed
 angle ``delta`` in the direction of its current rotation angle, and the deflections
 add (first-order thin-prism model)::
 

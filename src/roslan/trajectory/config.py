@@ -1,4 +1,4 @@
-"""The ``trajectory:`` config block (the documented contract of DESIGN.md §1 / issue 2)."""
+"""The ``trajectory:`` config block (the contract of docs/design.md §1 and the README)."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Rotations and frame conventions (DESIGN.md §2).
+"""Rotations and frame conventions (docs/design.md §2).
 
 Conventions used everywhere in roslan:
 

@@ -89,7 +89,7 @@ class Trajectory:
             x0 = -horiz * math.cos(a.heading)
             y0 = -horiz * math.sin(a.heading)
             z0 = a.distance * math.sin(a.angle)
-            # |v0| = vz0 * sqrt(1 + (x0/(kx z0))^2 + (y0/(ky z0))^2)   (DESIGN.md §1)
+            # |v0| = vz0 * sqrt(1 + (x0/(kx z0))^2 + (y0/(ky z0))^2)   (docs/design.md §1)
             denom = math.sqrt(1.0 + (x0 / (c.kappa.x * z0)) ** 2 + (y0 / (c.kappa.y * z0)) ** 2)
             v0 = a.speed / denom
         else:

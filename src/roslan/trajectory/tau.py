@@ -1,4 +1,4 @@
-"""Closed-form tau-theory gaps (DESIGN.md §1, corrected equations).
+"""Closed-form tau-theory gaps (docs/design.md §1, corrected equations).
 
 Every gap is written in terms of the normalised remaining time ``s = 1 - t/T`` in
 [0, 1], so no negative gap is ever raised to a fractional power:
@@ -31,7 +31,7 @@ _EPS = 1e-12
 
 
 class Terminal(StrEnum):
-    """How a gap closes at touchdown, from its exponent ``n`` (DESIGN.md §1)."""
+    """How a gap closes at touchdown, from its exponent ``n`` (docs/design.md §1)."""
 
     SOFT = "soft"  # rate -> 0, acceleration -> 0           (n > 2, i.e. k*kappa < 0.5)
     CONSTANT_DECELERATION = "constant_deceleration"  # rate -> 0, acceleration constant (n = 2)
