@@ -13,10 +13,19 @@ class satisfying :class:`Sensor`) + one line in :mod:`roslan.sensors.registry`.
 
 from __future__ import annotations
 
+import builtins
 import re
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated, Any, NamedTuple, Protocol, runtime_checkable
+from typing import (
+    TYPE_CHECKING,
+    Annotated,
+    Any,
+    ClassVar,
+    NamedTuple,
+    Protocol,
+    runtime_checkable,
+)
 
 import numpy as np
 from numpy.typing import NDArray
@@ -76,6 +85,9 @@ class SensorConfig(StrictModel):
     frame_id: SensorName | None = None
     pose: Pose = Pose()
 
+    needs_scene: ClassVar[bool] = True
+    """Whether the sensor renders or ray casts the scene (checked before any work)."""
+
     @model_validator(mode="before")
     @classmethod
     def _default_topic(cls, data: Any) -> Any:
@@ -89,7 +101,7 @@ class SensorConfig(StrictModel):
         return data
 
     @classmethod
-    def config_class_for(cls, data: Mapping[str, Any]) -> type[SensorConfig] | None:
+    def config_class_for(cls, data: Mapping[str, Any]) -> builtins.type[SensorConfig] | None:
         """The config class of the sensor mapping ``data`` (by its ``type``), or None."""
         from roslan.sensors.registry import SENSOR_TYPES, config_class
 
