@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import itertools
 import re
 import tomllib
 from pathlib import Path
@@ -310,7 +309,7 @@ def sensor_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
         {
             "trajectory": {
                 "k": 0.5,
-                "initial": {"position": [-1.0, 0.4, 0.6], "rpy": [0.05, 0.1, 0.2],
+                "initial": {"position": [-3.0, 0.4, 0.6], "rpy": [0.05, 0.1, 0.2],
                             "descent_rate": 1.2},
             },
             "scene": "empty",
@@ -377,16 +376,28 @@ def test_overview_3d_panel_ticks_do_not_overlap_and_markers_match_the_legend(
     ov.write_overview(sensor_run, tmp_path / "o.png")
     fig = figs.saved[0][0]
     ax3 = next(ax for ax in fig.axes if ax.name == "3d")
+    fig.canvas.draw()
     renderer = fig.canvas.get_renderer()
-    for axis in (ax3.xaxis, ax3.yaxis, ax3.zaxis):
-        boxes = [
-            t.get_window_extent(renderer)
-            for t in axis.get_ticklabels()
-            if t.get_visible() and t.get_text()
-        ]
-        assert len(boxes) >= 2
-        for a, b in itertools.combinations(boxes, 2):
-            assert not a.overlaps(b), [t.get_text() for t in axis.get_ticklabels()]
+    from mpl_toolkits.mplot3d import proj3d
+
+    lims = np.array([ax3.get_xlim(), ax3.get_ylim(), ax3.get_zlim()])
+    for k, axis in enumerate((ax3.xaxis, ax3.yaxis, ax3.zaxis)):
+        lo, hi = sorted(lims[k])
+        locs = [v for v in axis.get_majorticklocs() if lo - 1e-9 <= v <= hi + 1e-9]
+        assert len(locs) >= 2
+        # neighbouring ticks, projected on screen, are further apart than a label is wide
+        pts = []
+        for v in locs:
+            p3 = lims[:, 0].copy()
+            p3[k] = v
+            px, py, _ = proj3d.proj_transform(*p3, ax3.get_proj())
+            pts.append(ax3.transData.transform((px, py)))
+        gaps = np.linalg.norm(np.diff(np.array(pts), axis=0), axis=1)
+        font = axis.get_ticklabels()[0].get_fontproperties()
+        width = max(
+            renderer.get_text_width_height_descent(f"{v:.1f}", font, ismath=False)[0] for v in locs
+        )
+        assert gaps.min() > width, (k, locs, gaps, width)
     handles, labels = ax3.get_legend_handles_labels()
     start = handles[labels.index("start")]
     # a plain line marker (no depth shading): what is drawn is what the legend shows
@@ -396,8 +407,6 @@ def test_overview_3d_panel_ticks_do_not_overlap_and_markers_match_the_legend(
     assert isinstance(start, Line2D)
     assert to_rgba(start.get_color()) == to_rgba("k")
     # the legend does not cover the start point
-    from mpl_toolkits.mplot3d import proj3d
-
     legend = ax3.get_legend().get_window_extent(renderer)
     xs, ys, zs = (float(np.ravel(v)[0]) for v in start.get_data_3d())
     px, py, _ = proj3d.proj_transform(xs, ys, zs, ax3.get_proj())
