@@ -228,7 +228,7 @@ def _assert_figure(img: np.ndarray, min_w: int, min_h: int, min_ink: float = 0.0
     assert h >= min_h
     non_white = np.any(img < 235, axis=-1).mean()
     assert non_white > min_ink, f"figure almost blank ({non_white:.3f} non-white)"
-    assert img.std() > 20
+    assert img.std() > 20 * min_ink / 0.03
 
 
 # ---------------------------------------------------------------- plot commands
