@@ -2,7 +2,8 @@
 
 Steps of :func:`run_simulation`:
 
-1. Validate everything that can fail before touching the disk: the trajectory, every
+1. Validate everything that can fail before touching the disk: the trajectory, the
+   cheap checks of :func:`preflight` (a scene for every sensor that needs one), every
    sensor (constructed from its config), topic uniqueness (sensors and ground truth),
    the scene and its clearance along the path (unless ``allow_collision``), the output
    folder (refused if it exists, unless ``overwrite``).
