@@ -7,7 +7,11 @@ for every problem, ``file: key.path = value: what is allowed``.
 
 from __future__ import annotations
 
+import difflib
 import math
+import re
+import types
+import typing
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Annotated, Any, TypeVar
@@ -23,6 +27,7 @@ __all__ = [
     "Pose",
     "StrictModel",
     "Vec3",
+    "allowed_keys",
     "format_validation_error",
     "load_yaml",
     "load_yaml_model",
@@ -78,32 +83,122 @@ def _loc(loc: tuple[int | str, ...]) -> str:
     return out or "<root>"
 
 
-def _clean_message(err: Mapping[str, Any]) -> str:
+def _closest(word: Any, allowed: list[str]) -> str:
+    """``; did you mean 'x'?`` for the allowed word closest to ``word`` (difflib), or ''."""
+    if not isinstance(word, str) or not allowed:
+        return ""
+    close = difflib.get_close_matches(word, allowed, n=2, cutoff=0.6)
+    if not close:
+        close = difflib.get_close_matches(word.lower(), [a.lower() for a in allowed], n=1)
+        close = [a for a in allowed if a.lower() in close]
+    if not close:
+        return ""
+    return "; did you mean " + " or ".join(repr(c) for c in close) + "?"
+
+
+def _model_of(annotation: Any, data: Any) -> type[BaseModel] | None:
+    """The pydantic model a field annotation validates ``data`` with (Optional, lists,
+    Annotated unwrapped; a sensor mapping resolves to its type's config class)."""
+    origin = typing.get_origin(annotation)
+    if origin is Annotated:
+        return _model_of(typing.get_args(annotation)[0], data)
+    if origin in (typing.Union, types.UnionType):
+        for arg in typing.get_args(annotation):
+            found = _model_of(arg, data)
+            if found is not None:
+                return found
+        return None
+    if isinstance(annotation, type) and issubclass(annotation, BaseModel):
+        resolve = getattr(annotation, "config_class_for", None)
+        if resolve is not None and isinstance(data, Mapping):
+            sub: type[BaseModel] | None = resolve(data)
+            return sub or annotation
+        return annotation
+    return None
+
+
+def _element(annotation: Any) -> Any:
+    """The element annotation of ``list[X]`` / ``tuple[X, ...]`` (possibly Annotated)."""
+    origin = typing.get_origin(annotation)
+    if origin is Annotated:
+        return _element(typing.get_args(annotation)[0])
+    if origin in (typing.Union, types.UnionType):
+        for arg in typing.get_args(annotation):
+            if arg is not type(None):
+                return _element(arg)
+    args = typing.get_args(annotation)
+    return args[0] if origin in (list, tuple) and args else None
+
+
+def allowed_keys(model: type[BaseModel], data: Any, loc: tuple[int | str, ...]) -> list[str] | None:
+    """The keys the model at ``loc`` (a path into ``data``) accepts, or None if unknown."""
+    cur: Any = model
+    node: Any = data
+    annotation: Any = None
+    for part in loc:
+        if isinstance(part, int):
+            if annotation is None:
+                return None
+            annotation = _element(annotation)
+            node = node[part] if isinstance(node, list | tuple) and part < len(node) else None
+            cur = _model_of(annotation, node)
+            continue
+        if cur is None or part not in cur.model_fields:
+            return None
+        annotation = cur.model_fields[part].annotation
+        node = node.get(part) if isinstance(node, Mapping) else None
+        cur = _model_of(annotation, node)
+    if cur is None:
+        return None
+    return list(cur.model_fields)
+
+
+_QUOTED = re.compile(r"'([^']*)'")
+
+
+def _clean_message(err: Mapping[str, Any], allowed: list[str] | None = None) -> str:
     msg = str(err.get("msg", ""))
     for prefix in ("Value error, ", "Assertion failed, "):
         if msg.startswith(prefix):
             msg = msg[len(prefix) :]
     if err.get("type") == "extra_forbidden":
-        msg = "unknown key (not allowed here)"
+        loc = err.get("loc") or ()
+        key = loc[-1] if loc else None
+        msg = "unknown key" + (_closest(key, allowed or []) or " (not allowed here)")
+    elif err.get("type") in ("literal_error", "enum"):
+        expected = str((err.get("ctx") or {}).get("expected", ""))
+        msg += _closest(err.get("input"), _QUOTED.findall(expected))
     return msg
 
 
 def format_validation_error(
-    exc: ValidationError, source: str | Path | None, prefix: tuple[int | str, ...] = ()
+    exc: ValidationError,
+    source: str | Path | None,
+    prefix: tuple[int | str, ...] = (),
+    *,
+    model: type[BaseModel] | None = None,
+    data: Any = None,
 ) -> str:
-    """One line per problem: ``source: key.path = value: message``."""
+    """One line per problem: ``source: key.path = value: message``.
+
+    With ``model`` and the validated ``data``, an unknown key names the closest allowed
+    one (``unknown key; did you mean 'descent_rate'?``); a wrong choice always does.
+    """
     src = f"{source}: " if source is not None else ""
     lines = []
     for err in exc.errors(include_url=False):
         # Tagged unions insert the tag as a location element; keep user-facing keys only.
         loc = tuple(p for p in err["loc"] if not (isinstance(p, str) and p.startswith("function-")))
+        allowed = None
+        if model is not None and err.get("type") == "extra_forbidden" and loc:
+            allowed = allowed_keys(model, data, loc[:-1])
         full = (*prefix, *loc)
         value = err.get("input")
         # A whole mapping (model-level check) is not worth echoing: its message names the keys.
         hide = err.get("type") == "missing" or isinstance(value, Mapping)
         shown = "" if hide else f" = {_short(value)}"
         where = f"{_loc(full)}{shown}: " if full else ""
-        lines.append(f"{src}{where}{_clean_message(err)}")
+        lines.append(f"{src}{where}{_clean_message(err, allowed)}")
     return "\n".join(lines)
 
 
@@ -149,7 +244,8 @@ def validate_model(
     try:
         return model.model_validate(data, context=dict(context or {}))
     except ValidationError as err:
-        raise ConfigError(format_validation_error(err, source)) from None
+        text = format_validation_error(err, source, model=model, data=data)
+        raise ConfigError(text) from None
 
 
 def load_yaml_model(model: type[M], path: str | Path) -> M:

@@ -87,7 +87,7 @@ def register(subparsers: Any) -> None:
     p.add_argument(
         "--overwrite", action="store_true", help="replace an existing OUTDIR (after success)"
     )
-    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.add_argument("--quiet", action="store_true", help="no progress output (phases, bar)")
     p.add_argument("--profile", action="store_true", help="print time spent per sensor and writer")
     p.add_argument(
         "--allow-collision",

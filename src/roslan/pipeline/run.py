@@ -2,7 +2,8 @@
 
 Steps of :func:`run_simulation`:
 
-1. Validate everything that can fail before touching the disk: the trajectory, every
+1. Validate everything that can fail before touching the disk: the trajectory, the
+   cheap checks of :func:`preflight` (a scene for every sensor that needs one), every
    sensor (constructed from its config), topic uniqueness (sensors and ground truth),
    the scene and its clearance along the path (unless ``allow_collision``), the output
    folder (refused if it exists, unless ``overwrite``).
@@ -149,17 +150,59 @@ class _Stream:
 
 
 class _Progress:
-    """rich progress bar: trajectory seconds done and real-time factor (no-op when quiet)."""
+    """Progress from the first second (stderr; nothing when quiet).
 
-    def __init__(self, total_s: float, quiet: bool) -> None:
-        self.total = total_s
+    Setup phases (loading the scene, building the BVH, preparing sensors, writing the
+    overview) show a spinner on a terminal and one line each otherwise; the simulation
+    itself is a bar with trajectory seconds done, the real-time factor and the time left.
+    """
+
+    def __init__(self, quiet: bool) -> None:
+        self.total = 0.0
         self._bar: Any = None
         self._task: Any = None
+        self._status: Any = None
+        self._console: Any = None
         self._t0 = time.perf_counter()
+        self.quiet = quiet
         if quiet:
             return
         from rich.console import Console
-        from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+
+        self._console = Console(stderr=True)
+
+    @property
+    def tty(self) -> bool:
+        return self._console is not None and bool(self._console.is_terminal)
+
+    def phase(self, text: str) -> None:
+        """Start a named setup phase (ends at the next phase, the bar or :meth:`stop`)."""
+        if self._console is None:
+            return
+        self._end_status()
+        if self.tty:
+            self._status = self._console.status(f"{text}...")
+            self._status.start()
+        else:
+            print(f"roslan: {text}...", file=sys.stderr, flush=True)
+
+    def start(self, total_s: float) -> None:
+        """The simulation bar over ``total_s`` seconds of trajectory."""
+        self.total = total_s
+        self._t0 = time.perf_counter()
+        if self._console is None:
+            return
+        self._end_status()
+        if not self.tty:
+            print(f"roslan: simulating {total_s:.2f} s of trajectory...", file=sys.stderr)
+            return
+        from rich.progress import (
+            BarColumn,
+            Progress,
+            TextColumn,
+            TimeElapsedColumn,
+            TimeRemainingColumn,
+        )
 
         self._bar = Progress(
             TextColumn("simulating"),
@@ -167,7 +210,9 @@ class _Progress:
             TextColumn("{task.completed:.2f}/{task.total:.2f} s of trajectory"),
             TextColumn("{task.fields[rtf]}"),
             TimeElapsedColumn(),
-            console=Console(stderr=True),
+            TextColumn("left"),
+            TimeRemainingColumn(),
+            console=self._console,
         )
         self._task = self._bar.add_task("sim", total=total_s, rtf="")
         self._bar.start()
@@ -179,9 +224,35 @@ class _Progress:
         rtf = f"real-time factor {wall / t_s:.2f}" if t_s > 0 else ""
         self._bar.update(self._task, completed=min(t_s, self.total), rtf=rtf)
 
-    def stop(self) -> None:
+    def _end_status(self) -> None:
+        if self._status is not None:
+            self._status.stop()
+            self._status = None
         if self._bar is not None:
             self._bar.stop()
+            self._bar = None
+
+    def stop(self) -> None:
+        self._end_status()
+
+
+_RAY_TYPES = frozenset({"lidar", "solid_state_lidar", "laser", "sonar", "altimeter"})
+"""Sensor types that ray cast the scene (its BVH is built before the simulation starts)."""
+
+
+def preflight(config: SimConfig, traj: Trajectory) -> None:
+    """Every check that needs no rendering and no scene loaded, run before any work
+    (before the scene loads, worker processes start or anything is written); each
+    failure names the key or sensor concerned. Add further cheap checks here."""
+    del traj  # kept in the signature for checks on the path
+    for i, sc in enumerate(config.sensors):
+        if config.scene is None and sc.needs_scene:
+            msg = (
+                f"sensors[{i}] ({sc.name!r}, type {sc.type}) needs a scene but the config "
+                "has none; add e.g. 'scene: warehouse' (built-ins: warehouse, refinery, "
+                "empty) or a scene YAML path"
+            )
+            raise ConfigError(msg)
 
 
 def _plot_child(traj: Trajectory, folder: Path) -> None:
@@ -261,7 +332,7 @@ def _sigterm_as_interrupt() -> Iterator[None]:
 def _check_outdir(outdir: Path, overwrite: bool) -> None:
     if outdir.exists() or outdir.is_symlink():
         if not overwrite:
-            msg = f"output folder {outdir} exists; pass --overwrite (overwrite=True) to replace it"
+            msg = f"output folder {outdir} exists; pass --overwrite to replace it"
             raise OutputError(msg)
         if not outdir.is_dir():
             msg = f"output path {outdir} exists and is not a folder; refusing to replace it"
@@ -435,6 +506,7 @@ def run_simulation(
     # ---- 1. validate before writing anything
     _check_outdir(outdir, overwrite)
     traj = Trajectory(config.trajectory)
+    preflight(config, traj)
     sensors: list[Sensor] = []
     for i, sc in enumerate(config.sensors):
         try:
@@ -465,13 +537,16 @@ def run_simulation(
     )
     # the worker interpreters start (imports) while this process loads the scene
     pool: WorkerPool | None = WorkerPool(groups, config.sensors) if groups else None
+    progress = _Progress(quiet)
     try:
         scene = None
         if config.scene is not None:
             import roslan.scene as scene_mod
 
+            progress.phase(f"loading scene {config.scene!r}")
             scene = scene_mod.load_scene(config.scene, base_dir=base_dir, seed=config.seed)
             if not allow_collision:
+                progress.phase("checking the path's clearance")
                 hit = scene_mod.check_clearance(scene, traj)
                 if hit is not None:
                     msg = (
@@ -482,11 +557,11 @@ def run_simulation(
         # ---- 2. write into a temporary sibling
         tmp = _make_temp(outdir)
     except BaseException:
+        progress.stop()
         if pool is not None:
             pool.kill()
         raise
     writers: MultiBagWriter | None = None
-    progress: _Progress | None = None
     plot: _BackgroundPlot | None = None
     streams: list[_Stream] = []
     try:
@@ -495,6 +570,14 @@ def run_simulation(
 
             t_setup = time.perf_counter()
             remote = pool.assigned if pool is not None else set()
+            if scene is not None and any(
+                sc.type in _RAY_TYPES for i, sc in enumerate(config.sensors) if i not in remote
+            ):
+                from roslan.render.raycast import get_raycaster
+
+                progress.phase("building the scene's BVH (ray casting)")
+                get_raycaster(scene)
+            progress.phase("preparing sensors (the first run compiles kernels, then cached)")
             if pool is not None:  # the workers render while this process sets up
                 nices = dict(
                     zip(pool.groups, worker_nice(pool.groups, config.sensors), strict=True)
@@ -549,13 +632,12 @@ def run_simulation(
             ]
             if pool is not None:
                 sources += pool.streams(fmts)
-            progress = _Progress(traj.duration, quiet)
+            progress.start(traj.duration)
             write_seconds, build_seconds = _pump(
                 sources, writers, ctx.start_time_ns, progress, profile, owners
             )
             progress.update(traj.duration)
-            progress.stop()
-            progress = None
+            progress.phase("closing sensors and bags")
             if pool is not None:
                 pool.finish()
             plot.finish()
@@ -640,10 +722,12 @@ def run_simulation(
                 if pool is not None:
                     timing["profile"]["worker_wait"] = pool.wait_seconds()
                 if not quiet:
+                    progress.stop()
                     _print_profile(per, write_seconds)
             if overview:
                 from roslan.plots.overview import write_overview
 
+                progress.phase("drawing overview.png")
                 t0 = time.perf_counter()
                 scene_name = config.scene or "no scene"
                 write_overview(tmp, title=f"roslan run: {scene_name}, seed {config.seed}")
@@ -654,6 +738,7 @@ def run_simulation(
             )
             _write_json(tmp / RUN_FILE, run)  # last: its presence marks a complete folder
             _finalize(tmp, outdir)
+            progress.stop()
     except BaseException:
         if pool is not None:
             pool.kill()  # before removing tmp: the children write into it
@@ -664,8 +749,7 @@ def run_simulation(
             if close is not None:
                 with contextlib.suppress(BaseException):
                     close()
-        if progress is not None:
-            progress.stop()
+        progress.stop()
         if writers is not None:
             writers.abort()
         shutil.rmtree(tmp, ignore_errors=True)

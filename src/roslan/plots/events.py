@@ -123,7 +123,10 @@ def plot_events(
                 ax.set_title(
                     f"t = {a * 1e-9:.3f} s, {window * 1e3:g} ms, {count} events", fontsize=8
                 )
-                ax.set_axis_off()
+                ax.set_xlabel("u [px]", fontsize=7)
+                ax.set_ylabel("v [px]", fontsize=7)
+                ax.tick_params(labelsize=6)
+                ax.grid(False)
             written.append(save_figure(fig, out / "event_frames.png"))
             bin_ns = 10_000_000
             b, on, off = event_rate(src, rng[0] - rng[0] % bin_ns, rng[1] + 1, bin_ns)

@@ -158,7 +158,7 @@ def plot_imu(outdir: Path, out: Path | None = None, imu_file: Path | None = None
                 )
                 err = (meas[:, i] - true[:, i]) * scale
                 ax.set_title(
-                    f"{what} {'xyz'[i]}   (error: mean {err.mean():+.2g}, std {err.std():.2g})",
+                    f"{what} {'xyz'[i]}\nerror: mean {err.mean():+.2g}, std {err.std():.2g}",
                     fontsize=9,
                 )
                 symbol = "a" if r == 0 else "ω"

@@ -149,13 +149,15 @@ def plot_lidar(
         ax2.set_ylabel("y (left) [m]")
         ax2.legend(loc="upper right", fontsize=7)
         t = sc.t_ns * 1e-9
-        ax2.set_title(
-            f"Bird's-eye view - '{seq.name}' scan {i + 1}/{len(seq)}, t = {t:.3f} s, "
-            f"{sc.xyz.shape[0]:,} returns"
+        ax2.set_title("Bird's-eye view (sensor frame)")
+        fig.suptitle(
+            f"LiDAR '{seq.name}' scan {i + 1}/{len(seq)}, t = {t:.3f} s, "
+            f"{sc.xyz.shape[0]:,} returns",
+            fontsize=10,
         )
         cb = fig.colorbar(sc2, ax=[ax3, ax2], shrink=0.8, pad=0.01, aspect=30)
         cb.set_label(vlabel)
-        return save_figure(fig, out)
+        return save_figure(fig, out, tight=True)
 
 
 def _run(args: argparse.Namespace) -> int:

@@ -65,7 +65,9 @@ class RunMedia:
         except PlotError as err:
             problems.append(str(err))
 
-        cams = [str(c.get("name")) for c in sensor_configs(outdir, "camera")]
+        cams = [str(c.get("name")) for c in sensor_configs(outdir, "camera")] or _calib_cameras(
+            outdir
+        )
         if len(cams) == 1:  # the top-level images.txt is the one camera's
             seqs = [replace(s, name=cams[0]) if s.name == "images" else s for s in seqs]
 
@@ -124,3 +126,23 @@ def render_events(
             h = int(y.max(initial=0)) + 1
         ev.width, ev.height = w, h
     return event_frame(x, y, p, w, h, background), int(x.shape[0])
+
+
+def _calib_cameras(outdir: Path) -> list[str]:
+    """Frame-camera names from ``calib/extrinsics.yaml`` (a run without run.json yet:
+    ``roslan simulate`` draws the overview before writing run.json)."""
+    import yaml
+
+    try:
+        with (outdir / "calib" / "extrinsics.yaml").open(encoding="utf-8") as fh:
+            data = yaml.safe_load(fh)
+    except (OSError, yaml.YAMLError):
+        return []
+    sensors = data.get("sensors") if isinstance(data, dict) else None
+    if not isinstance(sensors, dict):
+        return []
+    return [
+        str(name)
+        for name, cfg in sensors.items()
+        if isinstance(cfg, dict) and cfg.get("type") == "camera"
+    ]

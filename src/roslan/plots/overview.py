@@ -2,8 +2,9 @@
 one event frame and one LiDAR scan - written by ``roslan simulate`` at the end of every
 run (:func:`write_overview`) and by ``roslan plot overview``.
 
-Runs without some sensor get a panel saying so ("no camera configured"); an input that
-exists but cannot be read is reported in its panel instead of failing the run.
+Runs without some sensor get a panel saying so ("no camera configured"), or, when the run
+has an IMU, its accelerometer and gyroscope (and the gaps against time) in those panels; an
+input that exists but cannot be read is reported in its panel instead of failing the run.
 """
 
 from __future__ import annotations
@@ -14,9 +15,9 @@ from typing import Any
 
 import numpy as np
 
-from roslan.plots.data import PlotError, add_outdir_command
+from roslan.plots.data import ImuData, PlotError, add_outdir_command, load_imu
 from roslan.plots.media import RunMedia, render_events
-from roslan.plots.style import figure, save_figure, style
+from roslan.plots.style import AXIS_COLORS, GAP_COLORS, MEASURED_ALPHA, figure, save_figure, style
 
 __all__ = ["EVENT_WINDOW_NS", "register", "write_overview"]
 
@@ -73,15 +74,14 @@ def _trajectory_panel(ax: Any, media: RunMedia, t_ns: int) -> None:
         label="ground track",
     )
     now = np.array([np.interp(t_ns * 1e-9, d.t, d.gaps[:, i]) for i in range(3)])
-    ax.scatter(*p[0], color="k", s=25, depthshade=False, label="start", zorder=4)
-    ax.scatter(
-        0, 0, 0, color="gold", edgecolors="k", marker="*", s=90, depthshade=False, label="goal"
-    )
-    ax.scatter(
-        *now,
+    # line markers: 3-D scatter would fade them with depth (the legend shows them solid)
+    ax.plot(*([v] for v in p[0]), "o", color="k", ms=5, label="start", zorder=4)
+    ax.plot([0], [0], [0], "*", color="gold", mec="k", ms=10, label="goal")
+    ax.plot(
+        *([v] for v in now),
+        "o",
         color="tab:red",
-        s=30,
-        depthshade=False,
+        ms=5,
         label=f"t = {t_ns * 1e-9:.2f} s (frames shown)",
     )
     ax.set_xlabel("x_F [m]")
@@ -95,8 +95,13 @@ def _trajectory_panel(ax: Any, media: RunMedia, t_ns: int) -> None:
     ax.set_ylim(mid[1] - half[1], mid[1] + half[1])
     ax.set_zlim(0.0, 2.0 * half[2])
     ax.set_box_aspect(tuple(2.0 * half))
+    from matplotlib.ticker import MaxNLocator
+
+    # a short axis gets few ticks, so their labels do not overlap
+    for axis, extent in zip((ax.xaxis, ax.yaxis, ax.zaxis), 2.0 * half, strict=True):
+        axis.set_major_locator(MaxNLocator(max(2, min(6, round(6 * extent / span)))))
     ax.view_init(elev=20, azim=-60)
-    ax.legend(loc="upper left", fontsize=6)
+    ax.legend(loc="upper right", fontsize=6)  # the start is usually upper left
     ax.set_title(f"Trajectory (frame F), touchdown T = {s.touchdown:.2f} s")
 
 
@@ -127,13 +132,68 @@ def write_overview(outdir: Path, out: Path | None = None, *, title: str | None =
             ax_e = fig.add_subplot(2, 2, 3)
             ax_l = fig.add_subplot(2, 2, 4)
             _trajectory_panel(ax_t, media, t_ns)
-            _camera_panel(ax_c, media, t_ns)
-            _event_panel(ax_e, media, t_ns)
-            _lidar_panel(ax_l, media, t_ns)
+            # panels of absent sensors show the IMU instead, when the run has one
+            spare = _imu_fillers(outdir, media)
+            panels = (
+                (ax_c, media.camera, _camera_panel),
+                (ax_e, media.events, _event_panel),
+                (ax_l, media.lidar, _lidar_panel),
+            )
+            for ax, present, draw in panels:
+                if present is None and spare:
+                    spare.pop(0)(ax)
+                else:
+                    draw(ax, media, t_ns)
             fig.suptitle(title if title is not None else f"roslan run: {outdir.name}", fontsize=11)
             return save_figure(fig, out)
     finally:
         media.close()
+
+
+def _imu_fillers(outdir: Path, media: RunMedia) -> list[Any]:
+    """Panel painters for a run with an IMU: accelerometer, gyroscope, gaps vs time."""
+    try:
+        data = load_imu(outdir, COMMAND)
+    except PlotError:
+        return []
+    out: list[Any] = [
+        lambda ax: _imu_panel(ax, data, "accelerometer"),
+        lambda ax: _imu_panel(ax, data, "gyroscope"),
+    ]
+    if media.traj is not None:
+        out.append(lambda ax: _gaps_panel(ax, media))
+    return out
+
+
+def _imu_panel(ax: Any, data: ImuData, what: str) -> None:
+    acc = what == "accelerometer"
+    values = data.acc if acc else np.degrees(data.gyro)
+    for i in range(3):
+        ax.plot(
+            data.t,
+            values[:, i],
+            color=AXIS_COLORS[i],
+            alpha=MEASURED_ALPHA + 0.3,
+            linewidth=0.8,
+            label="xyz"[i],
+        )
+    ax.set_xlabel("trajectory time t [s]")
+    ax.set_ylabel("specific force [m/s²]" if acc else "angular rate [deg/s]")
+    ax.legend(loc="best", fontsize=7, ncols=3)
+    ax.set_title(f"IMU {what} ({data.path.name}, IMU frame)")
+
+
+def _gaps_panel(ax: Any, media: RunMedia) -> None:
+    s = media.traj
+    assert s is not None
+    d = s.dense
+    for i, name in enumerate(("x", "y", "z")):
+        ax.plot(d.t, d.gaps[:, i], color=GAP_COLORS[name], label=f"{name}_F")
+    ax.axvline(s.touchdown, color="0.4", linestyle="-.", linewidth=0.9, label="touchdown")
+    ax.set_xlabel("trajectory time t [s]")
+    ax.set_ylabel("gap to the goal [m]")
+    ax.legend(loc="best", fontsize=7)
+    ax.set_title("Position gaps (frame F)")
 
 
 def _camera_panel(ax: Any, media: RunMedia, t_ns: int) -> None:

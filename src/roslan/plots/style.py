@@ -80,15 +80,17 @@ def figure(width_in: float, height_in: float) -> Any:
     return fig
 
 
-def save_figure(fig: Any, path: Path) -> Path:
+def save_figure(fig: Any, path: Path, *, tight: bool = False) -> Path:
     """Save ``fig`` as PNG at :data:`DPI`, atomically (temp file + rename): never a
-    half-written image under the final name."""
+    half-written image under the final name. ``tight`` grows or shrinks the canvas to
+    what is drawn (for 3-D axes, which the constrained layout cannot measure)."""
     from roslan.io.files import atomic_write
 
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     with atomic_write(path, "wb") as fh:
-        fig.savefig(fh, dpi=DPI, format="png")
+        extra: dict[str, Any] = {"bbox_inches": "tight", "pad_inches": 0.08} if tight else {}
+        fig.savefig(fh, dpi=DPI, format="png", **extra)
     return path
 
 

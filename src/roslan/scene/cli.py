@@ -68,7 +68,7 @@ def register(subparsers: Any) -> None:
         "preview", help="PNG: top view with outlines and the goal, and two rendered views"
     )
     common(v)
-    v.add_argument("-o", "--output", required=True, metavar="FILE.png")
+    v.add_argument("-o", "--output", required=True, metavar="FILE.png", help="PNG to write")
     v.add_argument(
         "--top-only", action="store_true", help="the top view alone (no OpenGL rendering)"
     )

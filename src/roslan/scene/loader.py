@@ -95,7 +95,7 @@ def parse_scene_file(path: Path) -> SceneFile:
     try:
         return SceneFile.model_validate(data)
     except ValidationError as err:
-        text = format_validation_error(err, path)
+        text = format_validation_error(err, path, model=SceneFile, data=data)
         objs = data.get("objects")
 
         def _named(mt: re.Match[str]) -> str:

@@ -13,14 +13,23 @@ class satisfying :class:`Sensor`) + one line in :mod:`roslan.sensors.registry`.
 
 from __future__ import annotations
 
+import builtins
 import re
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated, Any, NamedTuple, Protocol, runtime_checkable
+from typing import (
+    TYPE_CHECKING,
+    Annotated,
+    Any,
+    ClassVar,
+    NamedTuple,
+    Protocol,
+    runtime_checkable,
+)
 
 import numpy as np
 from numpy.typing import NDArray
-from pydantic import AfterValidator, Field
+from pydantic import AfterValidator, Field, model_validator
 
 from roslan.config.base import FiniteFloat, Pose, StrictModel
 
@@ -65,7 +74,8 @@ class SensorConfig(StrictModel):
     """Keys every sensor has. Subclasses add ``type: Literal['...']`` and their own keys.
 
     ``frame_id`` defaults to ``name`` (cameras publish in ``<frame_id>_optical``);
-    ``pose`` is the sensor's extrinsics ``T_base_link_sensor``.
+    ``topic`` defaults to ``/<name>`` unless the type has its own default (LiDAR:
+    ``/velodyne_points``); ``pose`` is the sensor's extrinsics ``T_base_link_sensor``.
     """
 
     type: str
@@ -74,6 +84,29 @@ class SensorConfig(StrictModel):
     topic: TopicName
     frame_id: SensorName | None = None
     pose: Pose = Pose()
+
+    needs_scene: ClassVar[bool] = True
+    """Whether the sensor renders or ray casts the scene (checked before any work)."""
+
+    @model_validator(mode="before")
+    @classmethod
+    def _default_topic(cls, data: Any) -> Any:
+        if isinstance(data, Mapping) and "topic" not in data:
+            field = cls.model_fields["topic"]
+            if field.is_required():
+                name = data.get("name")
+                # an invalid name is reported on its own; the placeholder is never used
+                topic = f"/{name}" if isinstance(name, str) and _NAME.match(name) else "/sensor"
+                data = {**data, "topic": topic}
+        return data
+
+    @classmethod
+    def config_class_for(cls, data: Mapping[str, Any]) -> builtins.type[SensorConfig] | None:
+        """The config class of the sensor mapping ``data`` (by its ``type``), or None."""
+        from roslan.sensors.registry import SENSOR_TYPES, config_class
+
+        kind = data.get("type")
+        return config_class(kind) if isinstance(kind, str) and kind in SENSOR_TYPES else None
 
     @property
     def frame(self) -> str:

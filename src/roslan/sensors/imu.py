@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterator
-from typing import IO, Annotated, Any, Literal
+from typing import IO, Annotated, Any, ClassVar, Literal
 
 import numpy as np
 import yaml
@@ -58,6 +58,7 @@ class ImuConfig(SensorConfig):
     """``type: imu``. Noise: Kalibr's continuous-time densities; defaults are ESIM's."""
 
     type: Literal["imu"] = "imu"
+    needs_scene: ClassVar[bool] = False
     rate: Annotated[FiniteFloat, Field(gt=0)] = 1000.0
     accelerometer_noise_density: NonNegative = 1.86e-3
     """m/s^2/sqrt(Hz)."""

@@ -38,8 +38,12 @@ def _entry(type_name: str) -> tuple[str, str, str]:
     try:
         return SENSOR_TYPES[type_name]
     except KeyError:
+        import difflib
+
         allowed = ", ".join(sorted(SENSOR_TYPES))
-        msg = f"unknown sensor type {type_name!r}; allowed: {allowed}"
+        close = difflib.get_close_matches(type_name, list(SENSOR_TYPES), n=1)
+        hint = f" (did you mean {close[0]!r}?)" if close else ""
+        msg = f"unknown sensor type {type_name!r}{hint}; allowed: {allowed}"
         raise ValueError(msg) from None
 
 

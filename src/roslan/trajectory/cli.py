@@ -8,12 +8,15 @@ import os
 import shutil
 import tempfile
 import warnings
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from roslan.config.base import load_yaml_model
-from roslan.config.sim import SimConfig
-from roslan.errors import OutputError
+from pydantic import ValidationError
+
+from roslan.config.base import format_validation_error, load_yaml
+from roslan.errors import ConfigError, OutputError
+from roslan.trajectory.config import TrajectoryConfig
 from roslan.trajectory.export import write_trajectory_files
 from roslan.trajectory.generator import Trajectory, TrajectoryWarning
 
@@ -59,13 +62,34 @@ def _umask() -> int:
     return mask
 
 
+def load_trajectory_block(path: Path) -> TrajectoryConfig:
+    """The validated ``trajectory:`` block of a simulation YAML; nothing else in the
+    file is read (a sensor problem there does not stop a trajectory export)."""
+    data = load_yaml(path)
+    if data is None:
+        data = {}
+    if not isinstance(data, Mapping):
+        msg = f"{path}: expected a mapping of keys at the top level, got {type(data).__name__}"
+        raise ConfigError(msg)
+    block = data.get("trajectory")
+    block = {} if block is None else block
+    context = {"base_dir": path.parent.resolve(), "source": path}
+    try:
+        return TrajectoryConfig.model_validate(block, context=context)
+    except ValidationError as err:
+        text = format_validation_error(
+            err, path, ("trajectory",), model=TrajectoryConfig, data=block
+        )
+        raise ConfigError(text) from None
+
+
 def _run(args: argparse.Namespace) -> int:
-    config = load_yaml_model(SimConfig, args.config)
+    trajectory = load_trajectory_block(Path(args.config))
     with warnings.catch_warnings():
         # every hard-landing note reaches the user (one "warning: ..." line each, printed
         # by roslan.cli), even if the same text was shown earlier in this process
         warnings.simplefilter("always", TrajectoryWarning)
-        traj = Trajectory(config.trajectory)
+        traj = Trajectory(trajectory)
     write_into(traj, Path(args.output), overwrite=args.overwrite, plot=not args.no_plot)
     files = "trajectory.csv, groundtruth.txt, summary.json"
     if not args.no_plot:
@@ -88,7 +112,14 @@ def register(subparsers: Any) -> None:
         ),
     )
     p.add_argument("config", type=Path, metavar="CONFIG", help="simulation YAML file")
-    p.add_argument("-o", "--output", required=True, type=Path, metavar="OUTDIR")
+    p.add_argument(
+        "-o",
+        "--output",
+        required=True,
+        type=Path,
+        metavar="OUTDIR",
+        help="output folder (created; must not exist unless --overwrite)",
+    )
     p.add_argument("--overwrite", action="store_true", help="replace files in an existing OUTDIR")
     p.add_argument("--no-plot", action="store_true", help="skip trajectory.png")
     p.set_defaults(func=_run)

@@ -76,8 +76,10 @@ def plot_trajectory(traj: Trajectory, table: State, path: Path) -> None:
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
+    from roslan.plots.style import DPI, GAP_COLORS
+
     dense = traj.state(np.linspace(0.0, traj.T, 600))
-    fig = Figure(figsize=(12.0, 6.0), dpi=100)
+    fig = Figure(figsize=(12.0, 6.0), dpi=DPI)
     FigureCanvasAgg(fig)
     grid = fig.add_gridspec(3, 4, width_ratios=[1.0, 1.0, 0.8, 0.8])
     ax3 = fig.add_subplot(grid[:, :2], projection="3d")
@@ -94,8 +96,8 @@ def plot_trajectory(traj: Trajectory, table: State, path: Path) -> None:
         length=0.12 * span / vmax, normalize=False, color="tab:blue", lw=1.0,
         arrow_length_ratio=0.25, label=f"velocity (max {vmax:.2f} m/s)",
     )  # fmt: skip
-    ax3.scatter([p[0, 0]], [p[0, 1]], [p[0, 2]], color="tab:green", s=25, label="start")
-    ax3.scatter([0.0], [0.0], [0.0], color="tab:red", marker="x", s=40, label="goal")
+    ax3.plot([p[0, 0]], [p[0, 1]], [p[0, 2]], "o", color="k", ms=5, label="start")
+    ax3.plot([0.0], [0.0], [0.0], "*", color="gold", mec="k", ms=11, label="goal")
     ax3.set_xlabel("x [m]")
     ax3.set_ylabel("y [m]")
     ax3.set_zlabel("z [m]")
@@ -104,9 +106,10 @@ def plot_trajectory(traj: Trajectory, table: State, path: Path) -> None:
     units = {"x": "m", "y": "m", "z": "m", "roll": "rad", "pitch": "rad", "yaw": "rad"}
     for i, name in enumerate(GAPS):
         ax = fig.add_subplot(grid[i % 3, 2 + i // 3])
-        ax.plot(dense.t, dense.gaps[:, i], color="tab:blue", lw=1.2)
+        ax.plot(dense.t, dense.gaps[:, i], color=GAP_COLORS[name], lw=1.2)
         ax.axvline(traj.T, color="0.6", lw=0.8, ls="--")
-        ax.set_title(f"{name} [{units[name]}]", fontsize=9)
+        ax.set_title(name, fontsize=9)
+        ax.set_ylabel(f"{name} [{units[name]}]", fontsize=8)
         ax.tick_params(labelsize=7)
         if i % 3 == 2:
             ax.set_xlabel("t [s]", fontsize=8)
