@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 import argparse
+import warnings
 from importlib.resources import as_file, files
 from pathlib import Path
 from typing import Any
 
 from roslan.config.base import load_yaml_model
 from roslan.config.sim import SimConfig
+from roslan.errors import ConfigError
 
 __all__ = ["load_config", "register"]
 
@@ -18,7 +20,19 @@ DEFAULT_CONFIG = "default.yaml"
 def load_config(path: Path | None) -> tuple[SimConfig, Path | None]:
     """The validated config of ``path``, or of the packaged default job when None."""
     if path is not None:
-        return load_yaml_model(SimConfig, path), path
+        config = load_yaml_model(SimConfig, path)
+        if not config.model_fields_set:
+            msg = (
+                f"{path}: empty config (no trajectory, scene or sensors); give at least "
+                "'sensors:' or 'scene:', or run without CONFIG for the built-in default job"
+            )
+            raise ConfigError(msg)
+        if not config.sensors and config.scene is None:
+            warnings.warn(
+                f"{path}: no sensors and no scene: only the ground truth is recorded",
+                stacklevel=1,
+            )
+        return config, path
     with as_file(files("roslan").joinpath("data", DEFAULT_CONFIG)) as p:
         return load_yaml_model(SimConfig, p), None
 
