@@ -9,13 +9,20 @@ from __future__ import annotations
 
 import math
 import reprlib
+import types
 from collections.abc import Mapping
 from pathlib import Path
-import types
 from typing import Annotated, Any, Literal, TypeVar, Union, get_args, get_origin
 
 import numpy as np
-from pydantic import AfterValidator, BaseModel, ConfigDict, ValidationError, model_validator
+from pydantic import (
+    AfterValidator,
+    BaseModel,
+    ConfigDict,
+    Field,
+    ValidationError,
+    model_validator,
+)
 
 from roslan.errors import ConfigError
 
@@ -43,8 +50,11 @@ def _finite(v: float) -> float:
 FiniteFloat = Annotated[float, AfterValidator(_finite)]
 """A float that is neither NaN nor infinite."""
 
-Vec3 = tuple[FiniteFloat, FiniteFloat, FiniteFloat]
-"""Three finite floats, e.g. a position in metres or roll/pitch/yaw in radians."""
+MAX_COORD = 1e6
+"""Largest absolute value of a Vec3 component (a position in metres: 1000 km)."""
+Coord = Annotated[FiniteFloat, Field(ge=-MAX_COORD, le=MAX_COORD)]
+Vec3 = tuple[Coord, Coord, Coord]
+"""Three finite floats within +-1e6, e.g. a position in metres or roll/pitch/yaw in radians."""
 
 
 def _leaves(ann: Any) -> list[Any]:
@@ -64,7 +74,9 @@ def _wrong_scalar(ann: Any, value: Any) -> str | None:
         return None
     if isinstance(value, bool):
         for a in leaves:
-            if a is bool or (get_origin(a) is Literal and any(isinstance(x, bool) for x in get_args(a))):
+            if a is bool or (
+                get_origin(a) is Literal and any(isinstance(x, bool) for x in get_args(a))
+            ):
                 return None
         if any(a in (int, float) for a in leaves):
             return "must be a number, not true/false"

@@ -74,7 +74,9 @@ def os_error_text(err: OSError) -> str:
     return err.strerror or str(err)
 
 
-def check_regular_file(path: str | Path, max_bytes: int, error: type[ConfigError] = ConfigError) -> int:
+def check_regular_file(
+    path: str | Path, max_bytes: int, error: type[ConfigError] = ConfigError
+) -> int:
     """Size of ``path`` in bytes; ``error`` when it is missing, not a regular file or too big."""
     p = Path(path)
     try:
@@ -135,7 +137,9 @@ def read_bytes(path: str | Path, max_bytes: int, error: type[ConfigError] = Conf
     return data
 
 
-def read_text(path: str | Path, max_bytes: int = MAX_YAML_BYTES, error: type[ConfigError] = ConfigError) -> str:
+def read_text(
+    path: str | Path, max_bytes: int = MAX_YAML_BYTES, error: type[ConfigError] = ConfigError
+) -> str:
     """A UTF-8 text file read with :func:`read_bytes`."""
     data = read_bytes(path, max_bytes, error)
     try:
@@ -178,7 +182,10 @@ class _BoundedLoader(yaml.SafeLoader):
         if isinstance(node, MappingNode):
             seen: set[Any] = set()
             for key_node, _ in node.value:
-                if not isinstance(key_node, ScalarNode) or key_node.tag == "tag:yaml.org,2002:merge":
+                if (
+                    not isinstance(key_node, ScalarNode)
+                    or key_node.tag == "tag:yaml.org,2002:merge"
+                ):
                     continue
                 key = self.construct_object(key_node)  # type: ignore[no-untyped-call]
                 try:
@@ -205,7 +212,10 @@ def _expanded_size(root: Node) -> int:
         if key in busy:
             raise _Refused("recursive alias (a value that contains itself)", node.start_mark)
         if depth > MAX_YAML_DEPTH:
-            raise _Refused(f"nested deeper than {MAX_YAML_DEPTH} levels once aliases are expanded", node.start_mark)
+            raise _Refused(
+                f"nested deeper than {MAX_YAML_DEPTH} levels once aliases are expanded",
+                node.start_mark,
+            )
         busy.add(key)
         total = 1
         if isinstance(node, SequenceNode):
@@ -244,7 +254,9 @@ def parse_yaml(text: str, source: str | Path, error: type[ConfigError] = ConfigE
         loader.dispose()
 
 
-def check_image_header(path: str | Path, where: str, error: type[ConfigError] = ConfigError) -> None:
+def check_image_header(
+    path: str | Path, where: str, error: type[ConfigError] = ConfigError
+) -> None:
     """Refuse a texture whose file or header-declared size exceeds the limits (no decoding)."""
     from PIL import Image, UnidentifiedImageError
 
@@ -255,9 +267,13 @@ def check_image_header(path: str | Path, where: str, error: type[ConfigError] = 
             with Image.open(path) as im:
                 w, h = im.size
     except Image.DecompressionBombError:
-        raise error(f"{where} = {str(path)!r}: image header declares more than {MAX_IMAGE_PIXELS} pixels") from None
+        raise error(
+            f"{where} = {str(path)!r}: image header declares more than {MAX_IMAGE_PIXELS} pixels"
+        ) from None
     except (UnidentifiedImageError, OSError, ValueError, SyntaxError) as err:
-        raise error(f"{where} = {str(path)!r}: not a readable image (PNG, JPEG, ...): {err}") from None
+        raise error(
+            f"{where} = {str(path)!r}: not a readable image (PNG, JPEG, ...): {err}"
+        ) from None
     if w * h > MAX_IMAGE_PIXELS:
         msg = (
             f"{where} = {str(path)!r}: image of {w}x{h} pixels; "

@@ -709,7 +709,9 @@ class CameraIntrinsics(StrictModel):
     relative paths resolved against the config file's folder.
     """
 
-    resolution: tuple[Annotated[int, Field(ge=1)], Annotated[int, Field(ge=1)]] | None = None
+    resolution: (
+        tuple[Annotated[int, Field(ge=1, le=65536)], Annotated[int, Field(ge=1, le=65536)]] | None
+    ) = None
     fx: FiniteFloat | None = None
     fy: FiniteFloat | None = None
     cx: FiniteFloat | None = None
