@@ -28,6 +28,7 @@ __all__ = [
     "ROS1_MAX_TIME_NS",
     "check_seed",
     "preflight",
+    "seed_arg",
 ]
 
 MAX_SEED = 2**63 - 1
@@ -70,6 +71,21 @@ def check_seed(seed: Any, where: str) -> int:
     return seed
 
 
+def seed_arg(text: str) -> int:
+    """argparse ``type=`` for ``--seed``: an integer in [0, 2**63 - 1]."""
+    import argparse
+
+    try:
+        value = int(text)
+    except ValueError:
+        value = -1
+    if not 0 <= value <= MAX_SEED:
+        shown = text if len(text) <= 40 else text[:37] + "..."
+        msg = f"{shown!r}: must be an integer in [0, 2**63 - 1]"
+        raise argparse.ArgumentTypeError(msg)
+    return value
+
+
 def _fmt_bytes(n: float) -> str:
     for unit in ("B", "KiB", "MiB", "GiB", "TiB", "PiB"):
         if n < 1024 or unit == "PiB":
@@ -105,13 +121,12 @@ def preflight(config: Any, duration_s: float, formats: Sequence[str], source: st
             )
             raise ConfigError(msg)
         scale = float(getattr(s, "render_scale", None) or 1.0)
-        samples = int(getattr(s, "exposure_samples", 1) or 1)
-        need = w * h * scale * scale * _BYTES_PER_PIXEL * max(samples, 1)
+        need = w * h * scale * scale * _BYTES_PER_PIXEL
         if need > MAX_WORKING_BYTES:
             msg = (
                 f"{source}: sensors[{i}] ({s.name}): a {w}x{h} frame needs about "
                 f"{_fmt_bytes(need)} of working memory (limit {_fmt_bytes(MAX_WORKING_BYTES)}); "
-                "lower resolution, render_scale or exposure_samples"
+                "lower resolution or render_scale"
             )
             raise ConfigError(msg)
     if total > MAX_MESSAGES:

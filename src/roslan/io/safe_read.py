@@ -5,7 +5,8 @@ meshes and textures.
   it is opened; the open itself never blocks).
 * A size cap per kind of file (:data:`MAX_YAML_BYTES`, :data:`MAX_MESH_BYTES`,
   :data:`MAX_IMAGE_BYTES`), checked on the open file, and reading stops at the cap.
-* YAML: duplicate keys are refused; nesting depth (:data:`MAX_YAML_DEPTH`), aliases
+* YAML: numbers in exponent notation (``1e-3``) are numbers, as in YAML 1.2; duplicate
+  keys are refused; nesting depth (:data:`MAX_YAML_DEPTH`), aliases
   (:data:`MAX_YAML_ALIASES`) and the size of the document once every alias is expanded
   (:data:`MAX_YAML_NODES`) are bounded, so a "billion laughs" file fails at once, in
   little memory; a recursive alias is refused.
@@ -20,6 +21,7 @@ from __future__ import annotations
 
 import errno
 import os
+import re
 import stat
 import warnings
 from pathlib import Path
@@ -198,6 +200,14 @@ class _BoundedLoader(yaml.SafeLoader):
                     )
                 seen.add(key)
         return super().construct_mapping(node, deep=deep)  # type: ignore[no-any-return]
+
+
+# YAML 1.2 floats PyYAML (YAML 1.1) reads as text: 1e-3, 1.0e9, 5E+6
+_BoundedLoader.add_implicit_resolver(
+    "tag:yaml.org,2002:float",
+    re.compile(r"^[-+]?(?:[0-9][0-9_]*(?:\.[0-9_]*)?|\.[0-9_]+)[eE][-+]?[0-9]+$"),
+    list("-+0123456789."),
+)
 
 
 def _expanded_size(root: Node) -> int:

@@ -11,6 +11,7 @@ from typing import Any
 from roslan.config.base import load_yaml_model
 from roslan.config.sim import SimConfig
 from roslan.errors import ConfigError
+from roslan.limits import seed_arg
 
 __all__ = ["load_config", "register"]
 
@@ -51,11 +52,22 @@ def _workers(text: str) -> int | str:
 
 
 def _simulate(args: argparse.Namespace) -> int:
-    from roslan.simulate import run_simulation
 
     config, path = load_config(args.config)
     if args.seed is not None:
         config = config.model_copy(update={"seed": args.seed})
+    try:
+        return _run(args, config, path)
+    except ConfigError as err:
+        # every config problem names the file it came from
+        if path is not None and not str(err).startswith(str(path)):
+            raise type(err)(f"{path}: {err}") from None
+        raise
+
+
+def _run(args: argparse.Namespace, config: SimConfig, path: Path | None) -> int:
+    from roslan.simulate import run_simulation
+
     formats = (
         None
         if args.format is None
@@ -96,7 +108,7 @@ def register(subparsers: Any) -> None:
     p.add_argument(
         "-o", "--outdir", type=Path, required=True, metavar="OUTDIR", help="output folder"
     )
-    p.add_argument("--seed", type=int, default=None, help="override the config's seed (>= 0)")
+    p.add_argument("--seed", type=seed_arg, default=None, help="override the config's seed (>= 0)")
     p.add_argument("--format", choices=("ros1", "ros2", "both"), default=None, help="bag format(s)")
     p.add_argument(
         "--overwrite", action="store_true", help="replace an existing OUTDIR (after success)"

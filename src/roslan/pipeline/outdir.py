@@ -2,8 +2,9 @@
 
 A run holds a POSIX record lock (``fcntl.lockf``: owned by the process, not inherited by
 forked helpers) on ``.<OUTDIR>.lock`` next to OUTDIR from its first check to its final
-rename. The kernel drops the lock when its process dies (SIGKILL included), so a hidden ``.<OUTDIR>.partial-*`` or ``.<OUTDIR>.old-*`` folder
-found while holding the lock belongs to a dead run and is removed.
+rename. The kernel drops the lock when its process dies (SIGKILL included), so a hidden
+``.<OUTDIR>.partial-*`` or ``.<OUTDIR>.old-*`` folder found while holding the lock belongs
+to a dead run and is removed.
 """
 
 from __future__ import annotations
