@@ -27,7 +27,11 @@ def _load(tmp_path: Path, text: str) -> SimConfig:
         ("trajectory: {k: 1}", "trajectory.k", "crash"),
         ("trajectory: {k: .nan}", "trajectory.k", "finite"),
         ("trajectory: {kappa: {y: 0}}", "trajectory.kappa.y", "greater than or equal to 0.001"),
-        ("trajectory: {kappa: {roll: -1}}", "trajectory.kappa.roll", "greater than or equal to 0.001"),
+        (
+            "trajectory: {kappa: {roll: -1}}",
+            "trajectory.kappa.roll",
+            "greater than or equal to 0.001",
+        ),
         ("trajectory: {kappa: {x: 5}}", "kappa.x", "1/k"),
         (
             "trajectory: {initial: {position: [1, 2, 0], descent_rate: 1}}",

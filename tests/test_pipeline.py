@@ -304,7 +304,8 @@ def test_killed_run_leaves_no_complete_outdir(tmp_path: Path) -> None:
     proc.wait(timeout=30)
     assert not target.exists()
     leftovers = [p for p in tmp_path.iterdir() if p.name != ".out.lock"]
-    assert leftovers and all(p.name.startswith(".out.partial-") for p in leftovers)
+    assert leftovers
+    assert all(p.name.startswith(".out.partial-") for p in leftovers)
     assert not any((p / "run.json").exists() for p in leftovers)
     # the next run into the same OUTDIR removes the dead run's partial folder and its lock
     run_simulation(short_config(), target, quiet=True, overview=False)
@@ -344,7 +345,8 @@ def test_two_concurrent_cli_runs_exactly_one_succeeds(tmp_path: Path) -> None:
     codes = sorted(rc for rc, _ in results)
     assert codes == [0, 2], results
     loser = next(err for rc, err in results if rc == 2)
-    assert loser.startswith("error: ") and "Traceback" not in loser
+    assert loser.startswith("error: ")
+    assert "Traceback" not in loser
     assert json.loads((out / "run.json").read_text())["seed"] in (1, 2)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["job.yaml", "out"]
 

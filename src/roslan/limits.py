@@ -37,8 +37,8 @@ MAX_RATE_HZ = 10_000.0
 """Highest rate of any sensor or of the ground truth (Hz)."""
 MIN_SAMPLE_DT_S = 1e-4
 """Smallest ``trajectory.sample_dt`` (s)."""
-MAX_DURATION_S = 3600.0
-"""Longest trajectory, touchdown time plus hold (s)."""
+MAX_DURATION_S = 86_400.0
+"""Longest trajectory, touchdown time plus hold (s): one day."""
 MAX_TRAJECTORY_SAMPLES = 10_000_000
 """Most trajectory samples (duration / sample_dt)."""
 MAX_FLAP_HZ = 1000.0

@@ -158,19 +158,19 @@ class _BoundedLoader(yaml.SafeLoader):
         self._depth = 0
         self._aliases = 0
 
-    def compose_node(self, parent: Node | None, index: Any) -> Node:  # type: ignore[override]
+    def compose_node(self, parent: Node | None, index: Any) -> Node | None:
         if self.check_event(yaml.AliasEvent):
             self._aliases += 1
             if self._aliases > MAX_YAML_ALIASES:
-                mark = self.peek_event().start_mark
+                mark = self.peek_event().start_mark  # type: ignore[no-untyped-call]
                 msg = f"more than {MAX_YAML_ALIASES} aliases (*name references)"
                 raise _Refused(msg, mark)
         self._depth += 1
         try:
             if self._depth > MAX_YAML_DEPTH:
-                mark = self.peek_event().start_mark
+                mark = self.peek_event().start_mark  # type: ignore[no-untyped-call]
                 raise _Refused(f"nested deeper than {MAX_YAML_DEPTH} levels", mark)
-            return super().compose_node(parent, index)  # type: ignore[no-any-return]
+            return super().compose_node(parent, index)
         finally:
             self._depth -= 1
 
@@ -189,7 +189,7 @@ class _BoundedLoader(yaml.SafeLoader):
                     or key_node.tag == "tag:yaml.org,2002:merge"
                 ):
                     continue
-                key = self.construct_object(key_node)  # type: ignore[no-untyped-call]
+                key = self.construct_object(key_node)
                 try:
                     dup = key in seen
                 except TypeError:
@@ -199,7 +199,7 @@ class _BoundedLoader(yaml.SafeLoader):
                         None, None, f"duplicate key {str(key)[:60]!r}", key_node.start_mark
                     )
                 seen.add(key)
-        return super().construct_mapping(node, deep=deep)  # type: ignore[no-any-return]
+        return super().construct_mapping(node, deep=deep)
 
 
 # YAML 1.2 floats PyYAML (YAML 1.1) reads as text: 1e-3, 1.0e9, 5E+6
