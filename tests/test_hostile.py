@@ -418,6 +418,19 @@ CORPUS: list[tuple[str, dict[str, str | bytes], list[str], tuple[str, ...]]] = [
         BATCH,
         ("sweep.yaml", "name"),
     ),
+    (
+        "calibration-huge",
+        {
+            "cal.yaml": "image_width: 100000\nimage_height: 100000\ncamera_name: c\n"
+            "camera_matrix: {rows: 3, cols: 3, data: [5e4, 0, 5e4, 0, 5e4, 5e4, 0, 0, 1]}\n"
+            "distortion_model: plumb_bob\n"
+            "distortion_coefficients: {rows: 1, cols: 5, data: [0, 0, 0, 0, 0]}\n",
+            "job.yaml": SHORT + "sensors: [{type: event_camera, name: e, topic: /e, rate: 30, "
+            "calibration: cal.yaml}]\n",
+        },
+        SIM,
+        ("job.yaml", "cal.yaml", "pixels"),
+    ),
     ("sweep-dup", {"sweep.yaml": "base: {}\nbase: {}\n"}, BATCH, ("sweep.yaml", "duplicate")),
 ]
 

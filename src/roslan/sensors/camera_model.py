@@ -187,6 +187,14 @@ class CameraModel:
                 raise bad(
                     "resolution", [width, height], "must be two positive integers [width, height]"
                 )
+        from roslan.limits import MAX_FRAME_PIXELS
+
+        if int(width) * int(height) > MAX_FRAME_PIXELS:
+            raise bad(
+                "resolution",
+                [int(width), int(height)],
+                f"at most {MAX_FRAME_PIXELS} pixels (e.g. 8192x8192)",
+            )
         values = {"fx": fx, "fy": fy, "cx": cx, "cy": cy}
         for key, v in values.items():
             if (
