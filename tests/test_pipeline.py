@@ -448,3 +448,23 @@ def test_plot_rendered_in_process_when_threads_run(tmp_path: Path) -> None:
         th.join()
     assert (tmp_path / "o" / "trajectory.png").stat().st_size > 1000
     assert not (tmp_path / "o" / ".plot").exists()
+
+
+def test_final_rename_never_replaces_an_outdir_that_appeared(tmp_path: Path) -> None:
+    """Without overwrite, an OUTDIR created by someone else during the run is kept and the
+    finished run is not moved over it; with overwrite it is replaced."""
+    import roslan.pipeline.run as run_mod
+
+    tmp = tmp_path / ".out.partial-abc"
+    tmp.mkdir()
+    (tmp / "run.json").write_text("{}")
+    outdir = tmp_path / "out"
+    outdir.mkdir()  # appeared "meanwhile" (even empty: rename(2) would replace it)
+    with pytest.raises(OutputError, match="appeared while this run was writing"):
+        run_mod._finalize(tmp, outdir, overwrite=False)
+    assert outdir.is_dir()
+    assert list(outdir.iterdir()) == []
+    assert (tmp / "run.json").exists()
+    run_mod._finalize(tmp, outdir, overwrite=True)
+    assert (outdir / "run.json").exists()
+    assert not tmp.exists()
