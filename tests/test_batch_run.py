@@ -53,6 +53,7 @@ def _kill_first_time(
     marker = outdir.parent / "killed.marker"
     if outdir.name == "0001" and not marker.exists():
         marker.write_text(str(os.getpid()))
+        (outdir.parent / ".0001.partial-killed").mkdir()  # what a killed simulation leaves
         os._exit(1)  # the worker dies mid-task, no cleanup, like an OOM kill
     return run_simulation(config, outdir, overwrite=overwrite, quiet=True)
 
@@ -69,6 +70,10 @@ def test_two_worker_cluster_survives_a_killed_worker_and_equals_serial_runs(
     assert report.workers == 2
     assert (out / "killed.marker").exists()  # the worker really died once
     assert [r.status for r in report.results] == ["complete"] * 3, report.results
+    # the real number of attempts is recorded, and the killed attempt's partial folder is gone
+    assert [r.attempts for r in report.results] == [1, 2, 1]
+    assert not list(out.glob(".*partial*"))
+    assert not list(out.glob(".*.attempts"))
     # the same configs, simulated one after the other in this process
     for task in tasks:
         cfg = validate_config(task.config, task.base_dir, "test")
@@ -85,6 +90,7 @@ def test_two_worker_cluster_survives_a_killed_worker_and_equals_serial_runs(
     data = _batch_json(out)
     assert data["finished"] is True
     assert data["counts"] == {"complete": 3}
+    assert [t["attempts"] for t in data["tasks"]] == [1, 2, 1]
     assert [t["overrides"]["seed"] for t in data["tasks"]] == [1, 2, 3]
     # rerun: everything is skipped, nothing is rewritten
     stamp = {t.name: (out / t.name / "run.json").stat().st_mtime_ns for t in tasks}

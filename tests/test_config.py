@@ -21,13 +21,17 @@ def _load(tmp_path: Path, text: str) -> SimConfig:
 @pytest.mark.parametrize(
     ("yaml_text", "key", "words"),
     [
-        ("trajectory: {k: 0}", "trajectory.k", "greater than 0"),
-        ("trajectory: {k: -0.3}", "trajectory.k", "greater than 0"),
+        ("trajectory: {k: 0}", "trajectory.k", "greater than or equal to 0.001"),
+        ("trajectory: {k: -0.3}", "trajectory.k", "greater than or equal to 0.001"),
         ("trajectory: {k: 1.5}", "trajectory.k", "0 < k < 1"),
         ("trajectory: {k: 1}", "trajectory.k", "crash"),
         ("trajectory: {k: .nan}", "trajectory.k", "finite"),
-        ("trajectory: {kappa: {y: 0}}", "trajectory.kappa.y", "greater than 0"),
-        ("trajectory: {kappa: {roll: -1}}", "trajectory.kappa.roll", "greater than 0"),
+        ("trajectory: {kappa: {y: 0}}", "trajectory.kappa.y", "greater than or equal to 0.001"),
+        (
+            "trajectory: {kappa: {roll: -1}}",
+            "trajectory.kappa.roll",
+            "greater than or equal to 0.001",
+        ),
         ("trajectory: {kappa: {x: 5}}", "kappa.x", "1/k"),
         (
             "trajectory: {initial: {position: [1, 2, 0], descent_rate: 1}}",
@@ -44,7 +48,7 @@ def _load(tmp_path: Path, text: str) -> SimConfig:
             "trajectory.initial.position[1]",
             "finite",
         ),
-        ("trajectory: {sample_dt: 0}", "trajectory.sample_dt", "greater than 0"),
+        ("trajectory: {sample_dt: 0}", "trajectory.sample_dt", "greater than or equal to 0.0001"),
         ("trajectory: {hold: -1}", "trajectory.hold", "greater than or equal to 0"),
         ("trajectory: {speed: 3}", "trajectory.speed", "unknown key"),
         ("trajectory: {kappa: {z: 0.5}}", "trajectory.kappa.z", "unknown key"),

@@ -303,9 +303,52 @@ def test_killed_run_leaves_no_complete_outdir(tmp_path: Path) -> None:
     proc.send_signal(signal.SIGKILL)
     proc.wait(timeout=30)
     assert not target.exists()
-    leftovers = list(tmp_path.iterdir())
+    leftovers = [p for p in tmp_path.iterdir() if p.name != ".out.lock"]
+    assert leftovers
     assert all(p.name.startswith(".out.partial-") for p in leftovers)
     assert not any((p / "run.json").exists() for p in leftovers)
+    # the next run into the same OUTDIR removes the dead run's partial folder and its lock
+    run_simulation(short_config(), target, quiet=True, overview=False)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]
+
+
+def test_concurrent_run_into_one_outdir_is_refused(tmp_path: Path) -> None:
+    """While one run writes OUTDIR, a second one fails at once and leaves everything alone."""
+    target = tmp_path / "out"
+    proc = _start_slow_run(target)
+    try:
+        with pytest.raises(OutputError, match="being written by another roslan run"):
+            run_simulation(short_config(), target, quiet=True, overview=False)
+        partials = [p for p in tmp_path.iterdir() if p.name.startswith(".out.partial-")]
+        assert len(partials) == 1  # the live run's folder was not cleaned away
+    finally:
+        proc.send_signal(signal.SIGTERM)
+        proc.wait(timeout=30)
+    assert not target.exists()
+
+
+def test_two_concurrent_cli_runs_exactly_one_succeeds(tmp_path: Path) -> None:
+    """Two `roslan simulate -o OUT` at once (no --overwrite): exactly one exits 0."""
+    cfg = tmp_path / "job.yaml"
+    cfg.write_text(
+        "trajectory: {initial: {position: [-1, 0.5, 1.0], descent_rate: 1.0}, sample_dt: 0.05}\n"
+        "sensors: [{type: imu, name: imu, topic: /imu, rate: 100}]\n",
+        encoding="utf-8",
+    )
+    out = tmp_path / "out"
+    cmd = [sys.executable, "-m", "roslan", "simulate", str(cfg), "-o", str(out), "--quiet"]
+    cmd += ["--no-overview", "--seed"]
+    procs = [
+        subprocess.Popen([*cmd, str(seed)], stderr=subprocess.PIPE, text=True) for seed in (1, 2)
+    ]
+    results = [(p.wait(timeout=120), p.stderr.read() if p.stderr else "") for p in procs]
+    codes = sorted(rc for rc, _ in results)
+    assert codes == [0, 2], results
+    loser = next(err for rc, err in results if rc == 2)
+    assert loser.startswith("error: ")
+    assert "Traceback" not in loser
+    assert json.loads((out / "run.json").read_text())["seed"] in (1, 2)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["job.yaml", "out"]
 
 
 def test_sigterm_cleans_up(tmp_path: Path) -> None:
@@ -405,3 +448,23 @@ def test_plot_rendered_in_process_when_threads_run(tmp_path: Path) -> None:
         th.join()
     assert (tmp_path / "o" / "trajectory.png").stat().st_size > 1000
     assert not (tmp_path / "o" / ".plot").exists()
+
+
+def test_final_rename_never_replaces_an_outdir_that_appeared(tmp_path: Path) -> None:
+    """Without overwrite, an OUTDIR created by someone else during the run is kept and the
+    finished run is not moved over it; with overwrite it is replaced."""
+    import roslan.pipeline.run as run_mod
+
+    tmp = tmp_path / ".out.partial-abc"
+    tmp.mkdir()
+    (tmp / "run.json").write_text("{}")
+    outdir = tmp_path / "out"
+    outdir.mkdir()  # appeared "meanwhile" (even empty: rename(2) would replace it)
+    with pytest.raises(OutputError, match="appeared while this run was writing"):
+        run_mod._finalize(tmp, outdir, overwrite=False)
+    assert outdir.is_dir()
+    assert list(outdir.iterdir()) == []
+    assert (tmp / "run.json").exists()
+    run_mod._finalize(tmp, outdir, overwrite=True)
+    assert (outdir / "run.json").exists()
+    assert not tmp.exists()

@@ -33,6 +33,7 @@ Each task is one :func:`roslan.simulate.run_simulation` call, pure given its con
 
 from __future__ import annotations
 
+import contextlib
 import copy
 import hashlib
 import itertools
@@ -295,8 +296,17 @@ def set_dotted(config: dict[str, Any], path: str, value: Any) -> None:
 
 
 # --------------------------------------------------------------------------- sweep parsing
+MAX_TASKS = 100_000
+"""Most tasks one sweep may expand to."""
+MAX_NAME_BYTES = 200
+"""Longest task folder name (bytes): room for the hidden ``.NAME.partial-XXXXXXXX`` sibling
+within the 255-byte file-name limit of common file systems."""
+
+
 def _err(source: str, where: str, value: Any, allowed: str) -> ConfigError:
-    shown = repr(value)
+    from roslan.config.base import _short
+
+    shown = _short(value)
     if len(shown) > 80:
         shown = shown[:77] + "..."
     return ConfigError(f"{source}: {where} = {shown}: {allowed}")
@@ -324,8 +334,8 @@ def _grid_values(source: str, where: str, spec: Any) -> list[Any]:
         start, stop, num = spec["start"], spec["stop"], spec["num"]
         if not (_number(start) and _number(stop)):
             raise _err(source, f"{where}.start/stop", (start, stop), "finite numbers")
-        if not isinstance(num, int) or isinstance(num, bool) or num < 1:
-            raise _err(source, f"{where}.num", num, "an integer >= 1")
+        if not isinstance(num, int) or isinstance(num, bool) or not 1 <= num <= MAX_TASKS:
+            raise _err(source, f"{where}.num", num, f"an integer in [1, {MAX_TASKS}]")
         return [float(v) for v in np.linspace(start, stop, num)]
     raise _err(source, where, spec, "a list of values, or {start, stop, num}")
 
@@ -369,6 +379,9 @@ def _range(source: str, where: str, spec: Any) -> _Range:
         if extra:
             raise _err(source, where, spec, "keys low, high, log, integer only")
         lo, hi = spec["low"], spec["high"]
+        for flag in ("log", "integer"):
+            if not isinstance(spec.get(flag, False), bool):
+                raise _err(source, f"{where}.{flag}", spec[flag], "true or false")
         log = bool(spec.get("log", False))
         integer = bool(spec.get("integer", False))
     else:
@@ -383,6 +396,8 @@ def _range(source: str, where: str, spec: Any) -> _Range:
         raise _err(source, where, spec, "finite numbers with low < high")
     if log and lo <= 0:
         raise _err(source, where, spec, "log ranges need low > 0")
+    if integer and not (lo >= -(2**63) and hi <= 2**63 - 1):
+        raise _err(source, where, spec, "integer ranges must lie within [-2**63, 2**63 - 1]")
     return _Range(low=float(lo), high=float(hi), integer=integer, log=log)
 
 
@@ -398,14 +413,14 @@ def _sample_points(source: str, where: str, spec: Any) -> list[dict[str, Any]]:
             f"allowed keys: {', '.join(_SAMPLE_KEYS)}",
         )
     n = spec.get("n")
-    if not isinstance(n, int) or isinstance(n, bool) or n < 1:
-        raise _err(source, f"{where}.n", n, "an integer >= 1 (number of samples)")
+    if not isinstance(n, int) or isinstance(n, bool) or not 1 <= n <= MAX_TASKS:
+        raise _err(source, f"{where}.n", n, f"an integer in [1, {MAX_TASKS}] (number of samples)")
     method = spec.get("method", "lhs")
     if method not in ("lhs", "random"):
         raise _err(source, f"{where}.method", method, "allowed: lhs, random")
     seed = spec.get("seed", 0)
-    if not isinstance(seed, int) or isinstance(seed, bool) or seed < 0:
-        raise _err(source, f"{where}.seed", seed, "an integer >= 0")
+    if not isinstance(seed, int) or isinstance(seed, bool) or not 0 <= seed <= 2**63 - 1:
+        raise _err(source, f"{where}.seed", seed, "an integer in [0, 2**63 - 1]")
     ranges = spec.get("ranges")
     if not isinstance(ranges, Mapping) or not ranges:
         raise _err(source, f"{where}.ranges", ranges, "a non-empty mapping: key -> range")
@@ -441,6 +456,9 @@ def _axis_points(source: str, i: int, block: Any) -> list[dict[str, Any]]:
         raise _err(source, where, spec, "a non-empty mapping: dotted key -> values")
     values = {k: _grid_values(source, f"{where}.{k}", v) for k, v in spec.items()}
     keys = list(values)
+    if kind == "grid" and math.prod(len(v) for v in values.values()) > MAX_TASKS:
+        size = math.prod(len(v) for v in values.values())
+        raise _err(source, where, f"{size} points", f"a sweep has at most {MAX_TASKS} tasks")
     if kind == "grid":
         return [
             dict(zip(keys, combo, strict=True)) for combo in itertools.product(*values.values())
@@ -489,16 +507,15 @@ def parse_sweep(
     name = data.get("name", "{index:04d}")
     if not isinstance(name, str):
         raise _err(source, "name", name, "a folder-name template such as '{index:04d}'")
-    try:
-        folder = name.format(index=0)
-    except (KeyError, IndexError, ValueError) as err:
-        raise _err(source, "name", name, f"a template using only {{index}} ({err})") from None
-    if not folder or "/" in folder or folder in (".", ".."):
-        raise _err(source, "name", name, "a plain folder name template")
+    _check_name_template(source, name, 1)
     axes = data.get("axes", [])
     if not isinstance(axes, list):
         raise _err(source, "axes", axes, "a list of axis blocks (grid, zip or sample)")
     blocks = [_axis_points(source, i, b) for i, b in enumerate(axes)]
+    n_tasks = math.prod(len(b) for b in blocks)
+    if n_tasks > MAX_TASKS:
+        raise _err(source, "axes", f"{n_tasks} tasks", f"a sweep has at most {MAX_TASKS} tasks")
+    _check_name_template(source, name, n_tasks)
     seen: dict[str, int] = {}
     for i, pts in enumerate(blocks):
         for key in pts[0] if pts else {}:
@@ -520,6 +537,36 @@ def parse_sweep(
         name=name,
         config_file=config_file,
     )
+
+
+def _check_name_template(source: str, name: str, n_tasks: int) -> None:
+    """Format ``name`` for the first and last index (as the run will) and check the result is
+    a plain folder name that fits the file system; ConfigError naming ``name`` otherwise."""
+    import string
+
+    try:
+        fields = list(string.Formatter().parse(name))
+    except ValueError as err:
+        raise _err(source, "name", name, f"a template using only {{index}} ({err})") from None
+    for _, key, spec, _ in fields:
+        width = "".join(ch for ch in (spec or "") if ch.isdigit()).lstrip("0")
+        if key is not None and len(width) > 3:
+            raise _err(source, "name", name, "a format width of at most 3 digits")
+    for index in {0, max(n_tasks - 1, 0)}:
+        try:
+            folder = name.format(index=index)
+        except (KeyError, IndexError, ValueError, AttributeError, TypeError) as err:
+            raise _err(source, "name", name, f"a template using only {{index}} ({err})") from None
+        if not folder or "/" in folder or "\0" in folder or folder in (".", ".."):
+            raise _err(source, "name", name, "a plain folder name template")
+        if len(folder.encode("utf-8", "surrogateescape")) > MAX_NAME_BYTES:
+            raise _err(
+                source,
+                "name",
+                name,
+                f"folder names of at most {MAX_NAME_BYTES} bytes (index {index} gives "
+                f"{len(folder.encode('utf-8', 'surrogateescape'))})",
+            )
 
 
 def load_sweep(path: str | Path) -> Sweep:
@@ -668,6 +715,9 @@ def _execute(
     from roslan.config.sim import SimConfig
 
     t0 = time.perf_counter()
+    marker = _attempts_file(Path(outdir))
+    with contextlib.suppress(OSError), marker.open("a", encoding="utf-8") as fh:
+        fh.write(f"{os.getpid()}\n")  # one line per attempt, read back by the driver
     try:
         cfg = validate_model(SimConfig, config, "<task>", context={"base_dir": Path(base_dir)})
         cfg_path = Path(config_file) if config_file else None
@@ -680,6 +730,27 @@ def _execute(
         "duration_s": _duration(info),
         "messages": _messages(info),
     }
+
+
+def _attempts_file(outdir: Path) -> Path:
+    return outdir.parent / f".{outdir.name}.attempts"
+
+
+def _settle(outdir: Path) -> int:
+    """Attempts recorded for the task writing ``outdir`` (0 if none); removes the record and
+    the partial folders of failed attempts (only when no live run holds OUTDIR's lock)."""
+    from roslan.errors import OutputError
+    from roslan.pipeline.outdir import clean_stale, outdir_lock
+
+    marker = _attempts_file(outdir)
+    try:
+        n = len(marker.read_text(encoding="utf-8").splitlines())
+        marker.unlink()
+    except OSError:
+        n = 0
+    with contextlib.suppress(OutputError), outdir_lock(outdir):
+        clean_stale(outdir)
+    return n
 
 
 def _write_json_atomic(path: Path, data: Any) -> None:
@@ -808,7 +879,7 @@ def run_tasks(
 
     def record(task: Task, outcome: Mapping[str, Any] | BaseException, attempts: int) -> None:
         res = results[task.name]
-        res.attempts = attempts
+        res.attempts = max(attempts, _settle(out / task.name))
         if isinstance(outcome, BaseException):
             res.status = "failed"
             detail = "".join(traceback.format_exception_only(type(outcome), outcome)).strip()

@@ -78,6 +78,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     except RoslanError as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
+    except OSError as err:  # a full disk, a read-only or missing folder, a too long name...
+        where = err.filename if err.filename is not None else "output"
+        print(f"error: {where}: {err.strerror or err}", file=sys.stderr)
+        return 2
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return 130

@@ -7,6 +7,7 @@ from pathlib import Path
 from typing import Any
 
 from roslan.errors import ConfigError
+from roslan.limits import seed_arg
 
 __all__ = ["register"]
 
@@ -164,7 +165,7 @@ def register(subparsers: Any) -> None:
         metavar="SCENE",
         help="built-in scene names or scene YAML files (default: warehouse refinery)",
     )
-    p.add_argument("--seed", type=int, default=0, help="dataset seed (default 0)")
+    p.add_argument("--seed", type=seed_arg, default=0, help="dataset seed (default 0)")
     p.add_argument("--overwrite", action="store_true", help="rerun completed simulations too")
     p.add_argument(
         "--sensors",

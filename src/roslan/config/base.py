@@ -10,15 +10,22 @@ from __future__ import annotations
 import difflib
 import math
 import re
+import reprlib
 import types
 import typing
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Annotated, Any, TypeVar
+from typing import Annotated, Any, Literal, TypeVar, Union, get_args, get_origin
 
 import numpy as np
-import yaml
-from pydantic import AfterValidator, BaseModel, ConfigDict, ValidationError
+from pydantic import (
+    AfterValidator,
+    BaseModel,
+    ConfigDict,
+    Field,
+    ValidationError,
+    model_validator,
+)
 
 from roslan.errors import ConfigError
 
@@ -47,14 +54,69 @@ def _finite(v: float) -> float:
 FiniteFloat = Annotated[float, AfterValidator(_finite)]
 """A float that is neither NaN nor infinite."""
 
-Vec3 = tuple[FiniteFloat, FiniteFloat, FiniteFloat]
-"""Three finite floats, e.g. a position in metres or roll/pitch/yaw in radians."""
+MAX_COORD = 1e6
+"""Largest absolute value of a Vec3 component (a position in metres: 1000 km)."""
+Coord = Annotated[FiniteFloat, Field(ge=-MAX_COORD, le=MAX_COORD)]
+Vec3 = tuple[Coord, Coord, Coord]
+"""Three finite floats within +-1e6, e.g. a position in metres or roll/pitch/yaw in radians."""
+
+
+def _leaves(ann: Any) -> list[Any]:
+    """The plain types an annotation accepts (Annotated, Optional and unions unwrapped)."""
+    origin = get_origin(ann)
+    if origin is Annotated:
+        return _leaves(get_args(ann)[0])
+    if origin is Union or origin is types.UnionType:
+        return [leaf for a in get_args(ann) for leaf in _leaves(a)]
+    return [ann]
+
+
+def _wrong_scalar(ann: Any, value: Any) -> str | None:
+    """Why ``value`` must not be coerced to ``ann`` (true/false or text for a number), or None."""
+    leaves = [a for a in _leaves(ann) if a is not type(None)]
+    if any(a is Any for a in leaves):
+        return None
+    if isinstance(value, bool):
+        for a in leaves:
+            if a is bool or (
+                get_origin(a) is Literal and any(isinstance(x, bool) for x in get_args(a))
+            ):
+                return None
+        if any(a in (int, float) for a in leaves):
+            return "must be a number, not true/false"
+        return None
+    if isinstance(value, str) and leaves and all(a in (int, float) for a in leaves):
+        return "must be a number, not text"
+    if isinstance(value, list | tuple):
+        for a in leaves:
+            if get_origin(a) is tuple:
+                args = [x for x in get_args(a) if x is not Ellipsis]
+                for i, item in enumerate(value):
+                    why = _wrong_scalar(args[min(i, len(args) - 1)], item) if args else None
+                    if why:
+                        return f"item {i} {why}"
+    return None
 
 
 class StrictModel(BaseModel):
-    """Base of every config model: unknown keys are errors, models are frozen."""
+    """Base of every config model: unknown keys are errors, models are frozen; a number
+    is never read from true/false or from text (``start_time: true`` is an error)."""
 
     model_config = ConfigDict(extra="forbid", frozen=True, validate_default=True)
+
+    @model_validator(mode="before")
+    @classmethod
+    def _strict_scalars(cls, data: Any) -> Any:
+        if isinstance(data, Mapping):
+            for key, value in data.items():
+                field = cls.model_fields.get(key) if isinstance(key, str) else None
+                if field is None:
+                    continue
+                why = _wrong_scalar(field.annotation, value)
+                if why:
+                    msg = f"{key} = {_short(value)}: {why}"
+                    raise ValueError(msg)
+        return data
 
 
 class Pose(StrictModel):
@@ -202,30 +264,25 @@ def format_validation_error(
     return "\n".join(lines)
 
 
+_REPR = reprlib.Repr()
+_REPR.maxstring = 60
+_REPR.maxother = 60
+_REPR.maxlist = _REPR.maxtuple = _REPR.maxdict = _REPR.maxset = 4
+_REPR.maxlevel = 2
+
+
 def _short(value: Any) -> str:
-    text = repr(value)
+    # bounded: never builds the repr of a whole (possibly huge) value
+    text = _REPR.repr(value)
     return text if len(text) <= 80 else text[:77] + "..."
 
 
 def load_yaml(path: str | Path) -> Any:
-    """Parse a YAML file; a missing, unreadable or malformed file is a ConfigError."""
-    p = Path(path)
-    try:
-        text = p.read_text(encoding="utf-8")
-    except FileNotFoundError as err:
-        msg = f"{p}: file not found"
-        raise ConfigError(msg) from err
-    except (OSError, UnicodeDecodeError) as err:
-        msg = f"{p}: cannot read file: {err}"
-        raise ConfigError(msg) from err
-    try:
-        return yaml.safe_load(text)
-    except yaml.YAMLError as err:
-        mark = getattr(err, "problem_mark", None)
-        where = f" (line {mark.line + 1}, column {mark.column + 1})" if mark is not None else ""
-        problem = getattr(err, "problem", None) or str(err)
-        msg = f"{p}: malformed YAML{where}: {problem}"
-        raise ConfigError(msg) from err
+    """Parse a YAML file through :mod:`roslan.io.safe_read` (regular file, size cap, no
+    duplicate keys, bounded aliases and nesting); any problem is a ConfigError."""
+    from roslan.io.safe_read import parse_yaml, read_text
+
+    return parse_yaml(read_text(path), path)
 
 
 def validate_model(

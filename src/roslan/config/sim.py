@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from typing import Annotated, Any, Literal
 
@@ -14,7 +15,8 @@ from pydantic import (
     model_validator,
 )
 
-from roslan.config.base import StrictModel
+from roslan.config.base import FiniteFloat, StrictModel
+from roslan.limits import MAX_RATE_HZ, MAX_SEED
 from roslan.sensors.base import SensorConfig
 from roslan.sensors.registry import SENSOR_TYPES, config_class
 from roslan.trajectory.config import TrajectoryConfig
@@ -31,12 +33,12 @@ BagFormat = Literal["ros1", "ros2"]
 class OutputConfig(StrictModel):
     """``output:`` block."""
 
-    start_time: Annotated[int, Field(gt=0)] = DEFAULT_START_TIME_NS
+    start_time: Annotated[int, Field(gt=0, le=2**63 - 1)] = DEFAULT_START_TIME_NS
     """Absolute stamp (ns since the Unix epoch) of trajectory time 0; a float in
     seconds is accepted too."""
     formats: tuple[BagFormat, ...] = ("ros1", "ros2")
     compression: Literal["none", "lz4", "bz2"] = "lz4"
-    ground_truth_rate: Annotated[float, Field(gt=0)] = 200.0
+    ground_truth_rate: Annotated[FiniteFloat, Field(gt=0, le=MAX_RATE_HZ)] = 200.0
     workers: Literal["auto"] | Annotated[int, Field(ge=0, strict=True)] = "auto"
     """Worker processes for render-heavy sensors: ``auto`` (one per such sensor, at most
     the CPUs; none on one CPU), ``0`` (all in the main process) or N; outputs are the same."""
@@ -45,6 +47,9 @@ class OutputConfig(StrictModel):
     @classmethod
     def _seconds_to_ns(cls, v: Any) -> Any:
         if isinstance(v, float):
+            if not math.isfinite(v) or not 0 < v < 9.2e9:
+                msg = "must be a positive stamp below 2**63 ns (9.2e9 s as seconds)"
+                raise ValueError(msg)
             return round(v * 1e9)
         return v
 
@@ -83,7 +88,7 @@ class SimConfig(StrictModel):
     sensors: list[Annotated[SerializeAsAny[SensorConfig], BeforeValidator(_sensor)]] = Field(
         default_factory=list
     )
-    seed: Annotated[int, Field(ge=0)] = 0
+    seed: Annotated[int, Field(ge=0, le=MAX_SEED)] = 0
     output: OutputConfig = OutputConfig()
 
     @model_validator(mode="after")

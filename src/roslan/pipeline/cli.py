@@ -3,12 +3,15 @@
 from __future__ import annotations
 
 import argparse
+import warnings
 from importlib.resources import as_file, files
 from pathlib import Path
 from typing import Any
 
 from roslan.config.base import load_yaml_model
 from roslan.config.sim import SimConfig
+from roslan.errors import ConfigError
+from roslan.limits import seed_arg
 
 __all__ = ["load_config", "register"]
 
@@ -18,7 +21,19 @@ DEFAULT_CONFIG = "default.yaml"
 def load_config(path: Path | None) -> tuple[SimConfig, Path | None]:
     """The validated config of ``path``, or of the packaged default job when None."""
     if path is not None:
-        return load_yaml_model(SimConfig, path), path
+        config = load_yaml_model(SimConfig, path)
+        if not config.model_fields_set:
+            msg = (
+                f"{path}: empty config (no trajectory, scene or sensors); give at least "
+                "'sensors:' or 'scene:', or run without CONFIG for the built-in default job"
+            )
+            raise ConfigError(msg)
+        if not config.sensors and config.scene is None:
+            warnings.warn(
+                f"{path}: no sensors and no scene: only the ground truth is recorded",
+                stacklevel=1,
+            )
+        return config, path
     with as_file(files("roslan").joinpath("data", DEFAULT_CONFIG)) as p:
         return load_yaml_model(SimConfig, p), None
 
@@ -37,11 +52,22 @@ def _workers(text: str) -> int | str:
 
 
 def _simulate(args: argparse.Namespace) -> int:
-    from roslan.simulate import run_simulation
 
     config, path = load_config(args.config)
     if args.seed is not None:
         config = config.model_copy(update={"seed": args.seed})
+    try:
+        return _run(args, config, path)
+    except ConfigError as err:
+        # every config problem names the file it came from
+        if path is not None and not str(err).startswith(str(path)):
+            raise type(err)(f"{path}: {err}") from None
+        raise
+
+
+def _run(args: argparse.Namespace, config: SimConfig, path: Path | None) -> int:
+    from roslan.simulate import run_simulation
+
     formats = (
         None
         if args.format is None
@@ -82,7 +108,7 @@ def register(subparsers: Any) -> None:
     p.add_argument(
         "-o", "--outdir", type=Path, required=True, metavar="OUTDIR", help="output folder"
     )
-    p.add_argument("--seed", type=int, default=None, help="override the config's seed (>= 0)")
+    p.add_argument("--seed", type=seed_arg, default=None, help="override the config's seed (>= 0)")
     p.add_argument("--format", choices=("ros1", "ros2", "both"), default=None, help="bag format(s)")
     p.add_argument(
         "--overwrite", action="store_true", help="replace an existing OUTDIR (after success)"

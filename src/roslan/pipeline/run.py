@@ -56,7 +56,9 @@ from roslan.config.sim import SimConfig
 from roslan.errors import ConfigError, OutputError, SensorError
 from roslan.io.bag import BAG_NAMES, BagTopic, MultiBagWriter
 from roslan.io.messages import Flavor
+from roslan.limits import preflight as check_limits
 from roslan.pipeline.context import Context
+from roslan.pipeline.namespace import check_namespace
 from roslan.pipeline.worker import (
     MERGE_KEY,
     MergeItem,
@@ -361,10 +363,17 @@ def _make_temp(outdir: Path) -> Path:
     return tmp
 
 
-def _finalize(tmp: Path, outdir: Path) -> None:
-    """Move the finished temporary folder to OUTDIR; an old OUTDIR is removed only now."""
+def _finalize(tmp: Path, outdir: Path, overwrite: bool = True) -> None:
+    """Move the finished temporary folder to OUTDIR; an old OUTDIR is removed only now,
+    and only with ``overwrite`` (one that appeared during the run is never replaced)."""
     tmp.chmod(0o755)  # mkdtemp creates 0700
     old: Path | None = None
+    if not overwrite and (outdir.exists() or outdir.is_symlink()):
+        msg = (
+            f"output folder {outdir} appeared while this run was writing; not replacing it "
+            "(pass --overwrite to replace it)"
+        )
+        raise OutputError(msg)
     if outdir.exists() or outdir.is_symlink():
         old = Path(tempfile.mkdtemp(prefix=f".{outdir.name}.old-", dir=outdir.parent))
         old.rmdir()
@@ -476,6 +485,44 @@ def run_simulation(
 ) -> dict[str, Any]:
     """Simulate ``config`` into ``outdir`` atomically; returns the content of run.json.
 
+    Holds an exclusive lock on ``outdir`` for the whole run (a second run into the same
+    OUTDIR fails at once with OutputError) and first removes partial folders that dead
+    runs left there. See :func:`_run_simulation` for the arguments.
+    """
+    from roslan.pipeline.outdir import clean_stale, outdir_lock
+
+    outdir = Path(outdir).absolute()
+    with outdir_lock(outdir):
+        clean_stale(outdir)
+        return _run_simulation(
+            config,
+            outdir,
+            overwrite=overwrite,
+            quiet=quiet,
+            formats=formats,
+            allow_collision=allow_collision,
+            profile=profile,
+            config_path=config_path,
+            overview=overview,
+            workers=workers,
+        )
+
+
+def _run_simulation(
+    config: SimConfig,
+    outdir: Path,
+    *,
+    overwrite: bool = False,
+    quiet: bool = False,
+    formats: Sequence[str] | None = None,
+    allow_collision: bool = False,
+    profile: bool = False,
+    config_path: Path | None = None,
+    overview: bool = True,
+    workers: int | str | None = None,
+) -> dict[str, Any]:
+    """Simulate ``config`` into ``outdir`` atomically; returns the content of run.json.
+
     Args:
         config: validated simulation config.
         outdir: output folder (must not exist unless ``overwrite``).
@@ -506,6 +553,8 @@ def run_simulation(
     # ---- 1. validate before writing anything
     _check_outdir(outdir, overwrite)
     traj = Trajectory(config.trajectory)
+    source = str(config_path) if config_path is not None else "<config>"
+    check_limits(config, traj.duration, fmts, source)
     preflight(config, traj)
     sensors: list[Sensor] = []
     for i, sc in enumerate(config.sensors):
@@ -514,6 +563,7 @@ def run_simulation(
         except ValueError as err:
             msg = f"sensors[{i}] ({sc.name}): {err}"
             raise SensorError(msg) from err
+    check_namespace(sensors, source)
     gt = GroundTruth(config.output.ground_truth_rate, static_transforms(sensors))
     owners: dict[str, str] = {t.topic: "ground_truth" for t in gt.topics()}
     bag_topics = [BagTopic(t.topic, t.msgtype, t.topic in gt.LATCHED) for t in gt.topics()]
@@ -737,7 +787,7 @@ def run_simulation(
                 _playback(traj.duration, wall, fmts, counts), encoding="utf-8"
             )
             _write_json(tmp / RUN_FILE, run)  # last: its presence marks a complete folder
-            _finalize(tmp, outdir)
+            _finalize(tmp, outdir, overwrite)
             progress.stop()
     except BaseException:
         if pool is not None:

@@ -6,6 +6,8 @@ import argparse
 from pathlib import Path
 from typing import Any
 
+from roslan.limits import seed_arg
+
 __all__ = ["register"]
 
 
@@ -49,7 +51,7 @@ def register(subparsers: Any) -> None:
             "scene", metavar="NAME_OR_FILE", help="warehouse, refinery, empty or a scene YAML"
         )
         sp.add_argument(
-            "--seed", type=int, default=0, help="seed of the procedural parts (default 0)"
+            "--seed", type=seed_arg, default=0, help="seed of the procedural parts (default 0)"
         )
         sp.add_argument(
             "--allow-external-paths",

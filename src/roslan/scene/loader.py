@@ -140,6 +140,9 @@ def load_texture(path: Path, where: str) -> NDArray[np.uint8]:
     """An image file as (H, W, 3) uint8 sRGB; SceneError if it is not a readable image."""
     from PIL import Image, UnidentifiedImageError
 
+    from roslan.io.safe_read import check_image_header
+
+    check_image_header(path, where, SceneError)
     try:
         with Image.open(path) as im:
             rgb = np.asarray(im.convert("RGB"), dtype=np.uint8)
@@ -173,6 +176,9 @@ def load_mesh_file(path: Path, where: str) -> tuple[m.LocalMesh, NDArray[np.uint
         allowed = ", ".join(MESH_SUFFIXES)
         msg = f"{where} = {path.name!r}: unsupported model format; allowed: {allowed}"
         raise SceneError(msg)
+    from roslan.io.safe_read import MAX_MESH_BYTES, check_regular_file
+
+    check_regular_file(path, MAX_MESH_BYTES, SceneError)
     try:
         loaded: Any = trimesh.load(str(path), process=False)
     except Exception as err:  # trimesh raises many kinds on corrupt input
@@ -212,6 +218,11 @@ def load_mesh_file(path: Path, where: str) -> tuple[m.LocalMesh, NDArray[np.uint
         parts.append(part if np.array_equal(T, np.eye(4)) else m.transformed(part, T))
     if not all(np.isfinite(p.vertices).all() for p in parts):
         msg = f"{where} = {path.name!r}: vertices contain NaN or inf"
+        raise SceneError(msg)
+    from roslan.limits import MAX_COORD_M
+
+    if any(np.abs(p.vertices).max(initial=0.0) > MAX_COORD_M for p in parts):
+        msg = f"{where} = {path.name!r}: a vertex lies more than {MAX_COORD_M:g} m from the origin"
         raise SceneError(msg)
     return (parts[0] if len(parts) == 1 else m.merge(parts)), texture
 

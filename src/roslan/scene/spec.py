@@ -29,6 +29,7 @@ from typing import Annotated, Literal
 from pydantic import Field, model_validator
 
 from roslan.config.base import FiniteFloat, Pose, StrictModel, Vec3
+from roslan.limits import MAX_SIZE_M
 
 __all__ = [
     "BoxSpec",
@@ -45,7 +46,7 @@ __all__ = [
     "SunSpec",
 ]
 
-Pos = Annotated[FiniteFloat, Field(gt=0)]
+Pos = Annotated[FiniteFloat, Field(gt=0, le=MAX_SIZE_M)]
 Unit = Annotated[FiniteFloat, Field(ge=0, le=1)]
 Segments = Annotated[int, Field(ge=3, le=512)]
 Name = Annotated[str, Field(min_length=1, max_length=100, pattern=r"^[A-Za-z0-9_.\-]+$")]

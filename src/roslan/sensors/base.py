@@ -32,6 +32,7 @@ from numpy.typing import NDArray
 from pydantic import AfterValidator, Field, model_validator
 
 from roslan.config.base import FiniteFloat, Pose, StrictModel
+from roslan.limits import MAX_RATE_HZ
 
 if TYPE_CHECKING:
     from roslan.io.messages import MessageStore
@@ -80,7 +81,7 @@ class SensorConfig(StrictModel):
 
     type: str
     name: SensorName
-    rate: Annotated[FiniteFloat, Field(gt=0)]
+    rate: Annotated[FiniteFloat, Field(gt=0, le=MAX_RATE_HZ)]
     topic: TopicName
     frame_id: SensorName | None = None
     pose: Pose = Pose()

@@ -187,6 +187,14 @@ class CameraModel:
                 raise bad(
                     "resolution", [width, height], "must be two positive integers [width, height]"
                 )
+        from roslan.limits import MAX_FRAME_PIXELS
+
+        if int(width) * int(height) > MAX_FRAME_PIXELS:
+            raise bad(
+                "resolution",
+                [int(width), int(height)],
+                f"at most {MAX_FRAME_PIXELS} pixels (e.g. 8192x8192)",
+            )
         values = {"fx": fx, "fy": fy, "cx": cx, "cy": cy}
         for key, v in values.items():
             if (
@@ -709,7 +717,9 @@ class CameraIntrinsics(StrictModel):
     relative paths resolved against the config file's folder.
     """
 
-    resolution: tuple[Annotated[int, Field(ge=1)], Annotated[int, Field(ge=1)]] | None = None
+    resolution: (
+        tuple[Annotated[int, Field(ge=1, le=65536)], Annotated[int, Field(ge=1, le=65536)]] | None
+    ) = None
     fx: FiniteFloat | None = None
     fy: FiniteFloat | None = None
     cx: FiniteFloat | None = None

@@ -46,6 +46,7 @@ from roslan.events.sampling import (
 from roslan.io.background import BackgroundSink
 from roslan.io.images import write_png
 from roslan.io.messages import MessageStore
+from roslan.limits import MAX_RATE_HZ
 from roslan.sensors.base import (
     Message,
     SensorConfig,
@@ -131,9 +132,9 @@ class EventCameraConfig(SensorConfig, CameraIntrinsics):
     sampling: Literal["optical_flow", "brightness", "fixed"] = "optical_flow"
     adaptive_lambda: Positive = 0.5
     """px for optical_flow, log intensity for brightness."""
-    min_rate: Positive = 100.0
+    min_rate: Annotated[FiniteFloat, Field(gt=0, le=MAX_RATE_HZ)] = 100.0
     """Lowest render rate, Hz."""
-    max_rate: Positive = 500.0
+    max_rate: Annotated[FiniteFloat, Field(gt=0, le=MAX_RATE_HZ)] = 500.0
     """Highest render rate, Hz (``fixed``: always this rate). It caps ESIM's step: where
     ``lambda / max rate of change`` is shorter, the run is faster but interpolates over
     more than ``adaptive_lambda`` (``stats['capped']`` counts such steps)."""
@@ -146,7 +147,7 @@ class EventCameraConfig(SensorConfig, CameraIntrinsics):
     """APS frames on ``<topic>/image_raw`` at ``rate`` (default: the sensor has them)."""
     optic_flow: bool = False
     depthmap: bool = False
-    ground_truth_rate: Positive | None = None
+    ground_truth_rate: Annotated[FiniteFloat, Field(gt=0, le=MAX_RATE_HZ)] | None = None
     """Rate of optic_flow / depthmap, Hz (default ``rate``)."""
     write_txt: bool = True
     write_h5: bool = True

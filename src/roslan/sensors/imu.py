@@ -33,6 +33,7 @@ from roslan.config.base import FiniteFloat, Vec3
 from roslan.io.messages import MessageStore
 from roslan.io.packing import FixedLayout, Leaf, PackedBatch
 from roslan.io.text import write_columns
+from roslan.limits import MAX_RATE_HZ
 from roslan.sensors.base import (
     Message,
     SensorConfig,
@@ -59,7 +60,7 @@ class ImuConfig(SensorConfig):
 
     type: Literal["imu"] = "imu"
     needs_scene: ClassVar[bool] = False
-    rate: Annotated[FiniteFloat, Field(gt=0)] = 1000.0
+    rate: Annotated[FiniteFloat, Field(gt=0, le=MAX_RATE_HZ)] = 1000.0
     accelerometer_noise_density: NonNegative = 1.86e-3
     """m/s^2/sqrt(Hz)."""
     accelerometer_random_walk: NonNegative = 4.33e-4

@@ -8,6 +8,7 @@ from typing import Annotated, Any
 from pydantic import Field, field_validator, model_validator
 
 from roslan.config.base import FiniteFloat, Pose, StrictModel, Vec3
+from roslan.limits import MAX_DURATION_S, MAX_FLAP_HZ, MIN_SAMPLE_DT_S
 
 __all__ = ["Approach", "Flapping", "Initial", "Kappa", "TrajectoryConfig"]
 
@@ -15,14 +16,17 @@ PositiveFloat = Annotated[FiniteFloat, Field(gt=0)]
 NonNegativeFloat = Annotated[FiniteFloat, Field(ge=0)]
 
 
-class Kappa(StrictModel):
-    """Tau-coupling ratios of the five coupled gaps (tau_g = kappa * tau_z); each > 0."""
+Ratio = Annotated[FiniteFloat, Field(ge=1e-3)]
 
-    x: PositiveFloat = 0.4
-    y: PositiveFloat = 0.6
-    roll: PositiveFloat = 0.5
-    pitch: PositiveFloat = 0.5
-    yaw: PositiveFloat = 0.5
+
+class Kappa(StrictModel):
+    """Tau-coupling ratios of the five coupled gaps (tau_g = kappa * tau_z); each >= 0.001."""
+
+    x: Ratio = 0.4
+    y: Ratio = 0.6
+    roll: Ratio = 0.5
+    pitch: Ratio = 0.5
+    yaw: Ratio = 0.5
 
 
 class Initial(StrictModel):
@@ -58,7 +62,7 @@ class Flapping(StrictModel):
     """Flapping perturbation: heave (m) on height and pitch (rad) oscillation at ``frequency``
     (Hz), scaled by the remaining height fraction z(t)/z0 so it fades out at touchdown."""
 
-    frequency: NonNegativeFloat = 0.0
+    frequency: Annotated[FiniteFloat, Field(ge=0, le=MAX_FLAP_HZ)] = 0.0
     heave: NonNegativeFloat = 0.0
     pitch: NonNegativeFloat = 0.0
     phase: FiniteFloat = 0.0
@@ -71,13 +75,13 @@ class Flapping(StrictModel):
 class TrajectoryConfig(StrictModel):
     """Tau-theory landing: height gap closed with constant tau-dot ``k``, five coupled gaps."""
 
-    k: Annotated[FiniteFloat, Field(gt=0)] = 0.5
+    k: Annotated[FiniteFloat, Field(ge=1e-3)] = 0.5
     kappa: Kappa = Kappa()
     initial: Initial = Initial(position=(-8.0, 2.0, 4.6), rpy=(0.05, 0.15, 0.3), descent_rate=2.0)
     approach: Approach | None = None
     goal: Pose = Pose()
-    sample_dt: PositiveFloat = 0.1
-    hold: NonNegativeFloat = 0.0
+    sample_dt: Annotated[FiniteFloat, Field(ge=MIN_SAMPLE_DT_S, le=MAX_DURATION_S)] = 0.1
+    hold: Annotated[FiniteFloat, Field(ge=0, le=MAX_DURATION_S)] = 0.0
     flapping: Flapping = Flapping()
 
     @field_validator("k")

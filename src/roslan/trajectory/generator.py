@@ -72,6 +72,25 @@ class State:
         return np.concatenate([self.gaps, self.rates, self.accels], axis=1)
 
 
+def _check_duration(duration: float, sample_dt: float, T: float) -> None:
+    """Refuse a landing too long to simulate (README "Limits")."""
+    from roslan.errors import TrajectoryError
+    from roslan.limits import MAX_DURATION_S, MAX_TRAJECTORY_SAMPLES
+
+    if not math.isfinite(duration) or duration > MAX_DURATION_S:
+        msg = (
+            f"trajectory: touchdown time z0 / (k * descent rate) = {T:.4g} s plus hold gives "
+            f"{duration:.4g} s; at most {MAX_DURATION_S:g} s (raise k or the descent rate)"
+        )
+        raise TrajectoryError(msg)
+    if duration / sample_dt > MAX_TRAJECTORY_SAMPLES:
+        msg = (
+            f"trajectory.sample_dt = {sample_dt:g}: {duration:.4g} s / sample_dt is more than "
+            f"{MAX_TRAJECTORY_SAMPLES} samples; use a larger sample_dt"
+        )
+        raise TrajectoryError(msg)
+
+
 class Trajectory:
     """A validated tau-theory landing, evaluated in closed form.
 
@@ -116,6 +135,7 @@ class Trajectory:
         self.hold = float(c.hold)
         self.duration = self.T + self.hold
         """Touchdown time plus hold, s."""
+        _check_duration(self.duration, float(c.sample_dt), self.T)
         self.R_world_goal: F64 = rpy_to_matrix(np.asarray(c.goal.rpy))
         self.p_world_goal: F64 = np.asarray(c.goal.position, dtype=np.float64)
         self._q_world_goal: F64 = rpy_to_quat_xyzw(np.asarray(c.goal.rpy))
