@@ -179,7 +179,7 @@ def test_a_sensor_without_scene_stops_before_any_work(
     monkeypatch.setattr(run_mod, "_make_temp", lambda *a: started.append("tmp"))
     assert main(["simulate", str(job), "-o", str(tmp_path / "out")]) == 2
     err = capsys.readouterr().err
-    assert err.startswith("error: sensors[1] ('velo', type lidar) needs a scene")
+    assert err.startswith(f"error: {job}: sensors[1] ('velo', type lidar) needs a scene")
     assert "scene: warehouse" in err
     assert "simulating" not in err
     assert "roslan:" not in err

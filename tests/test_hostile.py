@@ -267,7 +267,9 @@ CORPUS: list[tuple[str, dict[str, str | bytes], list[str], tuple[str, ...]]] = [
     (
         "stereo-vs-camera",
         {
-            "job.yaml": SHORT + "sensors: [{type: stereo_camera, name: st, topic: /st, rate: 10}, "
+            "job.yaml": SHORT
+            + "scene: empty\n"
+            + "sensors: [{type: stereo_camera, name: st, topic: /st, rate: 10}, "
             "{type: camera, name: st_left, topic: /c, rate: 10}]\n"
         },
         SIM,
