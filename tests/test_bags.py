@@ -64,8 +64,12 @@ def test_fixed_layout_rejects_a_wrong_leaf_width() -> None:
         )
 
 
-def _write_stock_and_fast(tmp_path: Path, flavor: Flavor) -> tuple[bytes, bytes]:
-    """The same messages through roslan's writer and through stock rosbags."""
+def _write_stock_and_fast(
+    tmp_path: Path, flavor: Flavor, monkeypatch: pytest.MonkeyPatch
+) -> tuple[bytes, bytes]:
+    """The same messages through roslan's writer and through stock rosbags (ROS 2: roslan's
+    chunk compression off and rosbags' ``ros_distro`` name, the only intended differences)."""
+    monkeypatch.setattr("roslan.io.bag.ROS2_DISTRO", "rosbags")
     store = MessageStore(flavor)
     topics = [
         BagTopic("/a", "std_msgs/msg/Float64MultiArray", True),
@@ -89,7 +93,7 @@ def _write_stock_and_fast(tmp_path: Path, flavor: Flavor) -> tuple[bytes, bytes]
             )
     ours = tmp_path / f"ours_{flavor.value}"
     ours.mkdir()
-    w = MultiBagWriter(ours, [flavor.value], topics, compression="bz2")
+    w = MultiBagWriter(ours, [flavor.value], topics, compression="bz2", ros2_compression="none")
     for topic, _msgtype, stamp, msg in msgs:
         w.write(topic, stamp, lambda s, m=msg: m)
     w.close()
@@ -135,8 +139,10 @@ def _write_stock_and_fast(tmp_path: Path, flavor: Flavor) -> tuple[bytes, bytes]
 
 
 @pytest.mark.parametrize("flavor", list(Flavor))
-def test_fast_writers_byte_identical_to_rosbags(tmp_path: Path, flavor: Flavor) -> None:
-    ours, stock = _write_stock_and_fast(tmp_path, flavor)
+def test_fast_writers_byte_identical_to_rosbags(
+    tmp_path: Path, flavor: Flavor, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    ours, stock = _write_stock_and_fast(tmp_path, flavor, monkeypatch)
     assert ours == stock
     if flavor is Flavor.ROS1:
         assert ours.count(b"op=\x05") > 1  # several (bz2) chunk records
@@ -303,3 +309,71 @@ def test_ros1_native_reader_every_compression(tmp_path: Path, compression: str) 
     assert proc.returncode == 0, proc.stderr
     rows = [tuple(map(int, line.split())) for line in proc.stdout.splitlines()]
     assert rows == [(10**18 + i, len(t)) for i, t in enumerate(texts)]
+
+
+@pytest.mark.parametrize("compression", ["zstd", "lz4", "none"])
+def test_ros2_chunk_compression_read_by_the_mcap_library(tmp_path: Path, compression: str) -> None:
+    """Every MCAP chunk carries the chosen compression; the reference ``mcap`` library (not
+    rosbags, which wrote it) decodes the same message bytes; metadata.yaml has what rosbag2
+    expects for storage-level compression and names the distro of the definitions."""
+    import yaml
+    from mcap.reader import make_reader
+
+    store = MessageStore(Flavor.ROS2)
+    topics = [BagTopic("/s", "std_msgs/msg/String"), BagTopic("/f", "std_msgs/msg/Float64")]
+    w = MultiBagWriter(tmp_path, ["ros2"], topics, ros2_compression=compression)
+    rng = np.random.default_rng(3)
+    sent = []
+    for i in range(9000):  # > 1 MiB: several chunks
+        if i % 2:
+            text = "landing " * int(rng.integers(0, 60))
+            w.write("/s", 10**18 + i, lambda s, t=text: s.new("std_msgs/msg/String", data=t))
+            sent.append(
+                (
+                    "/s",
+                    10**18 + i,
+                    store.serialize(
+                        store.new("std_msgs/msg/String", data=text), "std_msgs/msg/String"
+                    ),
+                )
+            )
+        else:
+            v = float(rng.normal())
+            w.write("/f", 10**18 + i, lambda s, v=v: s.new("std_msgs/msg/Float64", data=v))
+            sent.append(
+                (
+                    "/f",
+                    10**18 + i,
+                    store.serialize(
+                        store.new("std_msgs/msg/Float64", data=v), "std_msgs/msg/Float64"
+                    ),
+                )
+            )
+    w.close()
+    bag = tmp_path / "landing_ros2"
+    with (bag / "landing_ros2.mcap").open("rb") as fh:
+        reader = make_reader(fh)
+        summary = reader.get_summary()
+        assert summary is not None
+        chunks = summary.chunk_indexes
+        assert len(chunks) > 1
+        expected = "" if compression == "none" else compression
+        assert {c.compression for c in chunks} == {expected}
+        if compression != "none":
+            assert sum(c.compressed_size for c in chunks) < 0.8 * sum(
+                c.uncompressed_size for c in chunks
+            )
+        got = [(ch.topic, m.log_time, bytes(m.data)) for _, ch, m in reader.iter_messages()]
+        meta = {r.name: dict(r.metadata) for r in reader.iter_metadata()}
+    assert got == sent
+    assert "ros_distro: humble" in meta["rosbag2"]["serialized_metadata"]
+    info = yaml.safe_load((bag / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
+    assert info["ros_distro"] == "humble"
+    assert info["storage_identifier"] == "mcap"
+    # storage-level compression: rosbag2's own file/message compression fields stay empty
+    assert info["compression_format"] == ""
+    assert info["compression_mode"] == ""
+    assert info["message_count"] == len(sent)
+    # and rosbags still reads it
+    with AnyReader([bag]) as r:
+        assert [(c.topic, t, bytes(raw)) for c, t, raw in r.messages()] == sent

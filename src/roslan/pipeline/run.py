@@ -532,7 +532,9 @@ def run_simulation(
                 base_dir=base_dir,
                 scene=scene,
             )
-            writers = MultiBagWriter(tmp, fmts, bag_topics, config.output.compression)
+            writers = MultiBagWriter(
+                tmp, fmts, bag_topics, config.output.compression, config.output.ros2_compression
+            )
             t_stream = time.perf_counter()
             # merge order: ground truth 0, sensor i -> i + 1 (ties resolve alike in workers)
             streams = [
