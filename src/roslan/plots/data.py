@@ -361,6 +361,7 @@ class EventSource:
         self.width = width
         self.height = height
         self._h5: Any = None
+        self._t_scale = 1
         self._fh: TextIO | None = None
         self._buf_t: I64 = np.empty(0, np.int64)
         self._buf_xyp: NDArray[np.int64] = np.empty((0, 3), np.int64)
@@ -373,6 +374,10 @@ class EventSource:
                 self._h5 = h5py.File(path, "r")
                 g = self._h5["events"]
                 self._t, self._x, self._y, self._p = g["t"], g["x"], g["y"], g["p"]
+                # exact ns when present, else DSEC's microseconds
+                self._t_scale = 1 if "t_ns" in g else 1000
+                if "t_ns" in g:
+                    self._t = g["t_ns"]
             except (OSError, KeyError) as err:
                 msg = f"{path}: cannot read events/t, events/x, events/y, events/p: {err}"
                 raise PlotError(msg) from err
@@ -401,7 +406,7 @@ class EventSource:
         lo, hi = 0, int(self._t.shape[0])
         while lo < hi:
             mid = (lo + hi) // 2
-            if int(self._t[mid]) < t_ns:
+            if int(self._t[mid]) * self._t_scale < t_ns:
                 lo = mid + 1
             else:
                 hi = mid

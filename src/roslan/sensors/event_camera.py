@@ -367,7 +367,9 @@ class EventCamera:
         if c.write_txt:
             self._writers.append(EventTextWriter(ctx.path(f"{stem}.txt")))
         if c.write_h5:
-            self._writers.append(EventH5Writer(ctx.path(f"{stem}.h5"), W, H))
+            self._writers.append(
+                EventH5Writer(ctx.path(f"{stem}.h5"), W, H, t_offset_ns=ctx.start_time_ns)
+            )
         if c.has_aps:
             self._images_fh = ctx.path(f"{c.name}/images.txt").open(
                 "w", encoding="utf-8", newline="\n"
