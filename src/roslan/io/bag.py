@@ -36,6 +36,7 @@ from rosbags.rosbag2.storage_mcap import McapWriter as _McapWriter
 
 from roslan.errors import OutputError
 from roslan.io.messages import Flavor, MessageStore
+from roslan.io.ros1_msgdefs import ros1_full_text
 
 __all__ = [
     "BAG_NAMES",
@@ -303,10 +304,13 @@ class Ros1BagWriter(_BagWriter):
 
     def add_topics(self, topics: Sequence[BagTopic]) -> None:
         for t in topics:
+            # rosbags' definition drops comments; store ROS 1's full text (same md5 sum)
+            stripped, md5sum = self.store.typestore.generate_msgdef(t.msgtype)
             self._conns[t.topic] = self._writer.add_connection(
                 t.topic,
                 t.msgtype,
-                typestore=self.store.typestore,
+                msgdef=ros1_full_text(t.msgtype) or stripped,
+                md5sum=md5sum,
                 callerid="/roslan",
                 latching=1 if t.latched else None,
             )
