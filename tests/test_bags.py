@@ -18,8 +18,8 @@ from rosbags.rosbag2 import Writer as StockRos2Writer
 from pipeline_helpers import short_config
 from roslan.io.bag import BagTopic, MultiBagWriter, _ros2_qos
 from roslan.io.messages import Flavor, MessageStore
-from roslan.io.ros1_msgdefs import ros1_full_text
 from roslan.io.packing import FixedLayout
+from roslan.io.ros1_msgdefs import ros1_full_text
 from roslan.sensors.ground_truth import TAU_LAYOUT, _Layouts
 from roslan.simulate import run_simulation
 from roslan.trajectory.generator import COMPONENTS

@@ -529,8 +529,24 @@ ROS1_MSG_TEXTS: dict[str, str] = {
 
 
 _PRIMITIVES = frozenset(
-    "bool byte char int8 uint8 int16 uint16 int32 uint32 int64 uint64 float32 float64 "
-    "string time duration".split()
+    [
+        "bool",
+        "byte",
+        "char",
+        "int8",
+        "uint8",
+        "int16",
+        "uint16",
+        "int32",
+        "uint32",
+        "int64",
+        "uint64",
+        "float32",
+        "float64",
+        "string",
+        "time",
+        "duration",
+    ]
 )
 _SEPARATOR = "=" * 80 + "\n"
 
