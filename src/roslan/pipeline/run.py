@@ -654,6 +654,11 @@ def run_simulation(
             (tmp / "PLAYBACK.md").write_text(
                 _playback(traj.duration, wall, fmts, counts), encoding="utf-8"
             )
+            from roslan.io.readme import outdir_readme
+            from roslan.sensors.camera_model import ecd_root_camera
+
+            readme = outdir_readme(tmp, ecd_root_camera(config.sensors))
+            (tmp / "README.md").write_text(readme, encoding="utf-8")
             _write_json(tmp / RUN_FILE, run)  # last: its presence marks a complete folder
             _finalize(tmp, outdir)
     except BaseException:

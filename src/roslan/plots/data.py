@@ -316,11 +316,23 @@ def _read_listing(listing: Path, outdir: Path) -> ImageSequence:
     t_ns = seconds_to_ns(np.asarray(times))
     order = np.argsort(t_ns, kind="stable")
     if listing.name == "images.txt":
-        # <sensor>/images.txt names its sensor; the top-level one is the dataset's "images"
-        name = "images" if listing.parent == outdir else base.name
+        # <sensor>/images.txt names its sensor; the top-level one is the root camera's
+        # (first event camera, else first camera), "images" without run.json
+        name = (_root_camera_name(outdir) or "images") if listing.parent == outdir else base.name
     else:
         name = listing.stem.removeprefix("images_")
     return ImageSequence(name=name, t_ns=t_ns[order], paths=tuple(paths[i] for i in order))
+
+
+def _root_camera_name(outdir: Path) -> str | None:
+    """The camera whose images.txt is at the OUTDIR root (run.json's first event camera,
+    else its first camera; a stereo camera's left eye)."""
+    for types in (("event_camera",), ("camera", "stereo_camera")):
+        cfgs = sensor_configs(outdir, types)
+        if cfgs:
+            name = str(cfgs[0].get("name"))
+            return f"{name}_left" if cfgs[0].get("type") == "stereo_camera" else name
+    return None
 
 
 def find_images(outdir: Path, prefer: Sequence[str] = ()) -> list[ImageSequence]:
