@@ -93,7 +93,7 @@ _PATTERNS: tuple[tuple[str, str], ...] = (
 
 def outdir_readme(outdir: Path, root_camera: str | None) -> str:
     """The README text for the files now in ``outdir``."""
-    names = {p.name for p in outdir.iterdir() if not p.name.startswith(".")}
+    names = {p.name for p in outdir.iterdir() if not p.name.startswith(".")} | {"run.json"}
     lines = [
         "# roslan simulation output",
         "",
