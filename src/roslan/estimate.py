@@ -21,13 +21,22 @@ from typing import Any
 from roslan.config.sim import SimConfig
 from roslan.errors import OutputError
 
-__all__ = ["RunEstimate", "check_free_space", "estimate_run", "format_bytes", "format_seconds"]
+__all__ = [
+    "RunEstimate",
+    "batch_seconds",
+    "check_free_space",
+    "estimate_run",
+    "format_bytes",
+    "format_seconds",
+]
 
 # ---- measured on the default job (warehouse, DAVIS346 + 640x480 camera + HDL-32E)
-EVENTS_PER_PIXEL_S = {"empty": 6.0, None: 2.0}
-"""Events per pixel per second of trajectory; scenes not listed: :data:`EVENTS_DEFAULT`."""
-EVENTS_DEFAULT = 24.0
-LIDAR_HIT_FRACTION = {"empty": 0.7, None: 0.0}
+EVENTS_PER_PIXEL_S = {"warehouse": 20.0, "refinery": 3.5, "empty": 6.0, None: 2.0}
+"""Events per pixel per second of trajectory (DAVIS346, realistic preset; the paper
+dataset: warehouse 10-13 M, refinery 1.5-2.5 M events per 7 s landing); scene files:
+:data:`EVENTS_DEFAULT` (textured like the warehouse)."""
+EVENTS_DEFAULT = 20.0
+LIDAR_HIT_FRACTION = {"refinery": 0.8, "empty": 0.7, None: 0.0}
 """Fraction of LiDAR beams that return; enclosed scenes (not listed): 1.0."""
 
 # compression ratio (compressed / raw) of each kind of payload per codec
@@ -46,16 +55,19 @@ _NPZ_POINT = 16.5  # bytes per point in a compressed .npz scan
 _POINT = 22.0  # bytes per PointCloud2 point (x y z intensity ring time)
 _GT_TICK = 1190.0  # bytes of /tf, pose, odometry, accel, tau per ground-truth tick
 _FIXED = 0.7e6  # overview.png, trajectory.png, calib/, run.json...
-_SCENE_EXPORT = {"empty": 0.05e6, None: 0.0}
+_SCENE_EXPORT = {"warehouse": 7.0e6, "refinery": 3.0e6, "empty": 0.05e6, None: 0.0}
 _SCENE_DEFAULT = 7.0e6
 
 # CPU seconds per unit of work (2-core machine of docs/performance.md)
-_CPU_PER_MPIX_FRAME = 0.43  # a rendered (software, distorted) camera frame, per megapixel
-_CPU_PER_MPIX_SAMPLE = 0.21  # an event camera render + pixel update, per megapixel
-_CPU_PER_EVENT = 0.3e-6  # pixel model, packing and files, per event
-_CPU_PER_MRAY = 2.4  # ray casting, per million rays
-_CPU_PER_MB = 0.006  # serializing, compressing and writing, per MB written
-_CPU_FIXED = 3.0  # start-up, scene, overview
+_CPU_PER_MPIX_FRAME = 0.28  # a rendered (software, distorted) camera frame, per megapixel
+_CPU_PER_MPIX_SAMPLE = 0.045  # an event camera render + pixel update, per megapixel
+_CPU_PER_EVENT = 0.8e-6  # pixel model, packing and files, per event
+_CPU_PER_MRAY = 1.5  # ray casting, per million rays
+_CPU_PER_MB = 0.004  # serializing, compressing and writing, per MB written
+_CPU_FIXED = 2.0  # start-up, scene, overview
+PARALLEL_EFFICIENCY = 0.7
+"""Measured CPU use per core a run or a batch gets (139 % on 2 cores for one run; 185 %
+for the paper dataset on 2 workers)."""
 
 
 @dataclass
@@ -64,11 +76,13 @@ class RunEstimate:
 
     bytes: float
     seconds: float
+    cpu: float
+    """CPU seconds (a batch's wall time is their sum over its cores)."""
     parts: dict[str, float] = field(default_factory=dict)
 
 
 def _scene_key(scene: Any) -> str | None:
-    return scene if scene in (None, "empty") else "other"
+    return scene if scene in EVENTS_PER_PIXEL_S else "other"
 
 
 def estimate_run(config: SimConfig, formats: tuple[str, ...] | None = None) -> RunEstimate:
@@ -157,8 +171,22 @@ def estimate_run(config: SimConfig, formats: tuple[str, ...] | None = None) -> R
         for s in config.sensors
     )
     cores = max(1, min(os.cpu_count() or 1, 1 + heavy))  # one worker per heavy sensor
-    seconds = cpu / cores
-    return RunEstimate(bytes=total, seconds=seconds, parts=parts)
+    seconds = cpu / max(1.0, cores * PARALLEL_EFFICIENCY)
+    return RunEstimate(bytes=total, seconds=seconds, cpu=cpu, parts=parts)
+
+
+def batch_seconds(estimates: list[RunEstimate], workers: int | None) -> float:
+    """Wall time of running ``estimates`` on ``workers`` local processes (None: one per
+    core; 0 or 1: one after the other)."""
+    if not estimates:
+        return 0.0
+    if workers is not None and workers <= 1:
+        return sum(e.seconds for e in estimates)
+    cores = os.cpu_count() or 1
+    par = min(cores, workers or cores, len(estimates))
+    if par <= 1:
+        return sum(e.seconds for e in estimates)
+    return sum(e.cpu for e in estimates) / (par * 0.93)
 
 
 def _resolution(s: Any) -> tuple[int, int]:

@@ -434,6 +434,9 @@ def run_simulation(
 
     # ---- 1. validate before writing anything
     _check_outdir(outdir, overwrite)
+    from roslan.estimate import check_free_space, estimate_run
+
+    check_free_space(outdir.parent, estimate_run(config, fmts).bytes, "this run")
     traj = Trajectory(config.trajectory)
     sensors: list[Sensor] = []
     for i, sc in enumerate(config.sensors):
