@@ -31,7 +31,7 @@ __all__ = [
 ]
 
 # ---- measured on the default job (warehouse, DAVIS346 + 640x480 camera + HDL-32E)
-EVENTS_PER_PIXEL_S = {"warehouse": 20.0, "refinery": 3.5, "empty": 6.0, None: 2.0}
+EVENTS_PER_PIXEL_S = {"warehouse": 20.0, "refinery": 3.5, "empty": 20.0, None: 2.0}
 """Events per pixel per second of trajectory (DAVIS346, realistic preset; the paper
 dataset: warehouse 10-13 M, refinery 1.5-2.5 M events per 7 s landing); scene files:
 :data:`EVENTS_DEFAULT` (textured like the warehouse)."""
@@ -64,7 +64,7 @@ _CPU_PER_MPIX_SAMPLE = 0.045  # an event camera render + pixel update, per megap
 _CPU_PER_EVENT = 0.8e-6  # pixel model, packing and files, per event
 _CPU_PER_MRAY = 1.5  # ray casting, per million rays
 _CPU_PER_MB = 0.004  # serializing, compressing and writing, per MB written
-_CPU_FIXED = 2.0  # start-up, scene, overview
+_CPU_FIXED = 4.0  # start-up (worker processes), scene, overview
 PARALLEL_EFFICIENCY = 0.7
 """Measured CPU use per core a run or a batch gets (139 % on 2 cores for one run; 185 %
 for the paper dataset on 2 workers)."""

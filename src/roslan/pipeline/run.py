@@ -436,7 +436,7 @@ def run_simulation(
     _check_outdir(outdir, overwrite)
     from roslan.estimate import check_free_space, estimate_run
 
-    check_free_space(outdir.parent, estimate_run(config, fmts).bytes, "this run")
+    check_free_space(outdir, estimate_run(config, fmts).bytes, "this run")
     traj = Trajectory(config.trajectory)
     sensors: list[Sensor] = []
     for i, sc in enumerate(config.sensors):
