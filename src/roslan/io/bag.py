@@ -168,7 +168,10 @@ class _FastRos1Writer(_Ros1Writer):
 
 def _mcap_compressor(name: str) -> Any:
     if name == "zstd":
-        from backports import zstd  # rosbags' own dependency (compression.zstd on 3.14)
+        try:  # the standard library's from Python 3.14; before, rosbags' own dependency
+            from compression import zstd  # type: ignore[import-not-found, unused-ignore]
+        except ImportError:
+            from backports import zstd
 
         return lambda data: zstd.compress(data, level=3)
     if name == "lz4":
