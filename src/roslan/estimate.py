@@ -90,7 +90,7 @@ def estimate_run(config: SimConfig, formats: tuple[str, ...] | None = None) -> R
     from roslan.trajectory import Trajectory
 
     fmts = tuple(formats or config.output.formats)
-    duration = float(Trajectory(config.trajectory).duration)
+    duration = float(Trajectory(config.trajectory, warn=False).duration)
     codec = {"ros1": config.output.compression, "ros2": config.output.ros2_compression}
     key = _scene_key(config.scene)
     ev_rate = EVENTS_PER_PIXEL_S.get(key, EVENTS_DEFAULT) if key != "other" else EVENTS_DEFAULT
