@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -109,3 +110,29 @@ def test_root_holds_one_sensor_and_every_other_camera_its_own_folder(run: Path) 
     _check_camera_folder(run / "pair_left", (40, 30))
     _check_camera_folder(run / "pair_right", (40, 30))
     assert not list(run.glob("images_*.txt"))
+
+
+@pytest.mark.parametrize("with_run_json", [True, False])
+def test_overview_inputs_follow_the_root_sensor(
+    run: Path, tmp_path: Path, with_run_json: bool
+) -> None:
+    """The overview and preview show the frame camera in the camera panel and the event
+    camera's APS frames under the events, with run.json and without it (the overview is
+    drawn before run.json is written)."""
+    from roslan.plots.media import RunMedia
+
+    folder = tmp_path / "copy"
+    shutil.copytree(run, folder, ignore=shutil.ignore_patterns("landing*"))
+    if not with_run_json:
+        (folder / "run.json").unlink()
+    media = RunMedia.open(folder, "test")
+    try:
+        assert media.camera is not None
+        assert media.aps is not None
+        has_dvs = (run / "events.txt").is_file()
+        cam_size = _size(media.camera.paths[0])
+        aps_size = _size(media.aps.paths[0])
+        assert cam_size == (64, 48)
+        assert aps_size == ((48, 36) if has_dvs else (64, 48))
+    finally:
+        media.close()
