@@ -19,6 +19,7 @@ from pipeline_helpers import short_config
 from roslan.io.bag import BagTopic, MultiBagWriter, _ros2_qos
 from roslan.io.messages import Flavor, MessageStore
 from roslan.io.packing import FixedLayout
+from roslan.io.ros1_msgdefs import ros1_full_text
 from roslan.sensors.ground_truth import TAU_LAYOUT, _Layouts
 from roslan.simulate import run_simulation
 from roslan.trajectory.generator import COMPONENTS
@@ -64,8 +65,12 @@ def test_fixed_layout_rejects_a_wrong_leaf_width() -> None:
         )
 
 
-def _write_stock_and_fast(tmp_path: Path, flavor: Flavor) -> tuple[bytes, bytes]:
-    """The same messages through roslan's writer and through stock rosbags."""
+def _write_stock_and_fast(
+    tmp_path: Path, flavor: Flavor, monkeypatch: pytest.MonkeyPatch
+) -> tuple[bytes, bytes]:
+    """The same messages through roslan's writer and through stock rosbags (ROS 2: roslan's
+    chunk compression off and rosbags' ``ros_distro`` name, the only intended differences)."""
+    monkeypatch.setattr("roslan.io.bag.ROS2_DISTRO", "rosbags")
     store = MessageStore(flavor)
     topics = [
         BagTopic("/a", "std_msgs/msg/Float64MultiArray", True),
@@ -89,7 +94,7 @@ def _write_stock_and_fast(tmp_path: Path, flavor: Flavor) -> tuple[bytes, bytes]
             )
     ours = tmp_path / f"ours_{flavor.value}"
     ours.mkdir()
-    w = MultiBagWriter(ours, [flavor.value], topics, compression="bz2")
+    w = MultiBagWriter(ours, [flavor.value], topics, compression="bz2", ros2_compression="none")
     for topic, _msgtype, stamp, msg in msgs:
         w.write(topic, stamp, lambda s, m=msg: m)
     w.close()
@@ -104,7 +109,8 @@ def _write_stock_and_fast(tmp_path: Path, flavor: Flavor) -> tuple[bytes, bytes]
             t.topic: sw.add_connection(
                 t.topic,
                 t.msgtype,
-                typestore=store.typestore,
+                msgdef=ros1_full_text(t.msgtype),  # ROS 1's text (stock rosbags strips it)
+                md5sum=store.typestore.generate_msgdef(t.msgtype)[1],
                 callerid="/roslan",
                 latching=1 if t.latched else None,
             )
@@ -135,8 +141,10 @@ def _write_stock_and_fast(tmp_path: Path, flavor: Flavor) -> tuple[bytes, bytes]
 
 
 @pytest.mark.parametrize("flavor", list(Flavor))
-def test_fast_writers_byte_identical_to_rosbags(tmp_path: Path, flavor: Flavor) -> None:
-    ours, stock = _write_stock_and_fast(tmp_path, flavor)
+def test_fast_writers_byte_identical_to_rosbags(
+    tmp_path: Path, flavor: Flavor, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    ours, stock = _write_stock_and_fast(tmp_path, flavor, monkeypatch)
     assert ours == stock
     if flavor is Flavor.ROS1:
         assert ours.count(b"op=\x05") > 1  # several (bz2) chunk records
@@ -303,3 +311,196 @@ def test_ros1_native_reader_every_compression(tmp_path: Path, compression: str) 
     assert proc.returncode == 0, proc.stderr
     rows = [tuple(map(int, line.split())) for line in proc.stdout.splitlines()]
     assert rows == [(10**18 + i, len(t)) for i, t in enumerate(texts)]
+
+
+@pytest.mark.parametrize("compression", ["zstd", "lz4", "none"])
+def test_ros2_chunk_compression_read_by_the_mcap_library(tmp_path: Path, compression: str) -> None:
+    """Every MCAP chunk carries the chosen compression; the reference ``mcap`` library (not
+    rosbags, which wrote it) decodes the same message bytes; metadata.yaml has what rosbag2
+    expects for storage-level compression and names the distro of the definitions."""
+    import yaml
+    from mcap.reader import make_reader
+
+    store = MessageStore(Flavor.ROS2)
+    topics = [BagTopic("/s", "std_msgs/msg/String"), BagTopic("/f", "std_msgs/msg/Float64")]
+    w = MultiBagWriter(tmp_path, ["ros2"], topics, ros2_compression=compression)
+    rng = np.random.default_rng(3)
+    sent = []
+    for i in range(9000):  # > 1 MiB: several chunks
+        if i % 2:
+            text = "landing " * int(rng.integers(0, 60))
+            w.write("/s", 10**18 + i, lambda s, t=text: s.new("std_msgs/msg/String", data=t))
+            sent.append(
+                (
+                    "/s",
+                    10**18 + i,
+                    store.serialize(
+                        store.new("std_msgs/msg/String", data=text), "std_msgs/msg/String"
+                    ),
+                )
+            )
+        else:
+            v = float(rng.normal())
+            w.write("/f", 10**18 + i, lambda s, v=v: s.new("std_msgs/msg/Float64", data=v))
+            sent.append(
+                (
+                    "/f",
+                    10**18 + i,
+                    store.serialize(
+                        store.new("std_msgs/msg/Float64", data=v), "std_msgs/msg/Float64"
+                    ),
+                )
+            )
+    w.close()
+    bag = tmp_path / "landing_ros2"
+    with (bag / "landing_ros2.mcap").open("rb") as fh:
+        reader = make_reader(fh)
+        summary = reader.get_summary()
+        assert summary is not None
+        chunks = summary.chunk_indexes
+        assert len(chunks) > 1
+        expected = "" if compression == "none" else compression
+        assert {c.compression for c in chunks} == {expected}
+        if compression != "none":
+            assert sum(c.compressed_size for c in chunks) < 0.8 * sum(
+                c.uncompressed_size for c in chunks
+            )
+        got = [(ch.topic, m.log_time, bytes(m.data)) for _, ch, m in reader.iter_messages()]
+        meta = {r.name: dict(r.metadata) for r in reader.iter_metadata()}
+    assert got == sent
+    assert "ros_distro: humble" in meta["rosbag2"]["serialized_metadata"]
+    info = yaml.safe_load((bag / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
+    assert info["ros_distro"] == "humble"
+    assert info["storage_identifier"] == "mcap"
+    # storage-level compression: rosbag2's own file/message compression fields stay empty
+    assert info["compression_format"] == ""
+    assert info["compression_mode"] == ""
+    assert info["message_count"] == len(sent)
+    # and rosbags still reads it
+    with AnyReader([bag]) as r:
+        assert [(c.topic, t, bytes(raw)) for c, t, raw in r.messages()] == sent
+
+
+def _debian_python() -> str:
+    py = shutil.which("python3", path="/usr/bin")
+    probe = subprocess.run([py or "/usr/bin/python3", "-c", "import rosbag"], capture_output=True)
+    if py is None or probe.returncode != 0:
+        pytest.skip("Debian's python3-rosbag is not installed for /usr/bin/python3")
+    return py
+
+
+PUBLISHED_ROS1_TYPES = sorted(
+    {
+        "dvs_msgs/msg/EventArray",
+        "geometry_msgs/msg/AccelStamped",
+        "geometry_msgs/msg/PoseStamped",
+        "nav_msgs/msg/Odometry",
+        "sensor_msgs/msg/CameraInfo",
+        "sensor_msgs/msg/Image",
+        "sensor_msgs/msg/Imu",
+        "sensor_msgs/msg/LaserScan",
+        "sensor_msgs/msg/PointCloud2",
+        "sensor_msgs/msg/Range",
+        "std_msgs/msg/Float64MultiArray",
+        "tf2_msgs/msg/TFMessage",
+    }
+)
+
+
+@pytest.mark.ros1
+def test_ros1_definitions_are_the_installed_ros_texts(tmp_path: Path) -> None:
+    """Each stored definition and md5 sum equal what ROS 1's genpy generated for the
+    installed package (``_full_text``, ``_md5sum``); dvs_msgs (no Debian package) keeps the
+    md5 sum rpg_dvs_ros publishes."""
+    from roslan.io.ros1_msgdefs import ros1_full_text
+
+    py = _debian_python()
+    script = (
+        "import importlib, json, sys\n"
+        "out = {}\n"
+        "for name in sys.argv[1:]:\n"
+        "    pkg, _, typ = name.split('/')\n"
+        "    try:\n"
+        "        cls = getattr(importlib.import_module(pkg + '.msg'), typ)\n"
+        "    except ImportError:\n"
+        "        continue\n"
+        "    out[name] = [cls._full_text, cls._md5sum]\n"
+        "print(json.dumps(out))\n"
+    )
+    proc = subprocess.run(
+        [py, "-c", script, *PUBLISHED_ROS1_TYPES], capture_output=True, text=True, timeout=60
+    )
+    assert proc.returncode == 0, proc.stderr
+    installed = __import__("json").loads(proc.stdout)
+    assert "sensor_msgs/msg/Imu" in installed  # python3-sensor-msgs is there with rosbag
+    store = MessageStore(Flavor.ROS1)
+    for name in PUBLISHED_ROS1_TYPES:
+        text = ros1_full_text(name)
+        assert text is not None, name
+        md5 = store.typestore.generate_msgdef(name)[1]
+        if name in installed:
+            assert (text, md5) == tuple(installed[name]), name
+    assert store.typestore.generate_msgdef("dvs_msgs/msg/EventArray")[1] == (
+        "5e8beee5a6c107e504c2e78903c224b8"
+    )
+    assert "\nMSG: std_msgs/Header\n" in (ros1_full_text("dvs_msgs/msg/EventArray") or "")
+
+
+@pytest.mark.ros1
+def test_rosbag_check_reports_no_migrations(tmp_path: Path) -> None:
+    """``rosbag check`` (ROS 1's own tool) on a bag with every message type roslan
+    publishes whose package is installed: no migration ("does not need any migrations",
+    what a bag written by ROS's own ``rosbag.Bag.write`` reports)."""
+    py = _debian_python()
+    has_dvs = subprocess.run([py, "-c", "import dvs_msgs.msg"], capture_output=True)
+    types = [t for t in PUBLISHED_ROS1_TYPES if has_dvs.returncode == 0 or not t.startswith("dvs_")]
+    assert len(types) >= len(PUBLISHED_ROS1_TYPES) - 1
+    topics = [BagTopic(f"/t{i}", name) for i, name in enumerate(types)]
+    w = MultiBagWriter(tmp_path, ["ros1"], topics)
+    for i, name in enumerate(types):
+        w.write(f"/t{i}", 10**18 + i, lambda s, n=name: s.new(n, **_defaults(s, n)))
+    w.close()
+    check = (
+        "import sys, rosbag.migration as m\n"
+        "mm = m.MessageMigrator([], plugins=False)\n"
+        "print(len(m.checkbag(mm, sys.argv[1])))\n"
+    )
+    proc = subprocess.run(
+        [py, "-c", check, str(tmp_path / "landing.bag")], capture_output=True, text=True, timeout=60
+    )
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.split() == ["0"], proc.stdout
+    cli = shutil.which("rosbag", path="/usr/bin")
+    if cli is not None:
+        out = subprocess.run(
+            [cli, "check", str(tmp_path / "landing.bag")], capture_output=True, text=True
+        )
+        assert "does not need any migrations" in out.stdout, out.stdout + out.stderr
+
+
+def _defaults(store: MessageStore, msgtype: str) -> dict[str, object]:
+    """Fields of a default message (zeros, empty arrays, headers at stamp 1 s)."""
+    from rosbags.interfaces import Nodetype
+
+    out: dict[str, object] = {}
+    for fname, (kind, desc) in store.typestore.fielddefs[msgtype][1]:
+        if kind == Nodetype.NAME:
+            sub = desc if isinstance(desc, str) else desc[0]
+            if sub == "std_msgs/msg/Header":
+                out[fname] = store.header(10**9, "f")
+            elif sub == "builtin_interfaces/msg/Time":
+                out[fname] = store.time(10**9)
+            else:
+                out[fname] = store.new(sub, **_defaults(store, sub))
+        elif kind == Nodetype.BASE:
+            base = desc[0]
+            out[fname] = "" if base == "string" else False if base == "bool" else 0
+        elif kind == Nodetype.ARRAY:
+            out[fname] = np.zeros(desc[1], dtype=np.float64)  # covariances, K, R, P
+        else:  # sequence
+            sub_kind, sub_desc = desc[0]
+            if sub_kind == Nodetype.BASE and sub_desc[0] != "string":
+                out[fname] = np.zeros(0, dtype=np.dtype(sub_desc[0]))
+            else:
+                out[fname] = []
+    return out

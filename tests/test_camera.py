@@ -143,9 +143,10 @@ def test_png_files_are_rgb_whatever_the_encoding(tmp_path: Path) -> None:
     run_simulation(cfg, tmp_path / "out", quiet=True, overview=False)
     from PIL import Image
 
-    with Image.open(tmp_path / "out/images/a/00000002.png") as im:
+    # Event Camera Dataset layout: the first camera at the root, the other in b/
+    with Image.open(tmp_path / "out/images/00000002.png") as im:
         a = np.asarray(im)
-    with Image.open(tmp_path / "out/images/b/00000002.png") as im:
+    with Image.open(tmp_path / "out/b/images/00000002.png") as im:
         b = np.asarray(im)
     assert a.shape == (48, 64, 3)
     assert a[..., 0].mean() > 3 * a[..., 2].mean() + 20  # red, seen as red
@@ -155,15 +156,18 @@ def test_png_files_are_rgb_whatever_the_encoding(tmp_path: Path) -> None:
 
 
 def test_dataset_files_and_pngs(run: Path) -> None:
-    lines = (run / "images_c_rgb.txt").read_text().splitlines()
+    # the first camera (c_rgb) at the OUTDIR root, every other one in <name>/
+    lines = (run / "images.txt").read_text().splitlines()
     assert len(lines) == _n_frames(10.0)
-    assert lines[1].startswith("0.100000000 images/c_rgb/00000001.png")
-    png = cv2.imread(str(run / "images/c_rgb/00000003.png"))[..., ::-1]
+    assert lines[1] == "0.100000000 images/00000001.png"
+    png = cv2.imread(str(run / "images/00000003.png"))[..., ::-1]
     msg = _read(run / "landing.bag", "/c_rgb/image_raw")[3]
     np.testing.assert_array_equal(png, msg.data.reshape(48, 64, 3))
     # a PNG file is RGB whatever the topic's encoding: the bgr8 camera's file is the same
     # picture (both cameras sit at the same pose)
-    png_bgr = cv2.imread(str(run / "images/c_bgr/00000003.png"))[..., ::-1]
+    png_bgr = cv2.imread(str(run / "c_bgr/images/00000003.png"))[..., ::-1]
+    assert (run / "c_bgr/images.txt").read_text().splitlines() == lines
+    assert (run / "c_bgr/calib.txt").read_text() == (run / "calib.txt").read_text()
     np.testing.assert_array_equal(png_bgr, png)
     cal = load_calibration(run / "calib/c_rgb.yaml")
     np.testing.assert_allclose(cal.K, [[40, 0, 31.5], [0, 40, 23.5], [0, 0, 1]])

@@ -176,9 +176,12 @@ def test_txt_formatter_edges_and_writers_round_trip(tmp_path: Path) -> None:
     tw = EventTextWriter(tmp_path / "e.txt")
     hw = {c: EventH5Writer(tmp_path / f"e_{c}.h5", 346, 260, chunk=512, compression=c)
           for c in ("gzip", "lzf", None)}  # fmt: skip
+    # events.h5 gets times below 4.3 s (its ms_to_idx has an entry per millisecond)
+    ev_h5 = EventBatch(t >> 30, x, y, p)
     for a, b in itertools.pairwise(cuts):
-        for w in (tw, *hw.values()):
-            w.write(ev.slice(a, b))
+        tw.write(ev.slice(a, b))
+        for w in hw.values():
+            w.write(ev_h5.slice(a, b))
     for w in (tw, *hw.values()):
         w.close()
     assert (tmp_path / "e.txt").read_bytes() == want
@@ -186,11 +189,68 @@ def test_txt_formatter_edges_and_writers_round_trip(tmp_path: Path) -> None:
         with h5py.File(tmp_path / f"e_{c}.h5", "r") as f:
             g = f["events"]
             assert g["t"].compression == c
-            for name, col in zip("txyp", ev, strict=True):
-                assert g[name].dtype == col.dtype
+            np.testing.assert_array_equal(g["t_ns"][:], ev_h5.t)
+            np.testing.assert_array_equal(g["t"][:], ev_h5.t // 1000)  # DSEC: microseconds
+            for name, col in zip("xyp", ev[1:], strict=True):
                 np.testing.assert_array_equal(g[name][:], col)
+            _check_dsec_ms_to_idx(f)
     with pytest.raises(ValueError, match="compression"):
         EventH5Writer(tmp_path / "bad.h5", 1, 1, compression="zstd")  # type: ignore[arg-type]
+
+
+def _check_dsec_ms_to_idx(f: Any) -> None:
+    """DSEC's index, recomputed independently: entry m = first event with t >= m ms
+    (t in microseconds), one entry per millisecond up to one past the last event."""
+    t_us = f["events/t"][:]
+    ms_to_idx = f["ms_to_idx"][:]
+    assert ms_to_idx.dtype == np.uint64
+    assert ms_to_idx.size == (int(t_us[-1]) // 1000 + 2 if t_us.size else 1)
+    for m in range(ms_to_idx.size):  # independent scan (no searchsorted)
+        first = next((i for i, v in enumerate(t_us.tolist()) if v >= 1000 * m), t_us.size)
+        if m % 97 == 0 or m == ms_to_idx.size - 1:  # spot-check: the scan is O(N) each
+            assert int(ms_to_idx[m]) == first, m
+    assert np.all(np.diff(ms_to_idx.astype(np.int64)) >= 0)
+    idx = ms_to_idx.astype(np.int64)
+    for m in range(ms_to_idx.size - 1):  # every window holds exactly its millisecond
+        w = t_us[idx[m] : idx[m + 1]]
+        assert np.all((w >= 1000 * m) & (w < 1000 * (m + 1)))
+
+
+def test_events_h5_is_dsec_and_evlib_reads_both_files(tmp_path: Path) -> None:
+    """evlib (a third-party event library) loads events.h5 and events.txt with the same
+    events and the right time span; DSEC's t_offset and ms_to_idx follow the format."""
+    evlib = pytest.importorskip("evlib")
+    import h5py
+
+    from roslan.events.files import EventH5Writer, EventTextWriter
+
+    rng = np.random.default_rng(8)
+    n = 30_000
+    t = np.sort(rng.integers(0, 2_600_000_000, n)).astype(np.int64)  # 2.6 s, ns
+    x = rng.integers(0, 346, n).astype(np.uint16)
+    y = rng.integers(0, 260, n).astype(np.uint16)
+    p = rng.integers(0, 2, n).astype(np.int8)
+    ev = EventBatch(t, x, y, p)
+    start = 1_700_000_000_123_456_789
+    hw = EventH5Writer(tmp_path / "events.h5", 346, 260, chunk=4096, t_offset_ns=start)
+    tw = EventTextWriter(tmp_path / "events.txt")
+    for a in range(0, n, 7000):
+        hw.write(ev.slice(a, a + 7000))
+        tw.write(ev.slice(a, a + 7000))
+    hw.close()
+    tw.close()
+    with h5py.File(tmp_path / "events.h5", "r") as f:
+        assert int(f["t_offset"][()]) == start // 1000
+        _check_dsec_ms_to_idx(f)
+    for name in ("events.h5", "events.txt"):
+        df = evlib.load_events(str(tmp_path / name)).collect()
+        t_us = df["t"].dt.total_microseconds().to_numpy()
+        assert df.height == n
+        np.testing.assert_array_equal(t_us, t // 1000)
+        assert (t_us[-1] - t_us[0]) * 1e-6 == pytest.approx((t[-1] - t[0]) * 1e-9, abs=2e-6)
+        np.testing.assert_array_equal(df["x"].to_numpy(), x)
+        np.testing.assert_array_equal(df["y"].to_numpy(), y)
+        np.testing.assert_array_equal(df["polarity"].to_numpy() > 0, p > 0)
 
 
 # ------------------------------------------------------------------ end to end
@@ -290,7 +350,7 @@ def test_stream_is_ordered_and_complete(run_dir: tuple[Path, Any, list[Any]]) ->
         "/dvs/depthmap",
     }
     assert sensor.stats["events"] > 1000
-    assert (tmp / "dvs" / "images.txt").read_text().count("\n") == sum(
+    assert (tmp / "images.txt").read_text().count("\n") == sum(
         m.topic == "/dvs/image_raw" for m in msgs
     )
     assert (tmp / "calib" / "dvs.yaml").is_file()
@@ -306,10 +366,12 @@ def test_txt_h5_and_bags_agree(run_dir: tuple[Path, Any, list[Any]]) -> None:
         t_txt = np.array([int(line.split()[0].replace(".", "")) for line in fh], dtype=np.int64)
     with h5py.File(tmp / "events.h5", "r") as f:
         g = f["events"]
-        t, x, y, p = g["t"][:], g["x"][:], g["y"][:], g["p"][:]
+        t, x, y, p = g["t_ns"][:], g["x"][:], g["y"][:], g["p"][:]
+        np.testing.assert_array_equal(g["t"][:], t // 1000)
         assert g["t"].dtype == np.int64
         assert g["x"].dtype == np.uint16
-        assert g["p"].dtype == np.int8
+        assert g["p"].dtype == np.uint8
+        _check_dsec_ms_to_idx(f)
         assert g["t"].compression == "gzip"
         assert g["t"].chunks is not None
         assert f.attrs["width"] == 40

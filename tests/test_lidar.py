@@ -175,12 +175,16 @@ def test_pointcloud2_roundtrip_through_rosbags(tmp_path: Path) -> None:
     # dataset files: one npz per scan with the same points as the cloud
     files = sorted((tmp_path / "lidar" / "velodyne").glob("*.npz"))
     assert [f.name for f in files] == ["000000.npz", "000001.npz", "000002.npz"]
+    import zipfile
+
+    with zipfile.ZipFile(files[1]) as zf:  # compressed scans (np.savez_compressed)
+        assert {i.compress_type for i in zf.infolist()} == {zipfile.ZIP_DEFLATED}
     with np.load(files[1]) as z:
         assert int(z["stamp"]) == 50_000_000
         for name in ("x", "y", "z", "intensity", "ring", "time"):
             np.testing.assert_array_equal(z[name], clouds[1][name])
     lines = (tmp_path / "lidar" / "velodyne" / "timestamps.txt").read_text().splitlines()
-    assert lines[1:] == ["0.000000000 velodyne/000000.npz", "0.050000000 velodyne/000001.npz",
+    assert lines == ["0.000000000 velodyne/000000.npz", "0.050000000 velodyne/000001.npz",
                          "0.100000000 velodyne/000002.npz"]  # fmt: skip
 
 

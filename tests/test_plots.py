@@ -165,7 +165,7 @@ def write_synthetic_outdir(
 
             with h5py.File(out / "events.h5", "w") as h5:
                 g = h5.create_group("events")
-                g["t"] = np.rint(t * 1e9).astype(np.int64)
+                g["t"] = np.rint(t * 1e9).astype(np.int64) // 1000  # DSEC: microseconds
                 g["x"] = x.astype(np.uint16)
                 g["y"] = y.astype(np.uint16)
                 g["p"] = p.astype(np.int8)

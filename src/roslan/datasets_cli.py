@@ -57,47 +57,11 @@ def _formats(value: str | None) -> list[str] | None:
 
 def _dataset(args: argparse.Namespace) -> int:
     from roslan.batch import iter_errors, print_summary
-    from roslan.dataset import build_dataset, dataset_plan
+    from roslan.dataset import build_dataset
 
     sensors = _load_sensors(args.sensors) if args.sensors else None
     if args.dry_run:
-        from rich.console import Console
-        from rich.table import Table
-
-        runs = dataset_plan(
-            args.scenes,
-            seed=args.seed,
-            sensors=sensors,
-            duration=args.duration,
-            formats=_formats(args.format),
-        )
-        table = Table(title="roslan dataset plan")
-        for col in (
-            "folder",
-            "kappa_x",
-            "kappa_y",
-            "speed m/s",
-            "heading deg",
-            "distance m",
-            "seed",
-        ):
-            table.add_column(col)
-        import math
-
-        for r in runs:
-            table.add_row(
-                r.folder,
-                f"{r.kappa_x:g}",
-                f"{r.kappa_y:g}",
-                f"{r.speed:g}",
-                f"{math.degrees(r.heading):.0f}",
-                f"{r.distance:.2f}",
-                str(r.seed),
-            )
-        import sys
-
-        Console(width=None if sys.stdout.isatty() else 120).print(table)
-        return 0
+        return _dataset_dry_run(args, sensors)
     _, report = build_dataset(
         args.output,
         args.scenes,
@@ -119,16 +83,61 @@ def _dataset(args: argparse.Namespace) -> int:
     return 0 if report.ok else 1
 
 
+def _dataset_dry_run(args: argparse.Namespace, sensors: list[dict[str, Any]] | None) -> int:
+    import math
+
+    from roslan.batch import make_tasks
+    from roslan.dataset import dataset_plan
+    from roslan.dryrun import PlanRow, print_plan
+
+    runs = dataset_plan(
+        args.scenes, seed=args.seed, sensors=sensors, duration=args.duration,
+        formats=_formats(args.format),
+    )  # fmt: skip
+    tasks = make_tasks(
+        [r.config for r in runs], Path.cwd(), names=[r.folder for r in runs],
+        overrides=[{} for _ in runs], source="roslan dataset",
+    )  # fmt: skip
+    rows = [
+        PlanRow(
+            r.folder,
+            {
+                "kappa_x": f"{r.kappa_x:g}",
+                "kappa_y": f"{r.kappa_y:g}",
+                "speed m/s": f"{r.speed:.2f}",
+                "heading deg": f"{math.degrees(r.heading):.0f}",
+                "distance m": f"{r.distance:.2f}",
+                "seed": str(r.seed),
+            },
+            config=r.config,
+            error=t.error,
+        )
+        for r, t in zip(runs, tasks, strict=True)
+    ]
+    return print_plan("roslan dataset plan", rows, Path(args.output), args.workers)
+
+
+def _short(value: Any) -> str:
+    """A sweep value for the plan table: floats to 4 significant digits."""
+    if isinstance(value, float):
+        return f"{value:.4g}"
+    text = str(value)
+    return text if len(text) <= 24 else text[:21] + "..."
+
+
 def _batch(args: argparse.Namespace) -> int:
     from roslan.batch import iter_errors, load_sweep, print_summary, run_tasks, sweep_tasks
 
     sweep = load_sweep(args.sweep)
     tasks = sweep_tasks(sweep)
     if args.dry_run:
-        for t in tasks:
-            state = "invalid: " + (t.error or "").replace("\n", "; ") if t.error else "ok"
-            print(f"{t.name}  {t.overrides}  {state}")
-        return 0 if all(t.error is None for t in tasks) else 1
+        from roslan.dryrun import PlanRow, print_plan
+
+        rows = [
+            PlanRow(t.name, {k: _short(v) for k, v in t.overrides.items()}, t.config, t.error)
+            for t in tasks
+        ]
+        return print_plan("roslan batch plan", rows, Path(args.output), args.workers)
     report = run_tasks(
         tasks,
         args.output,

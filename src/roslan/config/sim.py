@@ -38,6 +38,10 @@ class OutputConfig(StrictModel):
     seconds is accepted too."""
     formats: tuple[BagFormat, ...] = ("ros1", "ros2")
     compression: Literal["none", "lz4", "bz2"] = "lz4"
+    """ROS 1 bag chunk compression (what ``rosbag`` reads: none, lz4, bz2)."""
+    ros2_compression: Literal["zstd", "lz4", "none"] = "zstd"
+    """ROS 2 bag (MCAP) chunk compression; a separate key because the formats support
+    different codecs (ROS 1 has no zstd, MCAP no bz2)."""
     ground_truth_rate: Annotated[FiniteFloat, Field(gt=0, le=MAX_RATE_HZ)] = 200.0
     workers: Literal["auto"] | Annotated[int, Field(ge=0, strict=True)] = "auto"
     """Worker processes for render-heavy sensors: ``auto`` (one per such sensor, at most

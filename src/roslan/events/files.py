@@ -6,9 +6,9 @@ bounded by one chunk however long the trajectory is.
 * ``events.txt``: ``t x y p`` per line, t seconds since the trajectory start with
   nine decimals (exact, from integer ns), p in {0, 1}. Formatted by a numba kernel
   into a byte buffer (no per-event Python objects).
-* ``events.h5``: ``events/t`` int64 ns, ``events/x`` and ``events/y`` uint16,
-  ``events/p`` int8 in {0, 1}; chunked, gzip+shuffle compressed (or lzf); ``width``/``height``
-  attributes on the file and the group.
+* ``events.h5``: the DSEC layout (``events/t`` microseconds, ``t_offset``, ``ms_to_idx``,
+  see :class:`EventH5Writer`) plus ``events/t_ns`` (exact nanoseconds); chunked,
+  gzip+shuffle compressed (or lzf); ``width``/``height`` attributes.
 """
 
 from __future__ import annotations
@@ -144,18 +144,35 @@ class EventTextWriter:
 
 
 class EventH5Writer:
-    """Appends events to ``events.h5`` in whole chunks (bounded memory).
+    """Appends events to ``events.h5`` in the DSEC layout, in whole chunks (bounded memory).
+
+    Layout (DSEC, Gehrig et al. 2021, what DSEC loaders read):
+
+    * ``events/t`` int64 microseconds since the trajectory start (floor of the exact ns
+      time), ``events/x``, ``events/y`` uint16, ``events/p`` uint8 in {0 OFF, 1 ON};
+    * ``t_offset`` int64 scalar: microseconds to add to ``events/t`` for the absolute (bag)
+      stamp, i.e. ``output.start_time`` in microseconds;
+    * ``ms_to_idx`` uint64: ``ms_to_idx[m]`` is the index of the first event with
+      ``t >= 1000 m`` microseconds, for every millisecond up to one past the last event;
+    * ``events/t_ns`` int64: the exact nanosecond times (an extra dataset; DSEC loaders
+      ignore it, roslan's own readers prefer it).
 
     Args:
         path: the file to create.
-        width, height: sensor resolution (stored as attributes).
+        width, height: sensor resolution (``width``/``height`` attributes).
         chunk: events per HDF5 chunk.
-        compression: ``"gzip"`` (level 1, any HDF5 reader; ~10 M events/s on this project's
-            2-core machine, bound by zlib), ``"lzf"`` (h5py's own filter, ~2x faster,
-            ~20 % larger; needs h5py or the LZF plugin to read) or None.
+        compression: ``"gzip"`` (level 1, any HDF5 reader), ``"lzf"`` (h5py's own filter,
+            faster, larger) or None.
+        t_offset_ns: absolute stamp of trajectory time 0 (written as ``t_offset`` in us).
     """
 
-    FIELDS = (("t", np.int64), ("x", np.uint16), ("y", np.uint16), ("p", np.int8))
+    FIELDS = (
+        ("t", np.int64),
+        ("x", np.uint16),
+        ("y", np.uint16),
+        ("p", np.uint8),
+        ("t_ns", np.int64),
+    )
 
     def __init__(
         self,
@@ -164,6 +181,7 @@ class EventH5Writer:
         height: int,
         chunk: int = 1 << 16,
         compression: Literal["gzip", "lzf"] | None = "gzip",
+        t_offset_ns: int = 0,
     ) -> None:
         import h5py
 
@@ -176,25 +194,29 @@ class EventH5Writer:
         self._f = h5py.File(path, "w", libver="earliest", track_order=False)
         g = self._f.create_group("events")
         self._ds: dict[str, Any] = {}
+        opts: dict[str, Any] = {
+            "compression": compression,
+            "compression_opts": 1 if compression == "gzip" else None,
+            "shuffle": compression is not None,
+            "track_times": False,
+        }
         for name, dt in self.FIELDS:
             self._ds[name] = g.create_dataset(
-                name,
-                shape=(0,),
-                maxshape=(None,),
-                dtype=dt,
-                chunks=(self.chunk,),
-                compression=compression,
-                compression_opts=1 if compression == "gzip" else None,
-                shuffle=compression is not None,
-                track_times=False,
+                name, shape=(0,), maxshape=(None,), dtype=dt, chunks=(self.chunk,), **opts
             )
+        self._ms = self._f.create_dataset(
+            "ms_to_idx", shape=(0,), maxshape=(None,), dtype=np.uint64, chunks=(4096,), **opts
+        )
+        self._f.create_dataset("t_offset", data=np.int64(int(t_offset_ns) // 1000))
         for holder in (self._f.attrs, g.attrs):
             holder["width"] = int(width)
             holder["height"] = int(height)
-        g.attrs["t_unit"] = "ns since trajectory start"
-        g.attrs["p_values"] = "1 ON (brighter), 0 OFF"
+        g["t"].attrs["unit"] = "us since the trajectory start; absolute = t + t_offset"
+        g["t_ns"].attrs["unit"] = "ns since the trajectory start (exact)"
+        g["p"].attrs["values"] = "1 ON (brighter), 0 OFF"
         self._pending: list[EventBatch] = []
         self._n_pending = 0
+        self._next_ms = 0  # first millisecond whose ms_to_idx entry is not yet written
         self.count = 0
 
     def write(self, batch: EventBatch) -> None:
@@ -205,6 +227,13 @@ class EventH5Writer:
         if self._n_pending >= self.chunk:
             self._flush(final=False)
 
+    def _append_ms(self, values: NDArray[np.int64]) -> None:
+        if values.size:
+            n = self._ms.shape[0]
+            self._ms.resize((n + values.size,))
+            self._ms[n:] = values.astype(np.uint64)
+            self._next_ms += int(values.size)
+
     def _flush(self, *, final: bool) -> None:
         if self._n_pending == 0:
             return
@@ -213,10 +242,17 @@ class EventH5Writer:
         if m == 0:
             return
         n0 = self.count
-        for i, (name, dt) in enumerate(self.FIELDS):
+        t_ns = np.asarray(allb.t[:m], dtype=np.int64)
+        t_us = t_ns // 1000
+        cols = (t_us, allb.x[:m], allb.y[:m], np.asarray(allb.p[:m]) > 0, t_ns)
+        for (name, dt), col in zip(self.FIELDS, cols, strict=True):
             ds = self._ds[name]
             ds.resize((n0 + m,))
-            ds[n0 : n0 + m] = np.asarray(allb[i][:m], dtype=dt)
+            ds[n0 : n0 + m] = np.asarray(col, dtype=dt)
+        # every millisecond whose first event is decided: 1000 ms <= the last time written
+        last_ms = int(t_us[-1]) // 1000
+        ms = np.arange(self._next_ms, last_ms + 1, dtype=np.int64)
+        self._append_ms(n0 + np.searchsorted(t_us, ms * 1000, side="left"))
         self.count += m
         rest = allb.slice(m, allb.size)
         self._pending = [rest] if rest.size else []
@@ -225,5 +261,7 @@ class EventH5Writer:
     def close(self) -> None:
         if self._f.id.valid:
             self._flush(final=True)
+            # one entry past the last event's millisecond: the end of the last window
+            self._append_ms(np.full(1, self.count, np.int64))
             self._f.attrs["count"] = self.count
             self._f.close()

@@ -36,6 +36,7 @@ from rosbags.rosbag2.storage_mcap import McapWriter as _McapWriter
 
 from roslan.errors import OutputError
 from roslan.io.messages import Flavor, MessageStore
+from roslan.io.ros1_msgdefs import ros1_full_text
 
 __all__ = [
     "BAG_NAMES",
@@ -51,6 +52,13 @@ BAG_NAMES = {Flavor.ROS1: "landing.bag", Flavor.ROS2: "landing_ros2"}
 
 ROS2_BAG_VERSION: Literal[8, 9] = 8
 """rosbag2 metadata version written (8 = Humble/Iron; readable by every later distro)."""
+
+ROS2_DISTRO = "humble"
+"""The ROS 2 distribution whose message definitions the ROS 2 bag carries (rosbags'
+Humble typestore); written as ``ros_distro`` in metadata.yaml and the MCAP metadata."""
+
+ROS2_COMPRESSIONS = ("zstd", "lz4", "none")
+"""MCAP chunk compressions of the ROS 2 bag (``output.ros2_compression``)."""
 
 
 class BagTopic(NamedTuple):
@@ -158,8 +166,34 @@ class _FastRos1Writer(_Ros1Writer):
             chunk.connections = counts  # type: ignore[assignment]
 
 
+def _mcap_compressor(name: str) -> Any:
+    if name == "zstd":
+        try:  # the standard library's from Python 3.14; before, rosbags' own dependency
+            from compression import zstd  # type: ignore[import-not-found, unused-ignore]
+        except ImportError:
+            from backports import zstd
+
+        return lambda data: zstd.compress(data, level=3)
+    if name == "lz4":
+        # MCAP's lz4: one lz4 frame per chunk (what the mcap libraries write and read)
+        return lambda data: lz4.frame.compress(data, store_size=True)
+    return lambda data: data
+
+
 class _FastMcapWriter(_McapWriter):
-    """rosbags' MCAP storage with a one-``struct.pack`` message record (same bytes)."""
+    """rosbags' MCAP storage with a one-``struct.pack`` message record (same bytes), chunk
+    compression ``zstd``/``lz4``/none (:data:`chunk_compression`, set before the first chunk
+    closes) and ``ros_distro`` = :data:`ROS2_DISTRO` in the metadata record."""
+
+    def set_chunk_compression(self, name: str) -> None:
+        if name not in ROS2_COMPRESSIONS:
+            msg = f"ROS 2 chunk compression {name!r}: use one of {', '.join(ROS2_COMPRESSIONS)}"
+            raise ValueError(msg)
+        self.compression = "" if name == "none" else name
+        self.compressor = _mcap_compressor(name)
+
+    def close(self, version: int, metadata: str) -> None:
+        super().close(version, _with_distro(metadata))
 
     def write(self, connection: Connection, timestamp: int, data: bytes | memoryview) -> None:
         if timestamp < self.message_start_time:
@@ -181,13 +215,25 @@ class _FastMcapWriter(_McapWriter):
             self.close_chunk()
 
 
+def _with_distro(metadata_yaml: str) -> str:
+    """rosbags writes ``ros_distro: rosbags``; name the distro of the definitions instead."""
+    return metadata_yaml.replace("ros_distro: rosbags", f"ros_distro: {ROS2_DISTRO}")
+
+
 class _FastRos2Writer(_Ros2Writer):
     STORAGE_PLUGINS = {**_Ros2Writer.STORAGE_PLUGINS, StoragePlugin.MCAP: _FastMcapWriter}  # noqa: RUF012
+
+    def close(self) -> None:
+        super().close()
+        text = self.metapath.read_text(encoding="utf-8")
+        tmp = self.metapath.with_suffix(".yaml.tmp")
+        tmp.write_text(_with_distro(text), encoding="utf-8")
+        tmp.replace(self.metapath)
 
     def write(self, connection: Connection, timestamp: int, data: bytes | memoryview) -> None:
         if (
             self.storage is None
-            or self.compression_mode.name != "NONE"
+            or self.compression_mode.name == "MESSAGE"
             or connection.owner is not self
         ):
             super().write(connection, timestamp, data)
@@ -261,25 +307,40 @@ class Ros1BagWriter(_BagWriter):
 
     def add_topics(self, topics: Sequence[BagTopic]) -> None:
         for t in topics:
+            # rosbags' definition drops comments; store ROS 1's full text (same md5 sum)
+            stripped, md5sum = self.store.typestore.generate_msgdef(t.msgtype)
             self._conns[t.topic] = self._writer.add_connection(
                 t.topic,
                 t.msgtype,
-                typestore=self.store.typestore,
+                msgdef=ros1_full_text(t.msgtype) or stripped,
+                md5sum=md5sum,
                 callerid="/roslan",
                 latching=1 if t.latched else None,
             )
 
 
 class Ros2BagWriter(_BagWriter):
-    """ROS 2 bag folder at ``path`` (must not exist) with MCAP storage and CDR messages."""
+    """ROS 2 bag folder at ``path`` (must not exist) with MCAP storage and CDR messages.
 
-    def __init__(self, path: Path, store: MessageStore | None = None) -> None:
+    ``compression`` (``zstd``, ``lz4``, ``none``) compresses each MCAP chunk, as
+    ``ros2 bag record --storage-preset-profile zstd_fast`` does: the compression lives in
+    the MCAP file, so metadata.yaml keeps ``compression_format: ''`` and
+    ``compression_mode: ''`` (rosbag2's file/message compression is not used, and
+    ``ros2 bag play`` reads the bag without a decompression plugin).
+    """
+
+    def __init__(
+        self, path: Path, store: MessageStore | None = None, compression: str = "zstd"
+    ) -> None:
         self.path = path
         self.store = store or MessageStore(Flavor.ROS2)
         self._writer = _FastRos2Writer(
             path, version=ROS2_BAG_VERSION, storage_plugin=StoragePlugin.MCAP
         )
         self._writer.open()
+        storage = self._writer.storage
+        assert isinstance(storage, _FastMcapWriter)
+        storage.set_chunk_compression(compression)
         self._conns: dict[str, Connection] = {}
 
     def add_topics(self, topics: Sequence[BagTopic]) -> None:
@@ -300,6 +361,7 @@ class MultiBagWriter:
         formats: flavours to write (``'ros1'``, ``'ros2'``).
         topics: every connection, in a fixed (deterministic) order.
         compression: ROS 1 chunk compression (``none``, ``lz4``, ``bz2``).
+        ros2_compression: ROS 2 MCAP chunk compression (``zstd``, ``lz4``, ``none``).
     """
 
     def __init__(
@@ -308,6 +370,7 @@ class MultiBagWriter:
         formats: Iterable[str],
         topics: Sequence[BagTopic],
         compression: str = "lz4",
+        ros2_compression: str = "zstd",
     ) -> None:
         self.writers: list[BagWriter] = []
         self.msgtypes = {t.topic: t.msgtype for t in topics}
@@ -319,7 +382,7 @@ class MultiBagWriter:
                 writer: BagWriter = (
                     Ros1BagWriter(path, compression)
                     if flavor is Flavor.ROS1
-                    else Ros2BagWriter(path)
+                    else Ros2BagWriter(path, compression=ros2_compression)
                 )
                 self.writers.append(writer)
                 writer.add_topics(topics)

@@ -73,6 +73,10 @@ def _run(args: argparse.Namespace, config: SimConfig, path: Path | None) -> int:
         if args.format is None
         else (("ros1", "ros2") if args.format == "both" else (args.format,))
     )
+    if args.dry_run:
+        from roslan.dryrun import print_run_estimate
+
+        return print_run_estimate(config, args.outdir, formats)
     run: dict[str, Any] = run_simulation(
         config,
         args.outdir,
@@ -121,6 +125,11 @@ def register(subparsers: Any) -> None:
         help="skip the check that the path clears the scene",
     )
     p.add_argument("--no-overview", action="store_true", help="do not draw overview.png at the end")
+    p.add_argument(
+        "--dry-run",
+        action="store_true",
+        help="print the estimated disk use and run time, simulate nothing",
+    )
     p.add_argument(
         "--workers",
         type=_workers,

@@ -552,6 +552,9 @@ def _run_simulation(
 
     # ---- 1. validate before writing anything
     _check_outdir(outdir, overwrite)
+    from roslan.estimate import check_free_space, estimate_run
+
+    check_free_space(outdir, estimate_run(config, fmts).bytes, "this run")
     traj = Trajectory(config.trajectory)
     source = str(config_path) if config_path is not None else "<config>"
     check_limits(config, traj.duration, fmts, source)
@@ -665,7 +668,9 @@ def _run_simulation(
                 base_dir=base_dir,
                 scene=scene,
             )
-            writers = MultiBagWriter(tmp, fmts, bag_topics, config.output.compression)
+            writers = MultiBagWriter(
+                tmp, fmts, bag_topics, config.output.compression, config.output.ros2_compression
+            )
             t_stream = time.perf_counter()
             # merge order: ground truth 0, sensor i -> i + 1 (ties resolve alike in workers)
             streams = [
@@ -786,6 +791,11 @@ def _run_simulation(
             (tmp / "PLAYBACK.md").write_text(
                 _playback(traj.duration, wall, fmts, counts), encoding="utf-8"
             )
+            from roslan.io.readme import outdir_readme
+            from roslan.sensors.camera_model import ecd_root_camera
+
+            readme = outdir_readme(tmp, ecd_root_camera(config.sensors))
+            (tmp / "README.md").write_text(readme, encoding="utf-8")
             _write_json(tmp / RUN_FILE, run)  # last: its presence marks a complete folder
             _finalize(tmp, outdir, overwrite)
             progress.stop()

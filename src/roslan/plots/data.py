@@ -316,11 +316,23 @@ def _read_listing(listing: Path, outdir: Path) -> ImageSequence:
     t_ns = seconds_to_ns(np.asarray(times))
     order = np.argsort(t_ns, kind="stable")
     if listing.name == "images.txt":
-        # <sensor>/images.txt names its sensor; the top-level one is the dataset's "images"
-        name = "images" if listing.parent == outdir else base.name
+        # <sensor>/images.txt names its sensor; the top-level one is the root camera's
+        # (first event camera, else first camera), "images" without run.json
+        name = (_root_camera_name(outdir) or "images") if listing.parent == outdir else base.name
     else:
         name = listing.stem.removeprefix("images_")
     return ImageSequence(name=name, t_ns=t_ns[order], paths=tuple(paths[i] for i in order))
+
+
+def _root_camera_name(outdir: Path) -> str | None:
+    """The camera whose images.txt is at the OUTDIR root (run.json's first event camera,
+    else its first camera; a stereo camera's left eye)."""
+    for types in (("event_camera",), ("camera", "stereo_camera")):
+        cfgs = sensor_configs(outdir, types)
+        if cfgs:
+            name = str(cfgs[0].get("name"))
+            return f"{name}_left" if cfgs[0].get("type") == "stereo_camera" else name
+    return None
 
 
 def find_images(outdir: Path, prefer: Sequence[str] = ()) -> list[ImageSequence]:
@@ -361,6 +373,7 @@ class EventSource:
         self.width = width
         self.height = height
         self._h5: Any = None
+        self._t_scale = 1
         self._fh: TextIO | None = None
         self._buf_t: I64 = np.empty(0, np.int64)
         self._buf_xyp: NDArray[np.int64] = np.empty((0, 3), np.int64)
@@ -373,6 +386,10 @@ class EventSource:
                 self._h5 = h5py.File(path, "r")
                 g = self._h5["events"]
                 self._t, self._x, self._y, self._p = g["t"], g["x"], g["y"], g["p"]
+                # exact ns when present, else DSEC's microseconds
+                self._t_scale = 1 if "t_ns" in g else 1000
+                if "t_ns" in g:
+                    self._t = g["t_ns"]
             except (OSError, KeyError) as err:
                 msg = f"{path}: cannot read events/t, events/x, events/y, events/p: {err}"
                 raise PlotError(msg) from err
@@ -401,7 +418,7 @@ class EventSource:
         lo, hi = 0, int(self._t.shape[0])
         while lo < hi:
             mid = (lo + hi) // 2
-            if int(self._t[mid]) < t_ns:
+            if int(self._t[mid]) * self._t_scale < t_ns:
                 lo = mid + 1
             else:
                 hi = mid

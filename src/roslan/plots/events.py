@@ -93,7 +93,10 @@ def plot_events(
         else:
             span = max(rng[1] - rng[0] - w_ns, 0)
             starts = [rng[0] + round(span * (i + 0.5) / frames) for i in range(frames)]
-        seqs = find_images(outdir, prefer=[*names, "dvs", "aps"])
+        # the root images.txt is the first event camera's APS when events lie at the root
+        # (named "images" while run.json is not written yet)
+        root_aps = ["images"] if _root_has_events(outdir) else []
+        seqs = find_images(outdir, prefer=[*names, *root_aps, "dvs", "aps"])
         out.mkdir(parents=True, exist_ok=True)
         imgs: list[tuple[int, NDArray[np.uint8], int]] = []
         for a in sorted(starts):
@@ -199,3 +202,7 @@ def register(plot_subparsers: Any) -> None:
         help="window starts, s (instead of --frames)",
     )
     p.set_defaults(func=_run)
+
+
+def _root_has_events(outdir: Path) -> bool:
+    return (outdir / "events.txt").is_file() or (outdir / "events.h5").is_file()

@@ -71,8 +71,12 @@ class RunMedia:
         if len(cams) == 1:  # the top-level images.txt is the one camera's
             seqs = [replace(s, name=cams[0]) if s.name == "images" else s for s in seqs]
 
+        # without run.json (the overview of a run being written) the root listing is named
+        # "images"; it is an event camera's APS when the events lie at the root too
+        root_events = (outdir / "events.txt").is_file() or (outdir / "events.h5").is_file()
+
         def is_event_cam(s: ImageSequence) -> bool:
-            return s.name in event_names
+            return s.name in event_names or (root_events and s.name == "images")
 
         frame_seqs = [s for s in seqs if not is_event_cam(s)]
         aps_seqs = [s for s in seqs if is_event_cam(s)]

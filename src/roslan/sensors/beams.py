@@ -294,13 +294,12 @@ class ScanWriter:
         if self._fh is None:
             self.folder.mkdir(parents=True, exist_ok=True)
             self._fh = self.index.open("w", encoding="utf-8")
-            self._fh.write("# t file\n")
         name = f"{self.count:06d}.npz"
         ok = ~np.isnan(points["x"])  # organized clouds carry NaN rows for no return
         arrays = {k: np.ascontiguousarray(points[k][ok]) for k in points.dtype.names or ()}
         tmp = self.folder / (name + ".part")
         with tmp.open("wb") as fh:
-            np.savez(fh, stamp=np.asarray(t_ns, np.int64), **arrays)  # type: ignore[arg-type]
+            np.savez_compressed(fh, stamp=np.asarray(t_ns, np.int64), **arrays)  # type: ignore[arg-type]
         tmp.replace(self.folder / name)
         sec, nsec = divmod(int(t_ns), 1_000_000_000)
         self._fh.write(f"{sec}.{nsec:09d} {self.folder.name}/{name}\n")

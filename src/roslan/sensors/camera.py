@@ -18,15 +18,15 @@ Image stamps are the middle of the exposure.
 
 Dataset files:
 
-* one ``camera`` and no stereo camera in the config: ``images/NNNNNNNN.png`` and
-  ``images.txt`` (``t images/NNNNNNNN.png``), Event Camera Dataset layout;
-* otherwise each camera (each stereo eye: ``<name>_left``, ``<name>_right``) writes
-  ``images/<name>/NNNNNNNN.png`` and ``images_<name>.txt``;
+* Event Camera Dataset layout: the OUTDIR root holds one camera's ``images.txt``
+  (``t images/NNNNNNNN.png``), ``images/`` and ``calib.txt`` - the first event camera's
+  when there is one, else the first camera's (stereo: the left eye); every other camera
+  (each stereo eye: ``<name>_left``, ``<name>_right``) writes the same files in
+  ``<name>/``;
 * depth cameras: ``depth/<name>/NNNNNNNN.png`` (16-bit, millimetres, 0 = no
   return) and ``depth_<name>.txt``;
 * ``calib/<name>.yaml`` (ROS camera_info), and from the first camera-like sensor
-  ``calib/camchain.yaml`` (Kalibr, ``T_cam_imu`` when an IMU is configured) and
-  ``calib.txt`` (``fx fy cx cy k1 k2 p1 p2 k3``).
+  ``calib/camchain.yaml`` (Kalibr, ``T_cam_imu`` when an IMU is configured).
 """
 
 from __future__ import annotations
@@ -60,6 +60,7 @@ from roslan.sensors.camera_model import (
     CameraIntrinsics,
     CameraModel,
     RenderPlan,
+    ecd_folder,
     load_calibration,
     write_calibration_files,
 )
@@ -291,7 +292,7 @@ class _Eye:
     frame: str  # optical frame id
     Tx: float = 0.0
     plan: RenderPlan | None = None
-    files: str = ""  # dataset file stem ('' = images/NNNNNNNN.png, images.txt)
+    files: str = ""  # PNG folder: images, <name>/images or depth/<name>
     index_fh: IO[str] | None = None
     scratch: dict[str, F32] = field(default_factory=dict)  # per-frame float buffers
 
@@ -367,25 +368,22 @@ class _CameraBase:
                 "w", encoding="utf-8", newline="\n"
             )
             return
-        cams = [s for s in ctx.sensors if s.type in ("camera", "stereo_camera")]
-        single = len(cams) == 1 and cams[0].type == "camera"
-        if single:
-            e.files = "images"
-            e.index_fh = ctx.path("images.txt").open("w", encoding="utf-8", newline="\n")
-        else:
-            name = f"{self.config.name}_{e.suffix}" if e.suffix else self.config.name
-            e.files = f"images/{name}"
-            e.index_fh = ctx.path(f"images_{name}.txt").open("w", encoding="utf-8", newline="\n")
+        name = f"{self.config.name}_{e.suffix}" if e.suffix else self.config.name
+        folder = ecd_folder(ctx.sensors, name)  # '' at the OUTDIR root, else '<name>/'
+        e.files = f"{folder}images"
+        e.index_fh = ctx.path(f"{folder}images.txt").open("w", encoding="utf-8", newline="\n")
 
     def _write_png(
         self, ctx: SimContext, e: _Eye, index: int, t_ns: int, img: NDArray[Any]
     ) -> None:
         rel = f"{e.files}/{index:08d}.png"
+        # images.txt lists paths relative to its own folder; depth_<name>.txt to OUTDIR
+        listed = rel if e.files.startswith("depth/") else f"images/{index:08d}.png"
         if img.ndim == 3 and getattr(self.config, "encoding", "rgb8") == "bgr8":
             img = img[..., ::-1]  # the topic's bgr8 data; a PNG file holds RGB
         write_png(ctx.path(rel), img)
         assert e.index_fh is not None
-        e.index_fh.write(f"{format_seconds(np.array([t_ns]))[0]} {rel}\n")
+        e.index_fh.write(f"{format_seconds(np.array([t_ns]))[0]} {listed}\n")
 
     def close(self, ctx: SimContext) -> None:
         for e in self._eyes:

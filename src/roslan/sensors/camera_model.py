@@ -23,6 +23,7 @@ depth, stereo, event camera) inherits for its intrinsics keys.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any
@@ -805,11 +806,39 @@ def _is_camera_config(cfg: Any) -> bool:
     return isinstance(cfg, CameraIntrinsics)
 
 
+def ecd_root_camera(sensors: Sequence[Any]) -> str | None:
+    """Name of the camera whose files make up the OUTDIR root in the Event Camera Dataset
+    layout (``images.txt``, ``images/``, ``calib.txt``): the first event camera, else the
+    first frame camera (a stereo pair: its left eye); None without cameras."""
+    for types in (("event_camera",), ("camera", "stereo_camera")):
+        for s in sensors:
+            if getattr(s, "type", None) in types and isinstance(s, CameraIntrinsics):
+                return s.calibration_cameras()[0].name
+    return None
+
+
+def ecd_folder(sensors: Sequence[Any], camera: str) -> str:
+    """``''`` for the root camera, else ``'<camera>/'``: the folder holding that camera's
+    ``images.txt``, ``images/`` and ``calib.txt`` (and an event camera's events files)."""
+    return "" if ecd_root_camera(sensors) == camera else f"{camera}/"
+
+
+def _calib_txt(model: CameraModel) -> str:
+    """``fx fy cx cy k1 k2 p1 p2 k3`` (Event Camera Dataset; equidistant: ``k1..k4``)."""
+    D = (
+        list(model.D)
+        if model.distortion_model == "equidistant"
+        else (list(model.ros_D()) + [0.0] * 5)[:5]
+    )
+    return " ".join(repr(float(x)) for x in (model.fx, model.fy, model.cx, model.cy, *D)) + "\n"
+
+
 def write_calibration_files(ctx: SimContext, config: SensorConfig) -> None:
     """Write ``calib/<cam>.yaml`` for ``config``'s cameras; the first camera-like sensor of
     ``ctx.sensors`` also writes ``calib/camchain.yaml`` (all cameras, ``T_cam_imu`` when an
-    IMU is configured, ``T_cn_cnm1`` between consecutive cameras) and ``calib.txt``
-    (``fx fy cx cy k1 k2 p1 p2 k3`` of the first camera; equidistant: ``fx fy cx cy k1..k4``)."""
+    IMU is configured, ``T_cn_cnm1`` between consecutive cameras). Every camera (not depth)
+    writes its ``calib.txt`` (``fx fy cx cy k1 k2 p1 p2 k3``; equidistant: ``fx fy cx cy
+    k1..k4``) in its :func:`ecd_folder`."""
     import yaml
 
     if not isinstance(config, CameraIntrinsics):
@@ -819,6 +848,9 @@ def write_calibration_files(ctx: SimContext, config: SensorConfig) -> None:
             cam.model.to_camera_info_yaml(Tx=cam.Tx), sort_keys=False, default_flow_style=None
         )
         ctx.path(f"calib/{cam.name}.yaml").write_text(text, encoding="utf-8")
+        if config.type != "depth_camera":
+            folder = ecd_folder(ctx.sensors, cam.name)
+            ctx.path(f"{folder}calib.txt").write_text(_calib_txt(cam.model), encoding="utf-8")
     cams_cfgs = [s for s in ctx.sensors if _is_camera_config(s)]
     if not cams_cfgs or cams_cfgs[0].name != config.name:
         return
@@ -840,10 +872,4 @@ def write_calibration_files(ctx: SimContext, config: SensorConfig) -> None:
         prev = cam.T_base_optical
     ctx.path("calib/camchain.yaml").write_text(
         yaml.safe_dump(chain, sort_keys=False, default_flow_style=None), encoding="utf-8"
-    )
-    m = all_cams[0].model
-    # Event Camera Dataset layout; an equidistant lens writes its four k1..k4 instead
-    D = list(m.D) if m.distortion_model == "equidistant" else (list(m.ros_D()) + [0.0] * 5)[:5]
-    ctx.path("calib.txt").write_text(
-        " ".join(repr(float(x)) for x in (m.fx, m.fy, m.cx, m.cy, *D)) + "\n", encoding="utf-8"
     )

@@ -12,10 +12,10 @@ from depth + camera twist), feeds the frames to the vectorized pixel model
 * ``<topic>/camera_info`` at ``rate``; ``<topic>/image_raw`` APS frames (mono8) at
   ``rate`` when ``aps``; ``<topic>/optic_flow`` (32FC2, px/s) and ``<topic>/depthmap``
   (32FC1, m) at ``ground_truth_rate`` when enabled;
-* dataset files: ``events.txt`` and ``events.h5`` (the first event camera; others in
-  ``<name>/``), APS frames in ``<name>/images.txt`` + ``<name>/images/NNNNNNNN.png``,
-  ``calib/<name>.yaml`` (camera_info) and, as for every camera, ``calib/camchain.yaml``
-  and ``calib.txt`` when it is the first camera-like sensor.
+* dataset files (Event Camera Dataset layout): the first event camera's at the OUTDIR
+  root, every other one's in ``<name>/``: ``events.txt``, ``events.h5``, APS frames in
+  ``images.txt`` + ``images/NNNNNNNN.png``, ``calib.txt``; plus ``calib/<name>.yaml``
+  (camera_info) and, from the first camera-like sensor, ``calib/camchain.yaml``.
 
 Headers are in ``<frame>_optical`` (z forward, x right, y down).
 """
@@ -59,6 +59,7 @@ from roslan.sensors.camera_model import (
     CameraIntrinsics,
     CameraModel,
     RenderPlan,
+    ecd_folder,
     write_calibration_files,
 )
 from roslan.trajectory.frames import OPTICAL_FROM_BODY
@@ -280,6 +281,7 @@ class EventCamera:
         self.camera = _Camera(config.camera_model())
         self._writers: list[EventTextWriter | EventH5Writer] = []
         self._images_fh: IO[str] | None = None
+        self._folder = ""  # '' (OUTDIR root) or '<name>/'
         self._sink: BackgroundSink | None = None
         self.stats: dict[str, float] = {}
 
@@ -317,8 +319,8 @@ class EventCamera:
         return out
 
     def _prefix(self, ctx: SimContext) -> str:
-        cams = [s.name for s in ctx.sensors if s.type == "event_camera"]
-        return "" if not cams or cams[0] == self.config.name else f"{self.config.name}/"
+        """'' for the OUTDIR-root camera (the first event camera), else '<name>/'."""
+        return ecd_folder(ctx.sensors, self.config.name)
 
     # -------------------------------------------------------------- rendering
     def render(
@@ -363,14 +365,16 @@ class EventCamera:
             c.sampling, c.adaptive_lambda, c.min_rate, c.max_rate, end, forced
         )
         gen = EventGenerator(W, H, self.params, ctx.rng(f"{c.name}/pixels"))
-        prefix = self._prefix(ctx)
+        prefix = self._folder = self._prefix(ctx)
         stem = "events" if not prefix else f"{prefix}events"
         if c.write_txt:
             self._writers.append(EventTextWriter(ctx.path(f"{stem}.txt")))
         if c.write_h5:
-            self._writers.append(EventH5Writer(ctx.path(f"{stem}.h5"), W, H))
+            self._writers.append(
+                EventH5Writer(ctx.path(f"{stem}.h5"), W, H, t_offset_ns=ctx.start_time_ns)
+            )
         if c.has_aps:
-            self._images_fh = ctx.path(f"{c.name}/images.txt").open(
+            self._images_fh = ctx.path(f"{prefix}images.txt").open(
                 "w", encoding="utf-8", newline="\n"
             )
         # dataset files are written beside the rendering, in order (io/background.py)
@@ -481,7 +485,7 @@ class EventCamera:
 
     def _write_image(self, ctx: SimContext, t_ns: int, aps: NDArray[np.uint8], index: int) -> None:
         rel = f"images/{index:08d}.png"
-        write_png(ctx.path(f"{self.config.name}/{rel}"), aps)
+        write_png(ctx.path(f"{self._folder}{rel}"), aps)
         assert self._images_fh is not None
         s, ns = divmod(int(t_ns), 1_000_000_000)
         self._images_fh.write(f"{s}.{ns:09d} {rel}\n")

@@ -159,7 +159,8 @@ class Imu:
         fh = ctx.path(self._file_stem(ctx) + ".txt").open("w", encoding="utf-8", newline="\n")
         self._fh = fh
         try:
-            fh.write("# t ax ay az gx gy gz  (s since trajectory start; m/s^2, rad/s; IMU frame)\n")
+            # t ax ay az gx gy gz (s since trajectory start; m/s^2, rad/s; IMU frame); the
+            # Event Camera Dataset's imu.txt has no header line (columns in OUTDIR/README.md)
             for i0 in range(0, times.size, per_chunk):
                 t = times[i0 : i0 + per_chunk]
                 n = t.size

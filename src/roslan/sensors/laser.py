@@ -167,10 +167,7 @@ class Laser:
         caster = ctx.raycaster()
         rng = ctx.rng(c.name)
         self._fh = ctx.path(f"laser_{c.name}.txt").open("w", encoding="utf-8", newline="\n")
-        self._fh.write(
-            f"# t r_0 .. r_{c.n_beams - 1}  (s since trajectory start; m at angles "
-            f"{c.angle_min:.9g} + i * {c.angle_increment:.9g} rad; inf no return, -inf too close)\n"
-        )
+        # t r_0 .. r_n: no header line (columns and angles in OUTDIR/README.md)
         angle_max = float(self.angles[-1])
         for seq, t0 in enumerate(sample_times_ns(c.rate, ctx.trajectory.duration_ns).tolist()):
             ranges, inten = self.scan(ctx.trajectory, caster, t0, rng)

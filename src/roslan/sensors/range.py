@@ -199,7 +199,6 @@ class RangeSensor:
         caster = ctx.raycaster()
         rng = ctx.rng(c.name)
         self._fh = ctx.path(f"range_{c.name}.txt").open("w", encoding="utf-8", newline="\n")
-        self._fh.write("# t range  (s since trajectory start; m, +inf no return, -inf too close)\n")
         chunk = max(1, round(c.rate))  # one second of readings per batch of rays
         for i0 in range(0, times.shape[0], chunk):
             t = times[i0 : i0 + chunk]

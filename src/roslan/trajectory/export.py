@@ -36,6 +36,8 @@ CSV_HEADER = "t," + ",".join(COMPONENTS)
 """``t,x,y,z,roll,pitch,yaw,vx,...,ayaw``: the documented trajectory.csv header."""
 
 TUM_HEADER = "# t px py pz qx qy qz qw"
+"""The TUM columns (documentation only: groundtruth.txt has no header line, as TUM's own
+files and the Event Camera Dataset's have none)."""
 
 _FMT = "%.12g"  # 12 significant digits: far below any sensor's noise, compact
 
@@ -62,7 +64,6 @@ def write_trajectory_files(traj: Trajectory, outdir: Path, *, plot: bool = True)
         fh.write(CSV_HEADER + "\n")
         write_columns(fh, t_ns, *comps.T, fmt=_FMT, sep=",")
     with atomic_write(outdir / "groundtruth.txt") as fh:
-        fh.write(TUM_HEADER + "\n")
         write_columns(fh, t_ns, *st.position.T, *st.quat_xyzw.T, fmt="%.9f", sep=" ")
     summary = traj.summary()
     atomic_write_text(outdir / "summary.json", json.dumps(summary, indent=2) + "\n")

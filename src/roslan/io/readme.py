@@ -1,0 +1,128 @@
+"""``README.md`` of a simulation OUTDIR: what each file holds, column by column.
+
+The dataset text files have no header or comment lines (as in the Event Camera Dataset,
+Mueggler et al. 2017, and TUM), so every one loads with
+``pandas.read_csv(path, sep=" ", header=None)``; their columns are described here instead.
+The text depends only on the files present and the root camera, so it is deterministic.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+__all__ = ["outdir_readme"]
+
+_ROOT_FILES: tuple[tuple[str, str], ...] = (
+    (
+        "events.txt",
+        "`t x y p`: one event per line; t in s since the trajectory start "
+        "(9 decimals), x, y pixel (0, 0 = top left), p 1 ON (brighter) / 0 OFF.",
+    ),
+    (
+        "events.h5",
+        "DSEC layout: `events/t` (int64, microseconds since the trajectory "
+        "start), `events/x`, `events/y` (uint16), `events/p` (uint8, 1 ON / 0 OFF), `t_offset` "
+        "(microseconds to add for the absolute bag stamp), `ms_to_idx` (index of the first "
+        "event of each millisecond), and `events/t_ns` (the exact nanosecond times).",
+    ),
+    (
+        "images.txt",
+        "`t path`: one frame per line, t in s since the trajectory start "
+        "(middle of the exposure), path relative to this folder (`images/NNNNNNNN.png`).",
+    ),
+    (
+        "calib.txt",
+        "`fx fy cx cy k1 k2 p1 p2 k3` of the camera whose frames `images.txt` "
+        "lists (pixels; equidistant lens: `fx fy cx cy k1 k2 k3 k4`).",
+    ),
+    (
+        "imu.txt",
+        "`t ax ay az gx gy gz`: t in s since the trajectory start, specific force "
+        "in m/s^2 and angular rate in rad/s, in the IMU frame.",
+    ),
+    (
+        "groundtruth.txt",
+        "`t px py pz qx qy qz qw` (TUM): pose of base_link in the world "
+        "frame, m and unit quaternion; t in s since the trajectory start.",
+    ),
+    (
+        "trajectory.csv",
+        "comma-separated, with a header line: `t` and the 18 tau-trajectory "
+        "components (gaps, rates, accelerations) in the goal frame F.",
+    ),
+    ("landing.bag", "ROS 1 bag (v2.0, chunked); `rosbag info landing.bag`."),
+    (
+        "landing_ros2",
+        "ROS 2 bag (MCAP, compressed chunks) and metadata.yaml; `ros2 bag info landing_ros2`.",
+    ),
+    (
+        "lidar",
+        "`lidar/<name>/NNNNNN.npz` (compressed NumPy arrays `x y z intensity ring time`"
+        " and `stamp` in ns) listed in `lidar/<name>/timestamps.txt` (`t <name>/NNNNNN.npz`).",
+    ),
+    (
+        "calib",
+        "`calib/<camera>.yaml` (ROS camera_info), `camchain.yaml` (Kalibr), "
+        "`imu.yaml` (Kalibr IMU noise), `extrinsics.yaml` (every `T_base_link_sensor`).",
+    ),
+    ("scene", "the scene's models and poses."),
+    ("run.json", "resolved config, seed, versions, messages per topic."),
+    ("timing.json", "wall time and real-time factor of this run."),
+    ("PLAYBACK.md", "how to play the bags."),
+)
+
+_PATTERNS: tuple[tuple[str, str], ...] = (
+    ("imu_*.txt", "`t ax ay az gx gy gz` of the IMU `<name>` (as imu.txt)."),
+    (
+        "range_*.txt",
+        "`t range` of the range sensor `<name>`: m, `inf` no return, `-inf` "
+        "closer than the minimum.",
+    ),
+    (
+        "laser_*.txt",
+        "`t r_0 .. r_n` of the laser `<name>`: ranges in m at angles "
+        "`angle_min + i * angle_increment` (run.json); `inf` no return, `-inf` too close.",
+    ),
+    (
+        "depth_*.txt",
+        "`t path` of the depth camera `<name>`; 16-bit PNGs in millimetres "
+        "(0 = no return) under `depth/<name>/`.",
+    ),
+)
+
+
+def outdir_readme(outdir: Path, root_camera: str | None) -> str:
+    """The README text for the files now in ``outdir``."""
+    names = {p.name for p in outdir.iterdir() if not p.name.startswith(".")} | {"run.json"}
+    lines = [
+        "# roslan simulation output",
+        "",
+        "Event Camera Dataset layout. Text files have no header or comment lines: each loads",
+        'with `pandas.read_csv(path, sep=" ", header=None)` (or `numpy.loadtxt`). Times are',
+        "seconds since the trajectory start with nine decimals; add `output.start_time`",
+        "(run.json) for the absolute bag stamp.",
+        "",
+    ]
+    if root_camera is not None:
+        lines += [
+            f"The root `images.txt`, `images/` and `calib.txt` are the camera `{root_camera}`'s"
+            " (the first event camera, else the first camera); every other camera has the",
+            "same files in its own folder `<name>/` (an event camera also `events.txt`,",
+            "`events.h5`).",
+            "",
+        ]
+    lines += ["| file | content |", "|---|---|"]
+    for name, text in _ROOT_FILES:
+        if name in names:
+            lines.append(f"| `{name}` | {text} |")
+    for pattern, text in _PATTERNS:
+        for p in sorted(outdir.glob(pattern)):
+            lines.append(f"| `{p.name}` | {text.replace('<name>', p.stem.split('_', 1)[1])} |")
+    for d in sorted(p for p in outdir.iterdir() if p.is_dir() and (p / "images.txt").is_file()):
+        files = ", ".join(
+            f"`{f}`"
+            for f in ("images.txt", "calib.txt", "events.txt", "events.h5")
+            if (d / f).is_file()
+        )
+        lines.append(f"| `{d.name}/` | camera `{d.name}`: {files}, `images/` (as at the root) |")
+    return "\n".join(lines) + "\n"

@@ -1,0 +1,142 @@
+"""Disk and time estimates against a real run; dry-run tables; the free-space check."""
+
+from __future__ import annotations
+
+import os
+import resource
+import shutil
+import time
+from pathlib import Path
+from typing import Any
+
+import pytest
+import yaml
+
+from roslan.cli import main
+from roslan.config.sim import SimConfig
+from roslan.errors import OutputError
+from roslan.estimate import estimate_run, format_bytes, format_seconds
+from roslan.simulate import run_simulation
+
+
+def _config() -> SimConfig:
+    return SimConfig.model_validate(
+        {
+            "trajectory": {"k": 0.5, "initial": {"position": [-2.0, 0.5, 1.4],
+                                                 "rpy": [0.0, 0.1, 0.2], "descent_rate": 2.0}},
+            "scene": "empty",
+            "sensors": [
+                {"type": "event_camera", "name": "dvs", "rate": 25, "topic": "/dvs",
+                 "pose": {"position": [0.12, 0.03, 0.0], "rpy": [0, 0.35, 0]}},
+                {"type": "camera", "name": "camera", "rate": 30, "topic": "/camera",
+                 "resolution": [160, 120], "fx": 105.0, "pose": {"rpy": [0, 0.35, 0]}},
+                {"type": "lidar", "name": "velodyne", "rate": 10, "topic": "/velodyne_points",
+                 "preset": "vlp16"},
+                {"type": "imu", "name": "imu", "rate": 500, "topic": "/imu"},
+            ],
+            "seed": 0,
+        }
+    )  # fmt: skip
+
+
+def _cpu() -> float:
+    a = resource.getrusage(resource.RUSAGE_SELF)
+    b = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return a.ru_utime + a.ru_stime + b.ru_utime + b.ru_stime
+
+
+@pytest.mark.slow
+def test_estimate_within_a_factor_1_5_of_a_real_run(tmp_path: Path) -> None:
+    """Disk use and CPU time of a real small run (event camera, camera, LiDAR, IMU, both
+    bags) are within a factor 1.5 of the estimate; wall time too when the machine is not
+    overloaded by other work (wall time then measures the other work)."""
+    pytest.importorskip("roslan.render.gl")
+    cfg = _config()
+    est = estimate_run(cfg)
+    c0, t0 = _cpu(), time.perf_counter()
+    run_simulation(cfg, tmp_path / "out", quiet=True)
+    wall, cpu = time.perf_counter() - t0, _cpu() - c0
+    real = sum(f.stat().st_size for f in (tmp_path / "out").rglob("*") if f.is_file())
+    assert real > 20e6  # the event files and bags dominate: a meaningful comparison
+    assert 1 / 1.5 <= est.bytes / real <= 1.5, (format_bytes(est.bytes), format_bytes(real))
+    assert 1 / 1.5 <= est.cpu / cpu <= 1.5, (est.cpu, cpu)
+    if os.getloadavg()[0] <= (os.cpu_count() or 1):
+        assert 1 / 1.5 <= est.seconds / wall <= 1.5, (est.seconds, wall)
+
+
+def test_estimate_scales_with_rates_and_duration() -> None:
+    cfg = _config()
+    base = estimate_run(cfg)
+    data = cfg.model_dump(mode="json")
+    data["sensors"][1]["rate"] = 60  # camera at twice the rate: its bag and PNG bytes double
+    faster = estimate_run(SimConfig.model_validate(data))
+    assert faster.parts["images"] > base.parts["images"]
+    assert faster.bytes > base.bytes
+    only_ros1 = estimate_run(cfg, ("ros1",))
+    assert "bag_ros2" not in only_ros1.parts
+    assert only_ros1.parts["bag_ros1"] == pytest.approx(base.parts["bag_ros1"])
+    assert format_bytes(1.234e9) == "1.2 GB"
+    assert format_bytes(350e6) == "350 MB"
+    assert format_seconds(42.2) == "43 s"
+    assert format_seconds(600) == "10.0 min"
+
+
+def test_free_space_check_refuses_with_the_estimate(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    cfg = _config()
+    need = estimate_run(cfg).bytes
+
+    def small(path: Any) -> Any:
+        return shutil._ntuple_diskusage(10**12, 10**12 - 10**6, 10**6)  # type: ignore[attr-defined]
+
+    monkeypatch.setattr("roslan.estimate.shutil.disk_usage", small)
+    with pytest.raises(OutputError) as err:
+        run_simulation(cfg, tmp_path / "out", quiet=True)
+    text = str(err.value)
+    assert format_bytes(need) in text
+    assert "1.0 MB" in text
+    assert str(tmp_path / "out") in text
+    assert not (tmp_path / "out").exists()
+    assert not list(tmp_path.glob(".*"))
+
+
+def test_simulate_dry_run_prints_the_estimate_and_writes_nothing(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    job = tmp_path / "job.yaml"
+    job.write_text(yaml.safe_dump(_config().model_dump(mode="json")))
+    assert main(["simulate", str(job), "-o", str(tmp_path / "out"), "--dry-run"]) == 0
+    out = capsys.readouterr().out
+    est = estimate_run(_config())
+    assert f"estimated {format_bytes(est.bytes)} of disk" in out
+    assert "landing.bag" in out
+    assert "events.txt" in out
+    assert not (tmp_path / "out").exists()
+
+
+def test_batch_dry_run_table_summary_and_exit_code(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    base = _config().model_dump(mode="json")
+    sweep = {
+        "base": base,
+        "axes": [{"grid": {"trajectory.k": [0.3, 0.5, 1.5]}}],  # 1.5 is invalid (k < 1)
+    }
+    path = tmp_path / "sweep.yaml"
+    path.write_text(yaml.safe_dump(sweep))
+    rc = main(["batch", str(path), "-o", str(tmp_path / "b"), "--dry-run", "--workers", "1"])
+    out = capsys.readouterr().out
+    assert rc == 1
+    assert "2 valid, 1 invalid" in out
+    assert "invalid" in out
+    assert "est. disk" in out
+    k3 = SimConfig.model_validate({**base, "trajectory": {**base["trajectory"], "k": 0.3}})
+    k5 = SimConfig.model_validate({**base, "trajectory": {**base["trajectory"], "k": 0.5}})
+    total = estimate_run(k3).bytes + estimate_run(k5).bytes
+    assert f"estimated {format_bytes(total)} of disk" in out
+    assert not (tmp_path / "b").exists()
+    sweep["axes"] = [{"grid": {"trajectory.k": [0.3, 0.5]}}]
+    path.write_text(yaml.safe_dump(sweep))
+    assert main(["batch", str(path), "-o", str(tmp_path / "b"), "--dry-run"]) == 0
+    assert "2 valid, 0 invalid" in capsys.readouterr().out
