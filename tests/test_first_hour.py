@@ -87,7 +87,7 @@ def test_errors_of_one_sensor_are_only_its_own() -> None:
         ),
         (
             {"output": {"compresion": "lz4"}},
-            "job.yaml: output.compresion = 'lz4': unknown key; did you mean 'compression'?",
+            "job.yaml: output.compresion = 'lz4': unknown key; did you mean 'compression'",
         ),
         (
             {"output": {"compression": "lz5"}},

@@ -54,6 +54,7 @@ import yaml
 from roslan import __version__
 from roslan.config.sim import SimConfig
 from roslan.errors import ConfigError, OutputError, SensorError
+from roslan.estimate import check_free_space, estimate_run
 from roslan.io.bag import BAG_NAMES, BagTopic, MultiBagWriter
 from roslan.io.messages import Flavor
 from roslan.limits import preflight as check_limits
@@ -552,13 +553,11 @@ def _run_simulation(
 
     # ---- 1. validate before writing anything
     _check_outdir(outdir, overwrite)
-    from roslan.estimate import check_free_space, estimate_run
-
-    check_free_space(outdir, estimate_run(config, fmts).bytes, "this run")
     traj = Trajectory(config.trajectory)
     source = str(config_path) if config_path is not None else "<config>"
     check_limits(config, traj.duration, fmts, source)
     preflight(config, traj)
+    check_free_space(outdir, estimate_run(config, fmts).bytes, "this run")
     sensors: list[Sensor] = []
     for i, sc in enumerate(config.sensors):
         try:

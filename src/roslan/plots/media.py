@@ -68,12 +68,11 @@ class RunMedia:
         cams = [str(c.get("name")) for c in sensor_configs(outdir, "camera")] or _calib_cameras(
             outdir
         )
-        if len(cams) == 1:  # the top-level images.txt is the one camera's
-            seqs = [replace(s, name=cams[0]) if s.name == "images" else s for s in seqs]
-
         # without run.json (the overview of a run being written) the root listing is named
         # "images"; it is an event camera's APS when the events lie at the root too
         root_events = (outdir / "events.txt").is_file() or (outdir / "events.h5").is_file()
+        if len(cams) == 1 and not root_events:  # the root images.txt is the one camera's
+            seqs = [replace(s, name=cams[0]) if s.name == "images" else s for s in seqs]
 
         def is_event_cam(s: ImageSequence) -> bool:
             return s.name in event_names or (root_events and s.name == "images")
