@@ -223,32 +223,6 @@ def emit_more(  # type: ignore[no-untyped-def]
 
 
 @kernel
-def place_shot_noise(  # type: ignore[no-untyped-def]
-    sidx, traw, u, t0, ref, c_pos, c_neg, last, idx, t, p, n
-):
-    """Shot-noise events from their draws (pixels ``sidx``, sorted here in place; times
-    ``t0 + 1 + traw``; ON where ``u < 0.5``) into ``idx``, ``t``, ``p`` from ``n`` on; each
-    resets its pixel like a real event, in event order (the reference's ``np.add.at``).
-    Returns whether two of them share pixel and time (their keys would tie)."""
-    sidx.sort()
-    ties = False
-    for j in range(sidx.shape[0]):
-        i = sidx[j]
-        tj = t0 + 1 + traw[j]
-        on = u[j] < 0.5
-        idx[n + j] = i
-        t[n + j] = tj
-        p[n + j] = 1 if on else 0
-        ref[i] += c_pos[i] if on else -c_neg[i]
-        last[i] = max(last[i], tj)
-        k = j - 1  # the run of this pixel, pairwise (runs are a few events long)
-        while k >= 0 and sidx[k] == i:
-            ties |= t[n + k] == tj
-            k -= 1
-    return ties
-
-
-@kernel
 def pack_keys(t, idx, p, n_real, t0, ib, key):  # type: ignore[no-untyped-def]
     """``key = (t - t0, shot, pixel index, p)`` packed in bit fields (``ib`` bits of index);
     a dropped event (``p = -1``) gets the largest int64, so that it sorts last.
