@@ -110,3 +110,16 @@ def test_leak_phase_zero_first_event_after_one_period(gen_cls: type[EventGenerat
 def test_leak_phase_rejects_unknown() -> None:
     with pytest.raises(ValueError, match="leak_phase = 'random': allowed steady, zero"):
         EventModelParams(leak_phase="random")
+
+
+def test_config_leak_phase_key() -> None:
+    from pydantic import ValidationError
+
+    from roslan.sensors.event_camera import EventCameraConfig
+
+    base = {"type": "event_camera", "name": "dvs", "rate": 25.0, "topic": "/dvs"}
+    assert EventCameraConfig.model_validate(base).model_params().leak_phase == "steady"
+    cfg = EventCameraConfig.model_validate({**base, "leak_phase": "zero"})
+    assert cfg.model_params().leak_phase == "zero"
+    with pytest.raises(ValidationError, match="leak_phase"):
+        EventCameraConfig.model_validate({**base, "leak_phase": "random"})
