@@ -396,15 +396,18 @@ class EventGenerator:
         shot_ties = False
         if p.shot_noise_rate > 0:
             # shot noise (drawn after the crossings moved ``ref``) placed after them
-            sidx, st, sp = self._shot_noise(t0, dt_ns, s1)
-            shot = int(sidx.shape[0])
-            if shot:
-                idx, t, pol = self._scratch(n + shot, keep=n)
-                idx[n : n + shot], t[n : n + shot], pol[n : n + shot] = sidx, st, sp
+            draws = self._shot_draws(dt_ns)
+            if draws is not None:
+                sidx, traw, u, v = draws
+                idx, t, pol = self._scratch(n + sidx.shape[0], keep=n)
+                expl = np.exp(self.lp[sidx])  # NumPy's exp, as the reference's
+                n, shot_ties = k.shot_noise(
+                    sidx, traw, u, v, expl, p.log_eps, p.shot_noise_intensity_factor,
+                    self._shot_max, self._shot_on, self._shot_off, s1, self.ref,
+                    self.last_event_ns, t0, idx, t, pol, n,
+                )  # fmt: skip
                 # two shot events of one pixel at one ns (practically never): keys would tie
-                o = np.lexsort((st, sidx))
-                shot_ties = bool(np.any((np.diff(sidx[o]) == 0) & (np.diff(st[o]) == 0)))
-                n += shot
+                shot_ties = bool(shot_ties)
         self.signal, self._sig_next = s1, s0
         self.t_ns = t_ns
         n_out = n - int(dropped)
@@ -449,6 +452,18 @@ class EventGenerator:
             return lp.copy() if lp.dtype == np.float64 else lp.astype(np.float64)
         return lp + self.leak_slope * (t_ns * 1e-9)
 
+    def _shot_draws(self, dt_ns: int) -> tuple[I64, I64, F64, F64] | None:
+        """The interval's shot-noise candidates: pixels, times after ``t0`` (ns), polarity
+        and acceptance uniforms; None when there are none."""
+        rng = self._rng
+        lam = self.params.shot_noise_rate * self._shot_max * self.n_pixels * dt_ns * 1e-9
+        m = int(rng.poisson(lam))
+        if m == 0:
+            return None
+        idx = rng.integers(0, self.n_pixels, m)
+        traw = rng.integers(0, dt_ns, m)
+        return idx, traw, rng.random(m), rng.random(m)
+
     def _shot_noise(self, t0: int, dt_ns: int, s1: F64) -> tuple[I64, I64, NDArray[np.int8]]:
         """The interval's shot-noise events (pixel-sorted, ties in draw order), each setting
         its pixel's reference to the present signal ``s1`` (v2e: no follow-up event).
@@ -460,15 +475,11 @@ class EventGenerator:
         intensity): ON and OFF events at ``rate / 2 * (1 - (1 - f) I) * C_nominal / C``.
         """
         p = self.params
-        rng = self._rng
-        lam = p.shot_noise_rate * self._shot_max * self.n_pixels * dt_ns * 1e-9
-        m = int(rng.poisson(lam))
-        if m == 0:
+        draws = self._shot_draws(dt_ns)
+        if draws is None:
             return _EMPTY
-        idx = rng.integers(0, self.n_pixels, m)
-        t = t0 + 1 + rng.integers(0, dt_ns, m)  # in (t0, t1]
-        u = rng.random(m)
-        v = rng.random(m)
+        idx, traw, u, v = draws
+        t = t0 + 1 + traw  # in (t0, t1]
         on = u < 0.5
         inten = np.clip(np.exp(self.lp[idx]) - p.log_eps, 0.0, 1.0)
         g = 1.0 - (1.0 - p.shot_noise_intensity_factor) * inten
