@@ -223,29 +223,46 @@ def emit_more(  # type: ignore[no-untyped-def]
 
 
 @kernel
-def place_shot_noise(  # type: ignore[no-untyped-def]
-    sidx, traw, u, t0, ref, c_pos, c_neg, last, idx, t, p, n
+def shot_noise(  # type: ignore[no-untyped-def]
+    sidx, traw, u, v, expl, eps, f, smax, shot_on, shot_off, s1, ref, last, t0, idx, t, p, n
 ):
-    """Shot-noise events from their draws (pixels ``sidx``, sorted here in place; times
-    ``t0 + 1 + traw``; ON where ``u < 0.5``) into ``idx``, ``t``, ``p`` from ``n`` on; each
-    resets its pixel like a real event, in event order (the reference's ``np.add.at``).
-    Returns whether two of them share pixel and time (their keys would tie)."""
-    sidx.sort()
-    ties = False
+    """The shot-noise candidates (pixels ``sidx``, times ``t0 + 1 + traw``, ON where
+    ``u < 0.5``) kept where ``v * smax < (1 - (1 - f) clip(expl - eps, 0, 1)) * C_nom / C``
+    (``expl = exp(lp)`` of each candidate, ``shot_on``/``shot_off`` the per-pixel
+    ``C_nom / C``) into ``idx``, ``t``, ``p`` from ``n`` on, sorted by pixel (stable: ties in
+    draw order); each sets its pixel's ``ref`` to the signal ``s1`` and ``last`` to at least
+    its time. Returns ``(n, ties)``: the new count, and whether two kept events share pixel
+    and time (their keys would tie)."""
+    n0 = n
     for j in range(sidx.shape[0]):
         i = sidx[j]
-        tj = t0 + 1 + traw[j]
         on = u[j] < 0.5
-        idx[n + j] = i
-        t[n + j] = tj
-        p[n + j] = 1 if on else 0
-        ref[i] += c_pos[i] if on else -c_neg[i]
-        last[i] = max(last[i], tj)
+        c = expl[j] - eps
+        c = 0.0 if c < 0.0 else (1.0 if c > 1.0 else c)
+        g = 1.0 - (1.0 - f) * c
+        ratio = shot_on[i] if on else shot_off[i]
+        if v[j] * smax < g * ratio:
+            tj = t0 + 1 + traw[j]
+            k = n  # insertion, stable: after the kept events of pixels <= i
+            while k > n0 and idx[k - 1] > i:
+                idx[k] = idx[k - 1]
+                t[k] = t[k - 1]
+                p[k] = p[k - 1]
+                k -= 1
+            idx[k] = i
+            t[k] = tj
+            p[k] = 1 if on else 0
+            n += 1
+    ties = False
+    for j in range(n0, n):
+        i = idx[j]
+        ref[i] = s1[i]
+        last[i] = max(last[i], t[j])
         k = j - 1  # the run of this pixel, pairwise (runs are a few events long)
-        while k >= 0 and sidx[k] == i:
-            ties |= t[n + k] == tj
+        while k >= n0 and idx[k] == i:
+            ties |= t[k] == t[j]
             k -= 1
-    return ties
+    return n, ties
 
 
 @kernel

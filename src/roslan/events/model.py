@@ -14,8 +14,18 @@ reference expressed as a drift of the signal) which is linear in between:
 * the refractory period drops an event closer than ``refractory`` to the pixel's last
   *emitted* event, but the reference still advances (ESIM);
 * thresholds ``C+``/``C-`` carry a per-pixel mismatch fixed at construction;
-* shot noise: Poisson events (rate Hz per pixel, half ON, half OFF) at uniform random
-  instants, which reset the reference by one threshold like a real event (v2e).
+* shot noise (v2e): Poisson events at uniform random instants, ON and OFF each at
+  ``shot_noise_rate / 2 * (1 - (1 - f) * clip(I, 0, 1)) * C_nominal / C`` Hz per pixel (``I``
+  the photoreceptor's linear intensity, ``f = shot_noise_intensity_factor``: dark pixels
+  are the noisiest; a pixel with a low threshold fires more); an event sets the reference
+  to the present signal (no follow-up event undoes it);
+* the leak's initial phase (``leak_phase``): ``steady`` starts every reference a uniform
+  random fraction of ``C+`` below the signal (the leak's steady state, as if the sensor had
+  been running), ``zero`` at the signal (a global reset at t = 0: no leak event before
+  ``1 / leak_rate``).
+
+docs/event-model.md gives the equations, the defaults, the sources and the tests that
+measure each of them.
 
 :class:`EventGenerator` runs the per-pixel update as numba kernels (``_kernels``: one fused
 pass over the pixels, then one over the few pixels that cross a level, then one over those
@@ -62,6 +72,9 @@ _NO_LEAK: F64 = np.zeros(0)
 MIN_THRESHOLD = 0.01
 """Smallest contrast threshold a mismatched pixel may get (log units)."""
 
+LEAK_PHASES = ("steady", "zero")
+"""Initial phases of the leak (:attr:`EventModelParams.leak_phase`)."""
+
 
 @dataclass(frozen=True, slots=True)
 class EventModelParams:
@@ -75,7 +88,12 @@ class EventModelParams:
         intensity_dependent: scale the low-pass bandwidth with pixel intensity (v2e).
         leak_rate: leak events per pixel, Hz (ON events of a static scene).
         leak_jitter: relative per-pixel std of the leak rate.
-        shot_noise_rate: shot-noise events per pixel, Hz (both polarities together).
+        shot_noise_rate: shot-noise events per pixel, Hz (both polarities together) of a
+            pixel at zero intensity and nominal thresholds (v2e's ``shot_noise_rate_hz``).
+        shot_noise_intensity_factor: the shot-noise rate of a pixel at intensity 1 relative
+            to one at 0 (linear in between; v2e's 0.25).
+        leak_phase: ``steady`` (references start a uniform random fraction of ``C+`` below
+            the signal) or ``zero`` (at the signal).
         log_eps: eps of ``L = log(eps + I)``, I linear luminance in [0, 1].
     """
 
@@ -88,9 +106,16 @@ class EventModelParams:
     leak_rate: float = 0.0
     leak_jitter: float = 0.1
     shot_noise_rate: float = 0.0
+    shot_noise_intensity_factor: float = 0.25
+    leak_phase: str = "steady"
     log_eps: float = 1e-3
 
-    def with_overrides(self, **kw: float | bool | None) -> EventModelParams:
+    def __post_init__(self) -> None:
+        if self.leak_phase not in LEAK_PHASES:
+            msg = f"leak_phase = {self.leak_phase!r}: allowed {', '.join(LEAK_PHASES)}"
+            raise ValueError(msg)
+
+    def with_overrides(self, **kw: float | bool | str | None) -> EventModelParams:
         """A copy with every non-None keyword replaced."""
         return replace(self, **{k: v for k, v in kw.items() if v is not None})  # type: ignore[arg-type]
 
@@ -212,10 +237,17 @@ class EventGenerator:
         if p.leak_rate > 0:
             rate = np.maximum(p.leak_rate * (1.0 + p.leak_jitter * jitter), 0.0)
             self.leak_slope: F64 | None = rate * self.c_pos  # log units per second
-            self._leak_phase: F64 = phase * self.c_pos  # desynchronises the pixels' leak
+            # desynchronises the pixels' leak: its steady state from t = 0
+            steady = p.leak_phase == "steady"
+            self._leak_phase: F64 = phase * self.c_pos if steady else np.zeros(n)
         else:
             self.leak_slope = None
             self._leak_phase = np.zeros(n)
+        # shot noise: per-pixel rate factors of the threshold (nominal / actual), and their
+        # maximum, the bound of the thinning
+        self._shot_on: F64 = p.threshold_pos / self.c_pos
+        self._shot_off: F64 = p.threshold_neg / self.c_neg
+        self._shot_max = float(max(self._shot_on.max(), self._shot_off.max())) if n else 1.0
         self._rng = rng
         self._refractory_ns = round(p.refractory * 1e9)
         self.ref: F64 = np.zeros(n)
@@ -346,39 +378,37 @@ class EventGenerator:
         # the last interval's candidate density picks the compaction (same result)
         m = k.compact(self._flag, self._cand, self._dense)
         self._dense = 32 * m > self.n_pixels
-        shot = self._shot_noise_draw(dt_ns) if p.shot_noise_rate > 0 else 0
         # first crossings (one per candidate; dropped ones kept as p = -1), then the
         # pixels with more, resumed in grown buffers when full
-        idx, t, pol = self._scratch(m + shot)
+        idx, t, pol = self._scratch(m)
         args = (s0, s1, self.ref, self.c_pos, self.c_neg, self.last_event_ns, t0, dt_ns)
         mm, n, dropped = k.emit_first(self._cand, m, *args, self._refractory_ns, idx, t, pol, 0)
         j = 0
         while True:
-            idx, t, pol = self._scratch(n + shot, keep=n)
+            idx, t, pol = self._scratch(n, keep=n)
             j, n, d = k.emit_more(self._cand, j, mm, *args, self._refractory_ns, idx, t, pol, n)
             dropped += d
             if j == mm:
                 break
             self._scratch(2 * idx.shape[0] + 1024, keep=n)  # full: grow and go on
-        idx, t, pol = self._scratch(n + shot, keep=n)  # room for the shot noise
-        self.signal, self._sig_next = s1, s0
         self.n_dropped += int(dropped)
         n_real = int(n)
         shot_ties = False
-        if shot:
-            # m shot-noise events (drawn after the crossings moved ``ref``) placed after
-            # them; a noise event resets its pixel like a real one (v2e)
-            rng = self._rng
-            draws = (rng.integers(0, self.n_pixels, shot), rng.integers(0, dt_ns, shot))
-            u = rng.random(shot)
-            # two shot events of one pixel at one ns (practically never): keys would tie
-            shot_ties = bool(
-                k.place_shot_noise(
-                    *draws, u, t0, self.ref, self.c_pos, self.c_neg, self.last_event_ns,
-                    idx, t, pol, n,
-                )
-            )  # fmt: skip
-            n += shot
+        if p.shot_noise_rate > 0:
+            # shot noise (drawn after the crossings moved ``ref``) placed after them
+            draws = self._shot_draws(dt_ns)
+            if draws is not None:
+                sidx, traw, u, v = draws
+                idx, t, pol = self._scratch(n + sidx.shape[0], keep=n)
+                expl = np.exp(self.lp[sidx])  # NumPy's exp, as the reference's
+                n, shot_ties = k.shot_noise(
+                    sidx, traw, u, v, expl, p.log_eps, p.shot_noise_intensity_factor,
+                    self._shot_max, self._shot_on, self._shot_off, s1, self.ref,
+                    self.last_event_ns, t0, idx, t, pol, n,
+                )  # fmt: skip
+                # two shot events of one pixel at one ns (practically never): keys would tie
+                shot_ties = bool(shot_ties)
+        self.signal, self._sig_next = s1, s0
         self.t_ns = t_ns
         n_out = n - int(dropped)
         if n_out == 0:
@@ -422,29 +452,49 @@ class EventGenerator:
             return lp.copy() if lp.dtype == np.float64 else lp.astype(np.float64)
         return lp + self.leak_slope * (t_ns * 1e-9)
 
-    def _shot_noise_draw(self, dt_ns: int) -> int:
-        """Number of shot-noise events of the interval (first draw of the interval)."""
-        lam = self.params.shot_noise_rate * self.n_pixels * dt_ns * 1e-9
-        return int(self._rng.poisson(lam))
+    def _shot_draws(self, dt_ns: int) -> tuple[I64, I64, F64, F64] | None:
+        """The interval's shot-noise candidates: pixels, times after ``t0`` (ns), polarity
+        and acceptance uniforms; None when there are none."""
+        rng = self._rng
+        lam = self.params.shot_noise_rate * self._shot_max * self.n_pixels * dt_ns * 1e-9
+        m = int(rng.poisson(lam))
+        if m == 0:
+            return None
+        idx = rng.integers(0, self.n_pixels, m)
+        traw = rng.integers(0, dt_ns, m)
+        return idx, traw, rng.random(m), rng.random(m)
+
+    def _shot_noise(self, t0: int, dt_ns: int, s1: F64) -> tuple[I64, I64, NDArray[np.int8]]:
+        """The interval's shot-noise events (pixel-sorted, ties in draw order), each setting
+        its pixel's reference to the present signal ``s1`` (v2e: no follow-up event).
+
+        Thinning of a Poisson process: candidates at the bound rate ``shot_noise_rate *
+        max(C_nominal / C)`` per pixel (uniform pixel, instant in ``(t0, t1]``, polarity),
+        each kept with probability ``(1 - (1 - f) * clip(I, 0, 1)) * (C_nominal / C) /
+        max(C_nominal / C)`` (``I = exp(lp) - eps``, the photoreceptor's present linear
+        intensity): ON and OFF events at ``rate / 2 * (1 - (1 - f) I) * C_nominal / C``.
+        """
+        p = self.params
+        draws = self._shot_draws(dt_ns)
+        if draws is None:
+            return _EMPTY
+        idx, traw, u, v = draws
+        t = t0 + 1 + traw  # in (t0, t1]
+        on = u < 0.5
+        inten = np.clip(np.exp(self.lp[idx]) - p.log_eps, 0.0, 1.0)
+        g = 1.0 - (1.0 - p.shot_noise_intensity_factor) * inten
+        ratio = np.where(on, self._shot_on[idx], self._shot_off[idx])
+        keep = v * self._shot_max < g * ratio
+        order = np.argsort(idx[keep], kind="stable")
+        idx, t, pol = idx[keep][order], t[keep][order], on[keep][order].astype(np.int8)
+        self.ref[idx] = s1[idx]
+        np.maximum.at(self.last_event_ns, idx, t)
+        return idx, t, pol
 
 
 class NumpyEventGenerator(EventGenerator):
     """The same model in plain NumPy array passes (the kernels' reference, and the
     benchmark's baseline): bit-identical events, several times slower."""
-
-    def _shot_noise(self, t0: int, dt_ns: int, m: int) -> tuple[I64, I64, NDArray[np.int8]]:
-        """``m`` shot-noise events (drawn after the interval's crossings moved ``ref``)."""
-        rng = self._rng
-        if m == 0:
-            return _EMPTY
-        idx = np.sort(rng.integers(0, self.n_pixels, m))
-        t = t0 + 1 + rng.integers(0, dt_ns, m)  # in (t0, t1]
-        pol = (rng.random(m) < 0.5).astype(np.int8)
-        # a noise event resets the pixel like a real one (v2e)
-        step = np.where(pol == 1, self.c_pos[idx], -self.c_neg[idx])
-        np.add.at(self.ref, idx, step)
-        np.maximum.at(self.last_event_ns, idx, t)
-        return idx, t, pol
 
     def update(self, intensity: NDArray[np.floating], t_ns: int) -> EventBatch:
         """Advance to the frame ``intensity`` (H, W) linear luminance at ``t_ns``.
@@ -494,7 +544,7 @@ class NumpyEventGenerator(EventGenerator):
         S1 = self._signal(self.lp, t_ns)
         parts = [self._crossings(self.signal, S1, t0, dt_ns)]
         if p.shot_noise_rate > 0:
-            parts.append(self._shot_noise(t0, dt_ns, self._shot_noise_draw(dt_ns)))
+            parts.append(self._shot_noise(t0, dt_ns, S1))
         self.signal = S1
         self.t_ns = t_ns
         return self._sorted(parts, t0, dt_ns)

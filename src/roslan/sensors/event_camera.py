@@ -127,7 +127,12 @@ class EventCameraConfig(SensorConfig, CameraIntrinsics):
     leak_rate: NonNegative | None = None
     """Leak events per pixel, Hz."""
     shot_noise_rate: NonNegative | None = None
-    """Shot-noise events per pixel, Hz."""
+    """Shot-noise events per pixel, Hz, of a dark pixel at nominal thresholds (v2e: the
+    rate falls linearly to a quarter at intensity 1, and scales with nominal / actual
+    threshold)."""
+    leak_phase: Literal["steady", "zero"] | None = None
+    """Initial phase of the leak: ``steady`` (default; as if the sensor had been running)
+    or ``zero`` (every pixel reset at the start: no leak event before ``1 / leak_rate``)."""
     log_eps: Positive | None = None
     # adaptive sampling
     sampling: Literal["optical_flow", "brightness", "fixed"] = "optical_flow"
@@ -195,6 +200,7 @@ class EventCameraConfig(SensorConfig, CameraIntrinsics):
             intensity_dependent=self.intensity_dependent_lowpass,
             leak_rate=self.leak_rate,
             shot_noise_rate=self.shot_noise_rate,
+            leak_phase=self.leak_phase,
             log_eps=self.log_eps,
         )
 
