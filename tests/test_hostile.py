@@ -595,8 +595,11 @@ def _fuzz_once(
 ) -> None:
     path = tmp_path / name
     path.write_text(yaml.safe_dump(doc, allow_unicode=True), encoding="utf-8")
-    rc, err = _cli(argv(path), capsys)
-    assert rc in (0, 2), err
+    args = argv(path)
+    rc, err = _cli(args, capsys)
+    # a dry run that lists invalid tasks exits 1 (its table names each task's problem)
+    assert rc in ((0, 1, 2) if "--dry-run" in args else (0, 2)), err
+    assert "Traceback" not in err
     if rc == 2:
         first = _assert_clean_error(rc, err)
         if PASSED not in first and "--seed" not in first:
@@ -725,3 +728,28 @@ def test_fuzz_sweep(
         doc,
         lambda p: ["batch", str(p), "-o", str(p.parent / "b"), "--dry-run"],
     )
+
+
+@pytest.mark.parametrize(
+    ("grid", "rc"),
+    [
+        ({"trajectory.k": {"start": 0.0, "stop": -(2**63) - 1, "num": 2}}, 1),  # tasks invalid
+        ({"trajectory.k": {"start": 0.1, "stop": 10**400, "num": 2}}, 2),  # beyond float
+        ({"trajectory.k": [0.0]}, 1),  # a valid sweep whose only task is invalid
+    ],
+)
+def test_sweep_grid_extremes(
+    grid: dict[str, Any], rc: int, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Grid bounds outside the float range are refused by name; a dry run whose tasks are
+    all invalid lists them and exits 1, never with a traceback."""
+    base = {"trajectory": {"initial": {"position": [-1, 0.5, 1.0], "descent_rate": 1.0}}}
+    doc = {"base": base, "axes": [{"grid": grid}]}
+    path = tmp_path / "sweep.yaml"
+    path.write_text(yaml.safe_dump(doc), encoding="utf-8")
+    got, err = _cli(["batch", str(path), "-o", str(tmp_path / "b"), "--dry-run"], capsys)
+    assert got == rc, err
+    assert "Traceback" not in err
+    if rc == 2:
+        first = _assert_clean_error(got, err, "sweep.yaml", "trajectory.k.start/stop")
+        assert "finite numbers" in first

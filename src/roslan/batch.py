@@ -313,7 +313,12 @@ def _err(source: str, where: str, value: Any, allowed: str) -> ConfigError:
 
 
 def _number(v: Any) -> bool:
-    return isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
+    if not isinstance(v, int | float) or isinstance(v, bool):
+        return False
+    try:
+        return math.isfinite(float(v))
+    except OverflowError:  # an integer beyond the float range
+        return False
 
 
 def _plain(v: Any) -> Any:
@@ -336,7 +341,7 @@ def _grid_values(source: str, where: str, spec: Any) -> list[Any]:
             raise _err(source, f"{where}.start/stop", (start, stop), "finite numbers")
         if not isinstance(num, int) or isinstance(num, bool) or not 1 <= num <= MAX_TASKS:
             raise _err(source, f"{where}.num", num, f"an integer in [1, {MAX_TASKS}]")
-        return [float(v) for v in np.linspace(start, stop, num)]
+        return [float(v) for v in np.linspace(float(start), float(stop), num)]
     raise _err(source, where, spec, "a list of values, or {start, stop, num}")
 
 
