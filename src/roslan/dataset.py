@@ -191,18 +191,22 @@ def _scene_goal(name: str) -> dict[str, Any]:
     return goal
 
 
-def _clear(scene: Any, block: Mapping[str, Any]) -> bool:
+def _clear(scene: Any, block: Mapping[str, Any], sensors: Sequence[Mapping[str, Any]]) -> bool:
+    """Whether the landing keeps the default vehicle's body and every sensor (origin,
+    camera near planes) out of the scene, as ``roslan simulate`` checks it."""
     if scene is None:
         return True
     try:
         from roslan.scene import check_clearance
     except ImportError:
         return True
-    from roslan.trajectory.config import TrajectoryConfig
+    from roslan.config.sim import SimConfig
     from roslan.trajectory.generator import Trajectory
+    from roslan.vehicle import base_link_trajectory
 
-    traj = Trajectory(TrajectoryConfig.model_validate(block), warn=False)
-    return check_clearance(scene, traj) is None
+    cfg = SimConfig.model_validate({"trajectory": dict(block), "sensors": list(sensors)})
+    traj = Trajectory(base_link_trajectory(cfg.trajectory, cfg.vehicle, scene), warn=False)
+    return check_clearance(scene, traj, vehicle=cfg.vehicle, sensors=cfg.sensors) is None
 
 
 def dataset_plan(
@@ -254,11 +258,11 @@ def dataset_plan(
             sim_seed = int(np.random.SeedSequence([seed, j, i]).generate_state(1, np.uint32)[0])
             # the simulation builds its scene with its own seed (clutter moves): check that one
             scene = _load(scene_name, sim_seed) if check_clearance else None
-            if check_clearance and not _clear(scene, block):
+            if check_clearance and not _clear(scene, block, suite):
                 for step in _HEADING_STEPS_DEG:
                     h = math.radians(heading_deg + step)
                     candidate = _trajectory_block(kx, ky, speed, h, distance, goal)
-                    if _clear(scene, candidate):
+                    if _clear(scene, candidate, suite):
                         heading, block = h, candidate
                         break
                 else:

@@ -20,6 +20,7 @@ from roslan.limits import MAX_RATE_HZ, MAX_SEED
 from roslan.sensors.base import SensorConfig
 from roslan.sensors.registry import SENSOR_TYPES, config_class
 from roslan.trajectory.config import TrajectoryConfig
+from roslan.vehicle import VehicleConfig
 
 __all__ = ["DEFAULT_START_TIME_NS", "OutputConfig", "SimConfig"]
 
@@ -93,6 +94,8 @@ class SimConfig(StrictModel):
         default_factory=list
     )
     seed: Annotated[int, Field(ge=0, le=MAX_SEED)] = 0
+    vehicle: VehicleConfig = VehicleConfig()
+    """Body shape and contact points in base_link (:mod:`roslan.vehicle`)."""
     output: OutputConfig = OutputConfig()
 
     @model_validator(mode="after")

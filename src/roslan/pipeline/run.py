@@ -74,6 +74,7 @@ from roslan.sensors.ground_truth import BASE_FRAME, WORLD_FRAME, GroundTruth
 from roslan.sensors.registry import sensor_class
 from roslan.trajectory.frames import matrix_to_quat_xyzw, matrix_to_rpy
 from roslan.trajectory.generator import Trajectory
+from roslan.vehicle import base_link_trajectory
 
 __all__ = ["RUN_FILE", "TIMING_FILE", "run_simulation", "static_transforms"]
 
@@ -597,13 +598,20 @@ def _run_simulation(
 
             progress.phase(f"loading scene {config.scene!r}")
             scene = scene_mod.load_scene(config.scene, base_dir=base_dir, seed=config.seed)
+        # the goal is where the vehicle's contact point meets the surface: base_link's
+        # trajectory ends above it (roslan.vehicle); only the goal moves, not the timing
+        traj_config = base_link_trajectory(config.trajectory, config.vehicle, scene)
+        traj = Trajectory(traj_config, warn=False)
+        if scene is not None:
             if not allow_collision:
-                progress.phase("checking the path's clearance")
-                hit = scene_mod.check_clearance(scene, traj)
+                progress.phase("checking the clearance of the body and every sensor")
+                hit = scene_mod.check_clearance(
+                    scene, traj, vehicle=config.vehicle, sensors=config.sensors
+                )
                 if hit is not None:
                     msg = (
-                        f"scene {config.scene!r}: {hit}; "
-                        "change the trajectory or pass --allow-collision"
+                        f"scene {config.scene!r}: {hit}; change the trajectory, the sensor "
+                        "mounts or the vehicle block, or pass --allow-collision"
                     )
                     raise ConfigError(msg)
         # ---- 2. write into a temporary sibling
@@ -636,7 +644,7 @@ def _run_simulation(
                 )
                 pool.send(
                     lambda g: WorkerJob(
-                        trajectory=config.trajectory,
+                        trajectory=traj_config,
                         outdir=tmp,
                         seed=config.seed,
                         start_time_ns=config.output.start_time,

@@ -889,6 +889,7 @@ class Renderer:
         luminance: bool = False,
         samples: int | None = None,
         out: F32 | None = None,
+        near: float | None = None,
     ) -> RenderResult:
         """Render the view of a pinhole camera.
 
@@ -911,6 +912,8 @@ class Renderer:
             out: C-contiguous float32 array to read the colour (H, W, 3) into, or the
                 luminance (H, W) when ``color`` is False: a caller's reused buffer (a
                 fresh 3.7 MB array per frame costs ~900 page faults, ~1 ms on this VM).
+            near: near clipping distance (m) of this view (None: :attr:`near`); the
+                sensors pass their ``near_clip``.
         Returns:
             :class:`RenderResult`; row 0 is the top of the image. Arrays are fresh (the
             caller may keep and modify them), except ``out``.
@@ -925,9 +928,10 @@ class Renderer:
         T = np.asarray(T_world_cam, dtype=np.float64)
         T_cam_world = np.linalg.inv(T)
         cam_pos = T[:3, 3]
+        z_near = self.near if near is None else float(near)
         far = float(np.max(np.linalg.norm(self._bounds_corners - cam_pos, axis=1))) * 1.01
-        far = max(far, 2.0 * self.near)
-        P = projection_from_K(np.asarray(K, dtype=np.float64), width, height, self.near, far)
+        far = max(far, 2.0 * z_near)
+        P = projection_from_K(np.asarray(K, dtype=np.float64), width, height, z_near, far)
         clip = P @ T_cam_world
         mvp = _gl_mat(clip)
         zrow = tuple(float(x) for x in T_cam_world[2])
@@ -938,7 +942,7 @@ class Renderer:
         )
         y = (uv[:, 1] - Kf[1, 2]) / Kf[1, 1]
         x = (uv[:, 0] - Kf[0, 2] - Kf[0, 1] * y) / Kf[0, 0]
-        reach = self.near * float(np.sqrt(np.max(x * x + y * y)) + 1.0)
+        reach = z_near * float(np.sqrt(np.max(x * x + y * y)) + 1.0)
         first, count, group, cull = self.visible_ranges(
             clip, cam_pos, sort=self.front_to_back, near_reach=reach
         )

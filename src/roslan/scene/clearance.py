@@ -1,17 +1,35 @@
-"""Trajectory clearance: does the path touch scene geometry before touchdown?"""
+"""Clearance: does any part of the vehicle or any sensor enter scene geometry?
+
+The vehicle is a set of labelled points rigidly attached to base_link: points on its
+body's surface (:func:`roslan.vehicle.body_points`), every sensor's origin, and the
+corners and centre of every rendering sensor's near-clipping rectangle (its
+``near_clip`` in front of the optical centre). Each point's path over the whole run,
+hold included, is cut into segments of at most ``step`` metres and cast against the
+scene's triangles with Embree; at the first and the last instant a segment also joins
+base_link to every point (nothing may lie between base_link and its own sensors). Any
+hit is a collision: unlike the contact points (feet, grasp point), none of these points
+may touch a surface, so no tolerance around the goal is needed.
+"""
 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from functools import lru_cache
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
+from numpy.typing import NDArray
 
 from roslan.scene.model import Scene
 from roslan.trajectory import Trajectory
 
-__all__ = ["check_clearance"]
+__all__ = ["VehiclePoints", "check_clearance", "vehicle_points"]
+
+F64 = NDArray[np.float64]
+
+_MAX_RAYS = 2_000_000
+"""Rays per Embree call (bounds the memory of long runs)."""
 
 
 @lru_cache(maxsize=4)
@@ -29,78 +47,158 @@ def _embree(scene: Scene) -> Any:
     return es
 
 
+class VehiclePoints(NamedTuple):
+    """Points rigidly attached to base_link and what each one is."""
+
+    points: F64
+    """(K, 3) positions in base_link, m."""
+    labels: tuple[str, ...]
+    """(K,) e.g. ``"the body"``, ``"sensor 'sonar' (origin)"``."""
+
+
+def vehicle_points(vehicle: Any = None, sensors: Sequence[Any] = ()) -> VehiclePoints:
+    """The points the clearance check keeps out of the scene.
+
+    Args:
+        vehicle: a :class:`roslan.vehicle.VehicleConfig` (None: the default vehicle).
+        sensors: sensor configs: each one's ``pose`` origin, and for rendering sensors
+            (camera-like configs) the near-plane corners and centre of every eye.
+    """
+    from roslan.sensors.camera_model import CameraIntrinsics
+    from roslan.vehicle import VehicleConfig, body_points
+
+    v = vehicle if vehicle is not None else VehicleConfig()
+    pts: list[F64] = [body_points(v.body)]
+    labels: list[str] = ["the body"] * pts[0].shape[0]
+    for s in sensors:
+        pts.append(np.asarray(s.pose.position, dtype=np.float64)[None, :])
+        labels.append(f"sensor {s.name!r} (origin)")
+        if isinstance(s, CameraIntrinsics):
+            near = float(getattr(s, "near_clip", 0.01))
+            for cam in s.calibration_cameras():
+                m = cam.model
+                uv = np.array(
+                    [
+                        [-0.5, -0.5],
+                        [m.width - 0.5, -0.5],
+                        [-0.5, m.height - 0.5],
+                        [m.width - 0.5, m.height - 0.5],
+                    ]
+                )
+                xy = np.vstack([m.undistort_normalized(uv), [[0.0, 0.0]]])
+                corners = np.column_stack([xy * near, np.full(xy.shape[0], near)])
+                T = cam.T_base_optical
+                world = corners @ T[:3, :3].T + T[:3, 3]
+                if cam.name != s.name:  # a stereo eye: its optical centre too
+                    pts.append(T[:3, 3][None, :])
+                    labels.append(f"sensor {s.name!r} ({cam.name} optical centre)")
+                pts.append(world)
+                what = f"{cam.name} near plane" if cam.name != s.name else "near plane"
+                labels += [f"sensor {s.name!r} ({what}, near_clip {near:g} m)"] * 5
+    return VehiclePoints(np.concatenate(pts), tuple(labels))
+
+
+def _cast(es: Any, origins: F64, ends: F64) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
+    """First hit of each segment ``origins -> ends``: triangle (-1 = none), fraction."""
+    d = ends - origins
+    seg = np.linalg.norm(d, axis=1)
+    moving = seg > 1e-9
+    prim = np.full(seg.shape[0], -1, dtype=np.int64)
+    frac = np.zeros(seg.shape[0])
+    if not moving.any():
+        return prim, frac
+    idx = np.flatnonzero(moving)
+    u = d[idx] / seg[idx, None]
+    res = es.run(
+        np.ascontiguousarray(origins[idx], dtype=np.float32),
+        np.ascontiguousarray(u, dtype=np.float32),
+        output=1,
+        dists=np.ascontiguousarray(seg[idx], dtype=np.float32),
+    )
+    p = np.asarray(res["primID"]).astype(np.int64)
+    tf = np.asarray(res["tfar"], dtype=np.float64)
+    prim[idx] = p
+    frac[idx] = np.where(p >= 0, np.clip(tf / seg[idx], 0.0, 1.0), 0.0)
+    return prim, frac
+
+
 def check_clearance(
     scene: Scene,
     trajectory: Trajectory,
     *,
-    body_radius: float = 0.1,
-    goal_tolerance: float = 0.3,
+    vehicle: Any = None,
+    sensors: Sequence[Any] = (),
     step: float = 0.02,
 ) -> str | None:
-    """Check that the flown path up to touchdown passes through no scene geometry.
+    """Check that no part of the vehicle and no sensor enters scene geometry.
 
-    The closed-form path is sampled every ``step`` metres (at most) from t = 0 to the
-    touchdown time; each segment between samples is cast as 7 rays (the centre and
-    offsets of ``body_radius`` along the world axes) against the scene's triangles with
-    Embree. Hits within ``goal_tolerance`` (m) of the goal are ignored: landing on the
-    marker or perch is the point.
+    Args:
+        scene: the scene.
+        trajectory: base_link's trajectory (built with the vehicle's contact offset,
+            :func:`roslan.vehicle.base_link_trajectory`), checked from 0 to its end.
+        vehicle: the :class:`~roslan.vehicle.VehicleConfig` (None: the default body).
+        sensors: sensor configs whose origins and near planes are checked too.
+        step: longest path segment of any point between two checked instants, m.
 
     Returns:
-        None if clear, else ``"trajectory hits object 'NAME' at t = T s (position [x y z] m)"``.
+        None if clear, else ``"<what> enters object 'NAME' at t = T s (position [x y z]
+        m)"`` for the earliest collision.
     """
     if scene.n_triangles == 0:
         return None
-    T = float(trajectory.T)
-    coarse = trajectory.state(np.linspace(0.0, T, 2001)).position
-    length = float(np.linalg.norm(np.diff(coarse, axis=0), axis=1).sum())
+    vp = vehicle_points(vehicle, sensors)
+    P = vp.points
+    T_end = float(trajectory.duration)
+    t_td = float(trajectory.T)
+    # instants: dense enough that no point moves more than `step` between two of them
+    coarse_t = np.linspace(0.0, t_td, 2001)
+    st = trajectory.state(coarse_t)
+    world = st.position[:, None, :] + np.einsum("nij,kj->nki", st.R_world_body, P)
+    length = float(np.linalg.norm(np.diff(world, axis=0), axis=2).sum(axis=0).max())
     n = int(min(max(math.ceil(length / step), 2000), 400_000))
-    t = np.linspace(0.0, T, n + 1)
-    p = trajectory.state(t).position
-    goal = np.asarray(trajectory.p_world_goal, dtype=np.float64)
-    # skip the segments inside the goal zone (both ends near the goal)
-    near = np.linalg.norm(p - goal, axis=1) < goal_tolerance
-    keep = ~(near[:-1] & near[1:])
-    p0, p1, t0, t1 = p[:-1][keep], p[1:][keep], t[:-1][keep], t[1:][keep]
-    d = p1 - p0
-    seg = np.linalg.norm(d, axis=1)
-    moving = seg > 1e-12
-    p0, d, seg, t0, t1 = p0[moving], d[moving], seg[moving], t0[moving], t1[moving]
-    if p0.shape[0] == 0:
-        return None
-    u = d / seg[:, None]
-    offsets = np.concatenate([np.zeros((1, 3)), body_radius * np.eye(3), -body_radius * np.eye(3)])
-    origins = (p0[None, :, :] + offsets[:, None, :]).reshape(-1, 3)
-    dirs = np.broadcast_to(u, (offsets.shape[0], *u.shape)).reshape(-1, 3)
-    lengths = np.broadcast_to(seg, (offsets.shape[0], seg.shape[0])).reshape(-1)
+    t = np.linspace(0.0, t_td, n + 1)
+    if T_end > t_td:
+        t = np.append(t, T_end)
     es = _embree(scene)
-    res = es.run(
-        np.ascontiguousarray(origins, dtype=np.float32),
-        np.ascontiguousarray(dirs, dtype=np.float32),
-        output=1,
-        dists=np.ascontiguousarray(lengths, dtype=np.float32),
-    )
-    prim = np.asarray(res["primID"]).reshape(offsets.shape[0], -1)
-    tfar = np.asarray(res["tfar"]).reshape(offsets.shape[0], -1)
-    hit_any = (prim >= 0).any(axis=0)
-    if not hit_any.any():
-        return None
-    hit_points = p0[:, None, :] + 0.0  # placeholder shape (N, 1, 3)
-    del hit_points
-    # report the earliest hit; its point must be out of the goal zone too
-    order = np.flatnonzero(hit_any)
     owner = scene.triangles[2]
-    for i in order:
-        rays = np.flatnonzero(prim[:, i] >= 0)
-        j = rays[np.argmin(tfar[rays, i])]
-        frac = float(np.clip(tfar[j, i] / seg[i], 0.0, 1.0))
-        where = p0[i] + frac * d[i]
-        if np.linalg.norm(where - goal) < goal_tolerance:
-            continue
-        th = float(t0[i] + frac * (t1[i] - t0[i]))
-        name = scene.objects[int(owner[int(prim[j, i])])].name
+    K = P.shape[0]
+
+    def message(label: str, prim: int, where: F64, when: float) -> str:
+        name = scene.objects[int(owner[prim])].name
         x, y, z = where
         return (
-            f"trajectory hits object {name!r} at t = {th:.3f} s "
-            f"(position [{x:.2f} {y:.2f} {z:.2f}] m)"
+            f"{label} enters object {name!r} at t = {when:.3f} s "
+            f"(position [{x:.3f} {y:.3f} {z:.3f}] m)"
         )
-    return None
+
+    def static(when: float) -> str | None:
+        # base_link -> every point at one instant
+        s1 = trajectory.state([when])
+        pw = s1.position[0] + P @ s1.R_world_body[0].T
+        prim, frac = _cast(es, np.broadcast_to(s1.position[0], pw.shape).copy(), pw)
+        hit = np.flatnonzero(prim >= 0)
+        if not hit.size:
+            return None
+        k = int(hit[0])
+        where = s1.position[0] + frac[k] * (pw[k] - s1.position[0])
+        return message(vp.labels[k], int(prim[k]), where, when)
+
+    first = static(0.0)
+    if first is not None:
+        return first
+    # every point's path, in blocks of instants
+    block = max(2, _MAX_RAYS // K)
+    for i0 in range(0, t.shape[0] - 1, block - 1):
+        tb = t[i0 : i0 + block]
+        sb = trajectory.state(tb)
+        wb = sb.position[:, None, :] + np.einsum("nij,kj->nki", sb.R_world_body, P)
+        a, b = wb[:-1].reshape(-1, 3), wb[1:].reshape(-1, 3)
+        prim, frac = _cast(es, a, b)
+        hit = np.flatnonzero(prim >= 0)
+        if hit.size:
+            j = int(hit[0])  # row-major: the earliest segment first
+            seg, k = divmod(j, K)
+            where = a[j] + frac[j] * (b[j] - a[j])
+            when = float(tb[seg] + frac[j] * (tb[seg + 1] - tb[seg]))
+            return message(vp.labels[k], int(prim[j]), where, when)
+    return static(T_end)

@@ -330,6 +330,10 @@ class PointCloudSensor:
         """(PointCloud2 height, is_dense): unorganized by default."""
         return 1, True
 
+    def scan_span_ns(self) -> int:
+        """Time from a scan's stamp to its last firing, ns (default: a whole period)."""
+        return round(1e9 / float(self.config.rate))
+
     def topics(self) -> list[TopicSpec]:
         return [TopicSpec(self.config.topic, POINTCLOUD2)]
 
@@ -343,7 +347,9 @@ class PointCloudSensor:
         index = ctx.path(f"lidar/{cfg.name}/timestamps.txt")
         self._writer = ScanWriter(index.parent, index)
         height, dense = self.cloud_layout()
-        for seq, t0 in enumerate(sample_times_ns(cfg.rate, ctx.trajectory.duration_ns).tolist()):
+        # only scans whose last firing lies within the run (and its ground truth)
+        last = int(ctx.trajectory.duration_ns) - self.scan_span_ns()
+        for seq, t0 in enumerate(sample_times_ns(cfg.rate, last).tolist()):
             pts = self.scan(ctx.trajectory, caster, t0, rng)
             self._writer.write(t0, pts)
             stamp = ctx.stamp(t0)

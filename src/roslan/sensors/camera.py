@@ -359,7 +359,16 @@ class _CameraBase:
         return renderer
 
     def _stamps(self, ctx: SimContext) -> NDArray[np.int64]:
-        return sample_times_ns(self.config.rate, int(ctx.trajectory.duration_ns))
+        """Image stamps every ``1 / rate`` from 0 whose whole exposure lies within the
+        run (the ground truth covers every rendered instant)."""
+        end = int(ctx.trajectory.duration_ns)
+        stamps = sample_times_ns(self.config.rate, end)
+        sub = getattr(self, "_sub_times", None)
+        if sub is None or stamps.size == 0:
+            return stamps
+        offs = sub(0)
+        keep = (stamps + int(offs.min()) >= 0) & (stamps + int(offs.max()) <= end)
+        return stamps[keep]
 
     def _open_index(self, ctx: SimContext, e: _Eye, kind: str) -> None:
         if kind == "depth":
@@ -448,6 +457,7 @@ class _ImagingCamera(_CameraBase):
                 depth=False,
                 luminance=mono,
                 out=acc if i == 0 else e.buffer("sub", shape),
+                near=self.config.near_clip,
             )
             if i > 0:
                 acc += e.scratch["sub"]
@@ -580,7 +590,15 @@ class DepthCamera(_CameraBase):
         """(H, W) float32 metric z-depth (inf: nothing hit) of eye ``e`` at one body pose (4, 4)."""
         assert e.plan is not None
         T = T_world_body @ self._T_body_sensor @ e.T_sensor_optical
-        z = renderer.render(T, e.plan.K, e.plan.width, e.plan.height, color=False, depth=True).depth
+        z = renderer.render(
+            T,
+            e.plan.K,
+            e.plan.width,
+            e.plan.height,
+            color=False,
+            depth=True,
+            near=self.config.near_clip,
+        ).depth
         if e.plan.identity:
             return np.asarray(z, dtype=np.float32)
         import cv2

@@ -729,6 +729,10 @@ class CameraIntrinsics(StrictModel):
     distortion_coeffs: tuple[FiniteFloat, ...] = ()
     calibration: Path | None = None
     calibration_camera: str | None = None
+    near_clip: Annotated[FiniteFloat, Field(ge=1e-4, le=1.0)] = 0.01
+    """Near clipping distance of the renderer (m): surfaces closer to the optical centre
+    are not drawn. The clearance check refuses a run in which scene geometry comes
+    closer than this to any corner of the near-clipping rectangle."""
 
     @field_validator("calibration", mode="after")
     @classmethod

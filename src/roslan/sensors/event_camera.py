@@ -339,7 +339,14 @@ class EventCamera:
         T_wc, v, w = camera_twist(ctx.trajectory, t_ns, self.T_body_cam)
         # luminance-only pass: one shaded channel, the cheapest read back (render/gl.py)
         res = renderer.render(
-            T_wc, plan.K, plan.width, plan.height, color=False, depth=need_depth, luminance=True
+            T_wc,
+            plan.K,
+            plan.width,
+            plan.height,
+            color=False,
+            depth=need_depth,
+            luminance=True,
+            near=self.config.near_clip,
         )
         assert res.luminance is not None
         lum = cam.remap(res.luminance)

@@ -230,7 +230,10 @@ class GroundTruth:
             "tf2_msgs/msg/TFMessage",
             lambda store: static_transform_message(store, start, static),
         )
-        times = sample_times_ns(self.rate, ctx.trajectory.duration_ns)
+        end = int(ctx.trajectory.duration_ns)
+        times = sample_times_ns(self.rate, end)
+        if times[-1] < end:  # the record ends exactly at the end of the run
+            times = np.append(times, np.int64(end))
         per_chunk = max(1, round(self.rate * CHUNK_S))
         for i0 in range(0, times.size, per_chunk):
             t = times[i0 : i0 + per_chunk]
