@@ -10,8 +10,19 @@ import pytest
 import yaml
 
 from roslan.config.base import Pose
+from roslan.dataset import default_sensor_suite
 from roslan.scene import check_clearance, load_scene
+from roslan.sensors.registry import config_class
 from roslan.trajectory import Trajectory, TrajectoryConfig
+from roslan.vehicle import VehicleConfig, base_link_trajectory
+
+VEHICLE = VehicleConfig()
+SUITE = [config_class(s["type"]).model_validate(s) for s in default_sensor_suite()]
+
+
+def _landing(cfg: TrajectoryConfig, scene) -> Trajectory:  # type: ignore[no-untyped-def]
+    """base_link's trajectory: the default vehicle's contact point on the goal."""
+    return Trajectory(base_link_trajectory(cfg, VEHICLE, scene))
 
 
 def _goal(name: str) -> dict:
@@ -21,9 +32,11 @@ def _goal(name: str) -> dict:
 
 @pytest.mark.parametrize("name", ["warehouse", "refinery", "empty"])
 def test_default_trajectory_is_clear(name: str) -> None:
-    cfg = TrajectoryConfig.model_validate({"goal": _goal(name)})
+    cfg = TrajectoryConfig.model_validate({"goal": _goal(name), "hold": 0.5})
     assert cfg.initial.position == (-8.0, 2.0, 4.6)
-    assert check_clearance(load_scene(name), Trajectory(cfg)) is None
+    scene = load_scene(name)
+    traj = _landing(cfg, scene)
+    assert check_clearance(scene, traj, vehicle=VEHICLE, sensors=SUITE) is None
 
 
 @pytest.mark.parametrize("name", ["warehouse", "refinery"])
@@ -46,7 +59,8 @@ def test_paper_dataset_approaches_are_clear(name: str, seed: int) -> None:
                         },
                     }
                 )
-                msg = check_clearance(scene, Trajectory(cfg))
+                traj = _landing(cfg, scene)
+                msg = check_clearance(scene, traj, vehicle=VEHICLE, sensors=SUITE)
                 if msg is not None:
                     failures.append((distance, heading, kx, ky, msg))
     assert failures == []
@@ -93,16 +107,22 @@ def test_collision_reported_with_time_and_object(tmp_path: Path) -> None:
     # the wall stands at x = -4 (face at -4.2): find when the path crosses it, independently
     t = np.linspace(0.0, traj.T, 200001)
     x = traj.state(t).position[:, 0]
-    t_cross = t[np.argmax(x >= -4.2 - 0.1)]  # body radius 0.1 m reaches the face first
+    # the body's nose (0.15 m ahead of base_link; no rotation on this path) meets it first
+    t_cross = t[np.argmax(x >= -4.2 - 0.15)]
     scene = load_scene(str(_box_scene(tmp_path, [-4.0, 0.0, 4.0])))
     msg = check_clearance(scene, traj)
     assert msg is not None
     assert "'wall_block'" in msg
     reported = float(msg.split("t = ")[1].split(" s")[0])
     assert reported == pytest.approx(t_cross, abs=0.01)
-    # landing on the ground at the goal is not a collision; a wall off the path is none either
+    assert msg.startswith("the body enters")
+    # landing on the feet at the goal is not a collision; a wall off the path is none either
     far = load_scene(str(_box_scene(tmp_path, [30.0, 0.0, 4.0])))
-    assert check_clearance(far, traj) is None
+    assert check_clearance(far, _landing(cfg, far)) is None
+    # but base_link itself on the ground puts the body into it
+    low = check_clearance(far, traj)
+    assert low is not None
+    assert low.startswith("the body enters object 'ground'")
 
 
 def test_goal_below_ground_is_a_collision(tmp_path: Path) -> None:
