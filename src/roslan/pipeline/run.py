@@ -602,18 +602,17 @@ def _run_simulation(
         # trajectory ends above it (roslan.vehicle); only the goal moves, not the timing
         traj_config = base_link_trajectory(config.trajectory, config.vehicle, scene)
         traj = Trajectory(traj_config, warn=False)
-        if scene is not None:
-            if not allow_collision:
-                progress.phase("checking the clearance of the body and every sensor")
-                hit = scene_mod.check_clearance(
-                    scene, traj, vehicle=config.vehicle, sensors=config.sensors
+        if scene is not None and not allow_collision:
+            progress.phase("checking the clearance of the body and every sensor")
+            hit = scene_mod.check_clearance(
+                scene, traj, vehicle=config.vehicle, sensors=config.sensors
+            )
+            if hit is not None:
+                msg = (
+                    f"scene {config.scene!r}: {hit}; change the trajectory, the sensor "
+                    "mounts or the vehicle block, or pass --allow-collision"
                 )
-                if hit is not None:
-                    msg = (
-                        f"scene {config.scene!r}: {hit}; change the trajectory, the sensor "
-                        "mounts or the vehicle block, or pass --allow-collision"
-                    )
-                    raise ConfigError(msg)
+                raise ConfigError(msg)
         # ---- 2. write into a temporary sibling
         tmp = _make_temp(outdir)
     except BaseException:

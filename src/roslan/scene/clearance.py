@@ -71,8 +71,9 @@ def vehicle_points(vehicle: Any = None, sensors: Sequence[Any] = ()) -> VehicleP
     pts: list[F64] = [body_points(v.body)]
     labels: list[str] = ["the body"] * pts[0].shape[0]
     for s in sensors:
+        name = str(s.name)
         pts.append(np.asarray(s.pose.position, dtype=np.float64)[None, :])
-        labels.append(f"sensor {s.name!r} (origin)")
+        labels.append(f"sensor {name!r} (origin)")
         if isinstance(s, CameraIntrinsics):
             near = float(getattr(s, "near_clip", 0.01))
             for cam in s.calibration_cameras():
@@ -89,12 +90,12 @@ def vehicle_points(vehicle: Any = None, sensors: Sequence[Any] = ()) -> VehicleP
                 corners = np.column_stack([xy * near, np.full(xy.shape[0], near)])
                 T = cam.T_base_optical
                 world = corners @ T[:3, :3].T + T[:3, 3]
-                if cam.name != s.name:  # a stereo eye: its optical centre too
+                if cam.name != name:  # a stereo eye: its optical centre too
                     pts.append(T[:3, 3][None, :])
-                    labels.append(f"sensor {s.name!r} ({cam.name} optical centre)")
+                    labels.append(f"sensor {name!r} ({cam.name} optical centre)")
                 pts.append(world)
-                what = f"{cam.name} near plane" if cam.name != s.name else "near plane"
-                labels += [f"sensor {s.name!r} ({what}, near_clip {near:g} m)"] * 5
+                what = f"{cam.name} near plane" if cam.name != name else "near plane"
+                labels += [f"sensor {name!r} ({what}, near_clip {near:g} m)"] * 5
     return VehiclePoints(np.concatenate(pts), tuple(labels))
 
 
