@@ -89,8 +89,11 @@ def test_output_folder_contract(out: Path) -> None:
 def test_ground_truth_content(out: Path) -> None:
     cfg = short_config()
     from roslan.trajectory import Trajectory
+    from roslan.vehicle import base_link_trajectory
 
-    traj = Trajectory(cfg.trajectory)
+    # base_link's goal lies above the configured one, by the default feet (8 cm)
+    traj = Trajectory(base_link_trajectory(cfg.trajectory, cfg.vehicle))
+    assert traj.p_world_goal == pytest.approx([0.0, 0.0, 0.08])
     with AnyReader([out / "landing_ros2"]) as reader:
         msgs: dict[str, list] = {}
         for conn, stamp, raw in reader.messages():

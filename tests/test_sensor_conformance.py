@@ -21,6 +21,7 @@ from roslan.sensors.base import Sensor
 from roslan.sensors.registry import SENSOR_TYPES, config_class, sensor_class
 from roslan.simulate import run_simulation
 from roslan.trajectory import Trajectory, TrajectoryConfig
+from roslan.vehicle import VehicleConfig, base_link_trajectory
 
 # T = z0 / (k v0) = 0.1 s plus 0.05 s at rest: a few samples of every sensor at 20 Hz, and a
 # bounded cost for sensors that sample adaptively (the event camera renders up to 2 kHz)
@@ -61,7 +62,10 @@ def _run_sensor(
 ) -> tuple[Sensor, list[Any], dict[str, bytes]]:
     cfg_cls, cls = _load(type_name)
     cfg = cfg_cls.model_validate(_minimal(type_name))
-    traj = Trajectory(TrajectoryConfig.model_validate(TRAJ))
+    # as the pipeline flies it: the default vehicle's feet on the goal
+    traj = Trajectory(
+        base_link_trajectory(TrajectoryConfig.model_validate(TRAJ), VehicleConfig(), _scene())
+    )
     ctx = Context(
         traj,
         outdir,
