@@ -290,7 +290,7 @@ def test_goal_moves_by_the_contact_point() -> None:
     cfg = TrajectoryConfig.model_validate({"goal": goal})
     for vehicle, contact in (
         (VehicleConfig(contact="feet"), (0.0, 0.0, -0.08)),
-        (VehicleConfig(contact="grasp"), (0.0, 0.0, -0.07)),
+        (VehicleConfig(contact="grasp", grasp=(0.01, 0.0, -0.07)), (0.01, 0.0, -0.07)),
         (VehicleConfig(feet=[[0.1, 0.0, -0.2], [-0.1, 0.0, -0.1]]), (0.0, 0.0, -0.2)),
     ):
         moved = base_link_trajectory(cfg, vehicle)
@@ -303,17 +303,32 @@ def test_goal_moves_by_the_contact_point() -> None:
         assert traj.T == Trajectory(cfg).T  # only the goal moves, not the timing
 
 
-def test_perching_uses_the_grasp_point() -> None:
+def test_perching_uses_the_grasp_point(tmp_path: Path) -> None:
     scene = load_scene("refinery")
     goal = Pose(position=scene.goal_position, rpy=scene.goal_rpy)
     cfg = TrajectoryConfig.model_validate({"goal": goal.model_dump(), "hold": 0.3})
-    v = VehicleConfig()
+    v = VehicleConfig(grasp=(0.0, 0.0, -0.06))  # claws 2 cm higher than the feet
     traj = Trajectory(base_link_trajectory(cfg, v, scene))
+    top = np.asarray(scene.goal_position)
     p = traj.state([traj.duration]).position[0]
-    assert p == pytest.approx(
-        np.asarray(scene.goal_position) + np.array([0.0, 0.0, 0.07]), abs=1e-9
-    )
+    assert p == pytest.approx(top + np.array([0.0, 0.0, 0.06]), abs=1e-9)
     assert check_clearance(scene, traj, vehicle=v) is None
+    default = Trajectory(base_link_trajectory(cfg, VehicleConfig(), scene))
+    assert check_clearance(scene, default) is None
+    # `roslan trajectory` flies the same goal (it reads the scene only for this choice)
+    job = tmp_path / "perch.yaml"
+    job.write_text(
+        yaml.safe_dump(
+            {
+                "trajectory": cfg.model_dump(mode="json"),
+                "scene": "refinery",
+                "vehicle": {"grasp": [0.0, 0.0, -0.06]},
+            }
+        )
+    )
+    assert main(["trajectory", str(job), "-o", str(tmp_path / "t"), "--no-plot"]) == 0
+    last = np.loadtxt(tmp_path / "t" / "groundtruth.txt")[-1]
+    assert last[1:4] == pytest.approx(top + np.array([0.0, 0.0, 0.06]), abs=1e-8)
     # on the warehouse marker (no perch) the feet are the contact
     wh = load_scene("warehouse")
     goal = Pose(position=wh.goal_position, rpy=wh.goal_rpy)

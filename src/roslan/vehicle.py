@@ -37,6 +37,7 @@ __all__ = [
     "VehicleConfig",
     "base_link_trajectory",
     "body_points",
+    "contact_depends_on_scene",
     "contact_point",
     "goal_on_perch",
     "resolve_contact",
@@ -79,8 +80,8 @@ class VehicleConfig(StrictModel):
     body: Body = Body()
     feet: Annotated[tuple[Point, ...], Field(min_length=1, max_length=16)] = DEFAULT_FEET
     """Landing-gear contact points: 4 cm legs under the default body."""
-    grasp: Point = (0.0, 0.0, -0.07)
-    """The claw's grasp point (perching)."""
+    grasp: Point = (0.0, 0.0, -0.08)
+    """The claw's grasp point (perching); by default level with the feet."""
     contact: Literal["auto", "feet", "grasp"] = "auto"
     """Which contact meets the goal: ``auto`` = ``grasp`` on a perch, else ``feet``."""
 
@@ -106,6 +107,13 @@ def contact_point(vehicle: VehicleConfig, contact: Literal["feet", "grasp"]) -> 
         return np.asarray(vehicle.grasp, dtype=np.float64)
     feet = np.asarray(vehicle.feet, dtype=np.float64)
     return np.array([feet[:, 0].mean(), feet[:, 1].mean(), feet[:, 2].min()])
+
+
+def contact_depends_on_scene(vehicle: VehicleConfig) -> bool:
+    """Whether ``auto`` could pick different points (feet and grasp differ)."""
+    return vehicle.contact == "auto" and not np.array_equal(
+        contact_point(vehicle, "feet"), contact_point(vehicle, "grasp")
+    )
 
 
 def goal_on_perch(scene: Scene | None, goal: Pose) -> bool:

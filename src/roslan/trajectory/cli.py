@@ -83,8 +83,35 @@ def load_trajectory_block(path: Path) -> TrajectoryConfig:
         raise ConfigError(text) from None
 
 
+def load_vehicle_block(path: Path, trajectory: TrajectoryConfig) -> TrajectoryConfig:
+    """``trajectory`` with its goal moved to base_link by the file's ``vehicle:`` block
+    (the default vehicle without one), as ``roslan simulate`` flies it. The scene is read
+    only when ``vehicle.contact: auto`` must tell a perch (grasp point) from a landing
+    (feet) and the two points differ."""
+    from roslan.vehicle import VehicleConfig, base_link_trajectory, contact_depends_on_scene
+
+    data = load_yaml(path)
+    data = data if isinstance(data, Mapping) else {}
+    block = data.get("vehicle")
+    block = {} if block is None else block
+    try:
+        vehicle = VehicleConfig.model_validate(block)
+    except ValidationError as err:
+        text = format_validation_error(err, path, ("vehicle",), model=VehicleConfig, data=block)
+        raise ConfigError(text) from None
+    scene = None
+    if contact_depends_on_scene(vehicle) and isinstance(data.get("scene"), str):
+        from roslan.scene import load_scene
+
+        seed = data.get("seed", 0)
+        seed = seed if isinstance(seed, int) and not isinstance(seed, bool) and seed >= 0 else 0
+        scene = load_scene(data["scene"], base_dir=path.parent.resolve(), seed=seed)
+    return base_link_trajectory(trajectory, vehicle, scene)
+
+
 def _run(args: argparse.Namespace) -> int:
     trajectory = load_trajectory_block(Path(args.config))
+    trajectory = load_vehicle_block(Path(args.config), trajectory)
     with warnings.catch_warnings():
         # every hard-landing note reaches the user (one "warning: ..." line each, printed
         # by roslan.cli), even if the same text was shown earlier in this process
