@@ -13,11 +13,13 @@ import pytest
 import yaml
 
 from roslan.batch import make_tasks
+from roslan.config.sim import SimConfig
 from roslan.dataset import dataset_plan, default_sensor_suite
 from roslan.errors import ConfigError
 from roslan.scene import check_clearance, load_scene
 from roslan.trajectory.config import TrajectoryConfig
 from roslan.trajectory.generator import Trajectory
+from roslan.vehicle import base_link_trajectory
 
 
 @pytest.fixture(scope="module")
@@ -73,7 +75,11 @@ def test_planned_paths_clear_the_scene_built_with_their_seed(plan, scene: str, n
     # landing must clear that scene (a full clearance-checked plan loads 6 scenes per
     # scene name, too slow here; the end-to-end test runs that code path)
     run = next(r for r in plan if r.scene == scene and r.number == number)
-    assert check_clearance(load_scene(scene, seed=run.seed), _traj(run)) is None
+    # as roslan simulate checks it: the vehicle's body and every sensor of the run
+    sc = load_scene(scene, seed=run.seed)
+    cfg = SimConfig.model_validate(run.config)
+    traj = Trajectory(base_link_trajectory(cfg.trajectory, cfg.vehicle, sc), warn=False)
+    assert check_clearance(sc, traj, vehicle=cfg.vehicle, sensors=cfg.sensors) is None
 
 
 def test_paths_are_visibly_different(plan) -> None:  # type: ignore[no-untyped-def]

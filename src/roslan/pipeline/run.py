@@ -603,7 +603,7 @@ def _run_simulation(
         traj_config = base_link_trajectory(config.trajectory, config.vehicle, scene)
         traj = Trajectory(traj_config, warn=False)
         if scene is not None and not allow_collision:
-            progress.phase("checking the clearance of the body and every sensor")
+            progress.phase("checking the path's clearance")
             hit = scene_mod.check_clearance(
                 scene, traj, vehicle=config.vehicle, sensors=config.sensors
             )
