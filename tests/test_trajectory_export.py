@@ -18,6 +18,7 @@ from roslan.io.text import format_seconds, write_columns
 from roslan.trajectory import Trajectory, TrajectoryConfig
 from roslan.trajectory.export import write_trajectory_files
 from roslan.trajectory.frames import quat_xyzw_to_matrix
+from roslan.vehicle import VehicleConfig, base_link_trajectory
 
 HEADER = "t,x,y,z,roll,pitch,yaw,vx,vy,vz,vroll,vpitch,vyaw,ax,ay,az,aroll,apitch,ayaw"
 
@@ -160,7 +161,12 @@ def test_cli_trajectory(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> N
         "trajectory.csv",
         "trajectory.png",
     ]
-    traj = Trajectory(TrajectoryConfig.model_validate({**_yaml(CONFIG)["trajectory"]}))
+    # as roslan simulate flies it: base_link above the goal by the default vehicle's feet
+    traj = Trajectory(
+        base_link_trajectory(
+            TrajectoryConfig.model_validate({**_yaml(CONFIG)["trajectory"]}), VehicleConfig()
+        )
+    )
     _check_outputs(out, traj)
     assert "T = 4.6" in capsys.readouterr().out
     # an existing OUTDIR is refused without --overwrite, accepted with it
