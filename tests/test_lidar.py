@@ -113,7 +113,7 @@ def test_pointcloud2_roundtrip_through_rosbags(tmp_path: Path) -> None:
     from rosbags.rosbag2 import Writer as Writer2
 
     lid = Lidar(_cfg(rate=20.0))
-    ctx = FakeContext(scene(plane()), LinearTrajectory((0, 0, H), duration=0.12), tmp_path)
+    ctx = FakeContext(scene(plane()), LinearTrajectory((0, 0, H), duration=0.15), tmp_path)
     msgs = run_sensor(lid, ctx)
     assert [m.t_ns for m in msgs] == [0, 50_000_000, 100_000_000]
     for flavor in Flavor:
@@ -193,7 +193,7 @@ def test_same_seed_same_bytes(tmp_path: Path) -> None:
     for k in range(2):
         lid = Lidar(_cfg(dropout=0.1))
         ctx = FakeContext(
-            scene(plane()), LinearTrajectory((0, 0, H), duration=0.05), tmp_path / str(k)
+            scene(plane()), LinearTrajectory((0, 0, H), duration=0.1), tmp_path / str(k)
         )
         msgs = run_sensor(lid, ctx)
         store = MessageStore(Flavor.ROS2)
@@ -202,7 +202,7 @@ def test_same_seed_same_bytes(tmp_path: Path) -> None:
     assert outs[0] == outs[2]
     assert outs[1] == outs[3]
     ctx = FakeContext(
-        scene(plane()), LinearTrajectory((0, 0, H), duration=0.05), tmp_path / "s", seed=7
+        scene(plane()), LinearTrajectory((0, 0, H), duration=0.1), tmp_path / "s", seed=7
     )
     msgs = run_sensor(Lidar(_cfg(dropout=0.1)), ctx)
     store = MessageStore(Flavor.ROS2)
@@ -279,7 +279,7 @@ def test_ros1_native_reader_reads_the_cloud(tmp_path: Path) -> None:
     if probe.returncode != 0:
         pytest.skip("Debian's python3-rosbag / sensor_msgs are not installed for /usr/bin/python3")
     lid = Lidar(_cfg(rate=20.0))
-    ctx = FakeContext(scene(plane()), LinearTrajectory((0, 0, H), duration=0.05), tmp_path)
+    ctx = FakeContext(scene(plane()), LinearTrajectory((0, 0, H), duration=0.1), tmp_path)
     msgs = run_sensor(lid, ctx)
     store = MessageStore(Flavor.ROS1)
     bag = tmp_path / "cloud.bag"

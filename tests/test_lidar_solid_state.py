@@ -83,7 +83,7 @@ def test_avia_lines_and_elliptic_fov(tmp_path: Path) -> None:
 def test_stream_and_files(tmp_path: Path) -> None:
     s = _sensor()
     ctx = FakeContext(
-        scene(vertical_wall_x(WALL_X)), LinearTrajectory((0.0, 0.0, 0.0), duration=0.2), tmp_path
+        scene(vertical_wall_x(WALL_X)), LinearTrajectory((0.0, 0.0, 0.0), duration=0.3), tmp_path
     )
     msgs = run_sensor(s, ctx)
     assert [m.t_ns for m in msgs] == [0, 100_000_000, 200_000_000]

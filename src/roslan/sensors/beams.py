@@ -343,7 +343,10 @@ class PointCloudSensor:
         index = ctx.path(f"lidar/{cfg.name}/timestamps.txt")
         self._writer = ScanWriter(index.parent, index)
         height, dense = self.cloud_layout()
-        for seq, t0 in enumerate(sample_times_ns(cfg.rate, ctx.trajectory.duration_ns).tolist()):
+        # a scan fires over [t0, t0 + 1/rate): only whole scans that end within the
+        # trajectory (and so within the ground-truth record) are produced
+        last_start = ctx.trajectory.duration_ns - round(1e9 / cfg.rate)
+        for seq, t0 in enumerate(sample_times_ns(cfg.rate, last_start).tolist()):
             pts = self.scan(ctx.trajectory, caster, t0, rng)
             self._writer.write(t0, pts)
             stamp = ctx.stamp(t0)
