@@ -1,0 +1,101 @@
+"""File trajectories: a tau landing exported as TUM poses and flown back."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from roslan.errors import TrajectoryError
+from roslan.trajectory import Trajectory, TrajectoryConfig
+from roslan.trajectory.spline import FileTrajectory
+
+G = np.array([0.0, 0.0, -9.81])
+
+
+def _write_tum(path: Path, t: np.ndarray, p: np.ndarray, q: np.ndarray) -> None:
+    rows = np.column_stack([t, p, q])
+    np.savetxt(path, rows, fmt="%.12f", header="t x y z qx qy qz qw")
+
+
+@pytest.fixture
+def tau_and_file(tmp_path: Path) -> tuple[Trajectory, FileTrajectory]:
+    tau = Trajectory(TrajectoryConfig(), warn=False)
+    t = np.arange(0.0, tau.T, 1.0 / 200.0)
+    st = tau.state(t)
+    path = tmp_path / "flight.txt"
+    _write_tum(path, t, st.position, st.quat_xyzw)
+    cfg = TrajectoryConfig.model_validate({"file": "flight.txt"})
+    return tau, FileTrajectory(cfg, base_dir=tmp_path)
+
+
+def test_round_trip_positions_and_specific_force(
+    tau_and_file: tuple[Trajectory, FileTrajectory],
+) -> None:
+    tau, ft = tau_and_file
+    # between the samples, away from the ends (the tau landing's last 10 % brakes hardest)
+    t = np.linspace(0.1, 0.9 * ft.T, 3001)
+    a, b = tau.state(t), ft.state(t)
+    assert np.abs(a.position - b.position).max() < 1e-3
+    # IMU specific force in the body frame, noise-free: R^T (a - g)
+    fa = np.einsum("nji,nj->ni", a.R_world_body, a.acceleration - G)
+    fb = np.einsum("nji,nj->ni", b.R_world_body, b.acceleration - G)
+    rel = np.linalg.norm(fa - fb, axis=1) / np.linalg.norm(fa, axis=1)
+    assert rel.max() < 0.01
+    # body rates (RotationSpline, rotated into the body) against the closed form
+    # (RotationSpline's free end conditions bend the rate near the first sample: 2 %)
+    assert np.abs(a.omega_body - b.omega_body).max() < 0.02 * np.abs(a.omega_body).max()
+    res = ft.residual()
+    assert res["position_max_m"] < 1e-9
+    assert ft.summary()["fit_residual"] == res
+
+
+def test_smoothing_keeps_residual_reported(tmp_path: Path) -> None:
+    tau = Trajectory(TrajectoryConfig(), warn=False)
+    t = np.arange(0.0, tau.T, 0.01)
+    st = tau.state(t)
+    rng = np.random.default_rng(0)
+    _write_tum(
+        tmp_path / "f.txt", t, st.position + rng.normal(0, 0.002, st.position.shape), st.quat_xyzw
+    )
+    raw = FileTrajectory(TrajectoryConfig.model_validate({"file": "f.txt"}), base_dir=tmp_path)
+    smooth = FileTrajectory(
+        TrajectoryConfig.model_validate({"file": "f.txt", "smoothing": 1e-4}), base_dir=tmp_path
+    )
+    assert raw.residual()["position_max_m"] < 1e-9
+    assert 1e-4 < smooth.residual()["position_rms_m"] < 0.01
+    tm = np.linspace(0.2, 0.8 * tau.T, 500)
+    err_raw = np.abs(raw.state(tm).acceleration - tau.state(tm).acceleration).max()
+    err_smooth = np.abs(smooth.state(tm).acceleration - tau.state(tm).acceleration).max()
+    assert err_smooth < err_raw / 5
+
+
+@pytest.mark.parametrize(
+    ("text", "needle"),
+    [
+        ("0.7 0 0 1 0 0 0 1\n", "not after"),
+        ("0.8 0 0 1 0 0 0 1 5\n", "9 columns"),
+        ("0.8 0 0 1 0 0 0 2\n", "quaternion norm"),
+        ("0.8 0 0 nan 0 0 0 1\n", "NaN"),
+        ("5 0 0 1 0 0 0 1\n", "gap of"),
+    ],
+)
+def test_bad_files_name_file_and_line(tmp_path: Path, text: str, needle: str) -> None:
+    good = "".join(f"{0.1 * i:.1f} 0 0 1 0 0 0 1\n" for i in range(8))
+    path = tmp_path / "bad.txt"
+    path.write_text("# header\n" + good + text)
+    cfg = TrajectoryConfig.model_validate({"file": str(path)})
+    with pytest.raises(TrajectoryError, match=needle) as err:
+        FileTrajectory(cfg)
+    assert f"{path}:" in str(err.value)
+    assert ":10:" in str(err.value) or ":11:" in str(err.value)
+
+
+def test_too_few_samples_and_tau_keys(tmp_path: Path) -> None:
+    path = tmp_path / "few.txt"
+    path.write_text("0 0 0 1 0 0 0 1\n0.1 0 0 1 0 0 0 1\n")
+    with pytest.raises(TrajectoryError, match="at least 6"):
+        FileTrajectory(TrajectoryConfig.model_validate({"file": str(path)}))
+    with pytest.raises(ValueError, match="belong to a tau"):
+        TrajectoryConfig.model_validate({"file": "x.txt", "k": 0.3})
