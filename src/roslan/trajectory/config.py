@@ -133,15 +133,15 @@ class TrajectoryConfig(StrictModel):
             )
             fields = type(self).model_fields
             # a saved, resolved config repeats the defaults: only other values clash
-            given = [
+            tau_given = [
                 k
                 for k in tau
                 if getattr(self, k) != fields[k].get_default(call_default_factory=True)
             ]
-            if given:
+            if tau_given:
                 msg = (
-                    f"'file' flies the poses of the file; {', '.join(given)} belong to a tau "
-                    "landing: remove them (allowed with 'file': smoothing, max_gap, hold, sample_dt)"
+                    f"'file' flies the poses of the file; {', '.join(tau_given)} belong to a tau "
+                    "landing: remove them (with 'file': smoothing, max_gap, hold, sample_dt)"
                 )
                 raise ValueError(msg)
             return self

@@ -72,7 +72,10 @@ def read_pose_file(path: Path, max_gap: float) -> tuple[F64, F64, F64]:
     bad = np.flatnonzero(dt <= 0)
     if bad.size:
         i = int(bad[0]) + 1
-        msg = f"{path}:{lines[i]}: time {a[i, 0]!r} is not after the previous line's; times must strictly increase"
+        msg = (
+            f"{path}:{lines[i]}: time {a[i, 0]!r} is not after the previous line's; "
+            "times must strictly increase"
+        )
         raise TrajectoryError(msg)
     big = np.flatnonzero(dt > max_gap)
     if big.size:
