@@ -99,3 +99,77 @@ def test_too_few_samples_and_tau_keys(tmp_path: Path) -> None:
         FileTrajectory(TrajectoryConfig.model_validate({"file": str(path)}))
     with pytest.raises(ValueError, match="belong to a tau"):
         TrajectoryConfig.model_validate({"file": "x.txt", "k": 0.3})
+
+
+def _imu_acc(traj: Trajectory, tmp_path: Path) -> tuple[np.ndarray, np.ndarray]:
+    """The real IMU sensor (noise off) along ``traj``: t_ns and specific force (N, 3)."""
+    from roslan.io.messages import Flavor, MessageStore
+    from roslan.pipeline.context import Context
+    from roslan.sensors.imu import Imu, ImuConfig
+
+    cfg = ImuConfig.model_validate(
+        {
+            "type": "imu",
+            "name": "imu",
+            "rate": 100,
+            "topic": "/imu",
+            "pose": {"position": [0.1, 0.0, 0.05], "rpy": [0.0, 0.1, 0.0]},
+            "accelerometer_noise_density": 0.0,
+            "accelerometer_random_walk": 0.0,
+            "gyroscope_noise_density": 0.0,
+            "gyroscope_random_walk": 0.0,
+        }
+    )
+    ctx = Context(traj, tmp_path, seed=0, start_time_ns=10**18, sensors=[cfg])
+    imu = Imu(cfg)
+    store = MessageStore(Flavor.ROS2)
+    msgs = list(imu.messages(ctx))
+    imu.close(ctx)
+    dec = [store.typestore.deserialize_cdr(m.build(store), m.msgtype) for m in msgs]
+    acc = [[d.linear_acceleration.x, d.linear_acceleration.y, d.linear_acceleration.z] for d in dec]
+    return np.array([m.t_ns for m in msgs]), np.array(acc)
+
+
+def test_imu_sensor_on_file_trajectory(
+    tau_and_file: tuple[Trajectory, FileTrajectory], tmp_path: Path
+) -> None:
+    tau, ft = tau_and_file
+    (tmp_path / "a").mkdir()
+    (tmp_path / "b").mkdir()
+    ta, fa = _imu_acc(tau, tmp_path / "a")
+    tb, fb = _imu_acc(ft, tmp_path / "b")
+    assert np.array_equal(ta, tb[: ta.shape[0]]) or np.array_equal(ta[: tb.shape[0]], tb)
+    n = min(ta.shape[0], tb.shape[0])
+    inner = (ta[:n] > 0.1e9) & (ta[:n] < 0.9 * ft.T * 1e9)
+    rel = np.linalg.norm(fa[:n][inner] - fb[:n][inner], axis=1) / np.linalg.norm(
+        fa[:n][inner], axis=1
+    )
+    assert rel.max() < 0.01
+
+
+def test_clearance_check_on_file_trajectory(
+    tau_and_file: tuple[Trajectory, FileTrajectory], tmp_path: Path
+) -> None:
+    import yaml
+
+    from roslan.scene import check_clearance, load_scene
+
+    _, ft = tau_and_file
+    x_wall = float(ft.state([0.5 * ft.T]).position[0, 0])
+    doc = {
+        "name": "obstacle",
+        "goal": {"position": [0.0, 0.0, 0.0]},
+        "objects": [
+            {"name": "ground", "primitive": {"type": "plane", "size": [100.0, 100.0]}},
+            {
+                "name": "wall_block",
+                "primitive": {"type": "box", "size": [0.2, 20.0, 20.0]},
+                "pose": {"position": [x_wall, 0.0, 0.0]},
+            },
+        ],
+    }
+    (tmp_path / "scene.yaml").write_text(yaml.safe_dump(doc))
+    msg = check_clearance(load_scene(str(tmp_path / "scene.yaml")), ft)
+    assert msg is not None and "'wall_block'" in msg
+    reported = float(msg.split("t = ")[1].split(" s")[0])
+    assert 0.3 * ft.T < reported < 0.5 * ft.T + 0.05
