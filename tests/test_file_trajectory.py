@@ -170,6 +170,7 @@ def test_clearance_check_on_file_trajectory(
     }
     (tmp_path / "scene.yaml").write_text(yaml.safe_dump(doc))
     msg = check_clearance(load_scene(str(tmp_path / "scene.yaml")), ft)
-    assert msg is not None and "'wall_block'" in msg
+    assert msg is not None
+    assert "'wall_block'" in msg
     reported = float(msg.split("t = ")[1].split(" s")[0])
     assert 0.3 * ft.T < reported < 0.5 * ft.T + 0.05
