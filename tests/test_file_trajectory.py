@@ -174,3 +174,47 @@ def test_clearance_check_on_file_trajectory(
     assert "'wall_block'" in msg
     reported = float(msg.split("t = ")[1].split(" s")[0])
     assert 0.3 * ft.T < reported < 0.5 * ft.T + 0.05
+
+
+def test_cli_from_file_and_simulate_with_file(tmp_path: Path) -> None:
+    """`roslan trajectory --from` writes the four files; a config with `file:` simulates."""
+    import json
+    import subprocess
+    import sys
+
+    tau = Trajectory(TrajectoryConfig(), warn=False)
+    t = np.arange(0.0, tau.T, 0.02)
+    st = tau.state(t)
+    _write_tum(tmp_path / "flight.txt", t, st.position, st.quat_xyzw)
+    env_py = [sys.executable, "-m", "roslan"]
+    run = subprocess.run(
+        [*env_py, "trajectory", "--from", "flight.txt", "-o", "out", "--no-plot"],
+        cwd=tmp_path, capture_output=True, text=True, check=False,
+    )  # fmt: skip
+    assert run.returncode == 0, run.stderr
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert summary["source"] == "file"
+    assert summary["samples"] == t.shape[0]
+    assert summary["fit_residual"]["position_max_m"] < 1e-6
+    rows = np.loadtxt(tmp_path / "out" / "groundtruth.txt")
+    np.testing.assert_allclose(rows[:, 1:4], st.position, atol=1e-6)
+    (tmp_path / "sim.yaml").write_text(
+        "trajectory: {file: flight.txt}\n"
+        "sensors:\n  - {type: imu, name: imu, rate: 50}\noutput: {formats: [ros2]}\n"
+    )
+    sim = subprocess.run(
+        [*env_py, "simulate", "sim.yaml", "-o", "sim", "--quiet"],
+        cwd=tmp_path, capture_output=True, text=True, check=False,
+    )  # fmt: skip
+    assert sim.returncode == 0, sim.stderr
+    assert "fit_residual" in json.loads((tmp_path / "sim" / "summary.json").read_text())
+    # a broken file stops the run with file and line, nothing written
+    (tmp_path / "flight.txt").write_text("0 0 0 1 0 0 0 1\n0 0 0 1 0 0 0 1\n" * 4)
+    bad = subprocess.run(
+        [*env_py, "simulate", "sim.yaml", "-o", "sim2", "--quiet"],
+        cwd=tmp_path, capture_output=True, text=True, check=False,
+    )  # fmt: skip
+    assert bad.returncode != 0
+    assert "flight.txt:2:" in bad.stderr
+    assert "Traceback" not in bad.stderr
+    assert not (tmp_path / "sim2").exists()
