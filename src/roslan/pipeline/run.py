@@ -74,6 +74,7 @@ from roslan.sensors.ground_truth import BASE_FRAME, WORLD_FRAME, GroundTruth
 from roslan.sensors.registry import sensor_class
 from roslan.trajectory.frames import matrix_to_quat_xyzw, matrix_to_rpy
 from roslan.trajectory.generator import Trajectory
+from roslan.trajectory.spline import make_trajectory
 
 __all__ = ["RUN_FILE", "TIMING_FILE", "run_simulation", "static_transforms"]
 
@@ -553,7 +554,7 @@ def _run_simulation(
 
     # ---- 1. validate before writing anything
     _check_outdir(outdir, overwrite)
-    traj = Trajectory(config.trajectory)
+    traj = make_trajectory(config.trajectory, base_dir=base_dir)
     source = str(config_path) if config_path is not None else "<config>"
     check_limits(config, traj.duration, fmts, source)
     preflight(config, traj)
