@@ -113,7 +113,6 @@ def test_pointcloud2_roundtrip_through_rosbags(tmp_path: Path) -> None:
     from rosbags.rosbag2 import Writer as Writer2
 
     lid = Lidar(_cfg(rate=20.0))
-    # 0.15 s: the turn stamped 0.1 s fires until 0.15 s, within the run
     ctx = FakeContext(scene(plane()), LinearTrajectory((0, 0, H), duration=0.15), tmp_path)
     msgs = run_sensor(lid, ctx)
     assert [m.t_ns for m in msgs] == [0, 50_000_000, 100_000_000]

@@ -24,7 +24,6 @@ def test_lidar_moving_toward_wall_measures_each_column_at_its_instant(
     tmp_path: Path, firing_poses: str
 ) -> None:
     v = 15.0  # m/s toward the wall: 1.5 m closer by the end of a 10 Hz turn
-    # 0.3 s: three whole turns (a turn is sent only if its last firing is within the run)
     traj = LinearTrajectory((0.0, 0.0, 0.0), v=(v, 0.0, 0.0), duration=0.3)
     cfg = validate_model(
         LidarConfig,

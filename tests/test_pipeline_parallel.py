@@ -44,8 +44,21 @@ def tiny_config(**kw: Any) -> SimConfig:
     return short_config(scene="empty", sensors=TINY_SENSORS, **kw)
 
 
+_BEFORE: set[int] = set()
+
+
+@pytest.fixture(autouse=True)
+def _children_before() -> None:
+    """Processes this test process already had (e.g. a multiprocessing resource tracker
+    started by an earlier test on the same xdist worker) are not this test's orphans."""
+    _BEFORE.clear()
+    _BEFORE.update(p.pid for p in psutil.Process().children(recursive=True))
+
+
 def _children() -> list[psutil.Process]:
-    return [p for p in psutil.Process().children(recursive=True) if p.status() != "zombie"]
+    """Live child processes started since the test began."""
+    kids = psutil.Process().children(recursive=True)
+    return [p for p in kids if p.pid not in _BEFORE and p.status() != "zombie"]
 
 
 def _is_worker(p: psutil.Process) -> bool:

@@ -138,8 +138,7 @@ def test_laser_scan_in_a_box_room_matches_the_walls(tmp_path: Path) -> None:
     short = Laser(validate_model(LaserConfig, {"type": "laser", "name": "l2", "range_max": 3.0}))
     msgs = run_sensor(
         short,
-        # 0.07 s: the scan at 50 ms ends (270 deg at 40 rev/s: 18.75 ms) within the run
-        FakeContext(scene(room), LinearTrajectory(tuple(p), yaw0=yaw, duration=0.07), tmp_path),
+        FakeContext(scene(room), LinearTrajectory(tuple(p), yaw0=yaw, duration=0.075), tmp_path),
     )
     assert [m.t_ns for m in msgs] == [0, 25_000_000, 50_000_000]
     msg = msgs[0].build(MessageStore(Flavor.ROS1))

@@ -603,12 +603,12 @@ def validate_config(config: Mapping[str, Any], base_dir: Path, source: str) -> A
     import warnings
 
     from roslan.config.sim import SimConfig
-    from roslan.trajectory.generator import Trajectory
+    from roslan.trajectory.spline import make_trajectory
 
     cfg = validate_model(SimConfig, dict(config), source, context={"base_dir": base_dir})
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        Trajectory(cfg.trajectory, warn=False)
+        make_trajectory(cfg.trajectory, base_dir=base_dir, warn=False)
     return cfg
 
 

@@ -147,10 +147,11 @@ def base_link_trajectory(
 
     At touchdown base_link has the goal's attitude ``R_goal``; the contact point ``c``
     (base_link) lies on ``goal.position`` when base_link is at ``goal.position - R_goal c``.
-    A config without a ``goal`` (not a tau landing) is returned unchanged.
+    A pose-file trajectory (``trajectory.file``: base_link's own poses) or a config
+    without a ``goal`` is returned unchanged (the same object).
     """
     goal = getattr(trajectory, "goal", None)
-    if not isinstance(goal, Pose):
+    if not isinstance(goal, Pose) or getattr(trajectory, "file", None) is not None:
         return trajectory
     from roslan.trajectory.frames import rpy_to_matrix
 

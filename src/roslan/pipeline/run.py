@@ -74,6 +74,7 @@ from roslan.sensors.ground_truth import BASE_FRAME, WORLD_FRAME, GroundTruth
 from roslan.sensors.registry import sensor_class
 from roslan.trajectory.frames import matrix_to_quat_xyzw, matrix_to_rpy
 from roslan.trajectory.generator import Trajectory
+from roslan.trajectory.spline import make_trajectory
 from roslan.vehicle import base_link_trajectory
 
 __all__ = ["RUN_FILE", "TIMING_FILE", "run_simulation", "static_transforms"]
@@ -554,7 +555,7 @@ def _run_simulation(
 
     # ---- 1. validate before writing anything
     _check_outdir(outdir, overwrite)
-    traj = Trajectory(config.trajectory)
+    traj = make_trajectory(config.trajectory, base_dir=base_dir)
     source = str(config_path) if config_path is not None else "<config>"
     check_limits(config, traj.duration, fmts, source)
     preflight(config, traj)
@@ -601,7 +602,8 @@ def _run_simulation(
         # the goal is where the vehicle's contact point meets the surface: base_link's
         # trajectory ends above it (roslan.vehicle); only the goal moves, not the timing
         traj_config = base_link_trajectory(config.trajectory, config.vehicle, scene)
-        traj = Trajectory(traj_config, warn=False)
+        if traj_config is not config.trajectory:
+            traj = Trajectory(traj_config, warn=False)
         if scene is not None and not allow_collision:
             progress.phase("checking the path's clearance")
             hit = scene_mod.check_clearance(

@@ -301,12 +301,12 @@ def _run_job(job: WorkerJob, put: Callable[[Any], None]) -> None:
     from roslan.io.messages import Flavor, MessageStore
     from roslan.pipeline.context import Context
     from roslan.pipeline.run import _Stream
-    from roslan.trajectory.generator import Trajectory
+    from roslan.trajectory.spline import make_trajectory
 
     if job.nice > 0:
         with contextlib.suppress(OSError):  # threads started from here on inherit it
             os.nice(job.nice)
-    traj = Trajectory(job.trajectory)
+    traj = make_trajectory(job.trajectory, base_dir=job.base_dir)
     ctx = Context(
         traj,
         job.outdir,

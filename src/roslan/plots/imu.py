@@ -72,7 +72,12 @@ def _imu_name(outdir: Path, path: Path, imus: list[dict[str, Any]]) -> dict[str,
 def imu_truth(outdir: Path, data: ImuData) -> ImuTruth:
     """The noise-free truth of ``data`` (see the module docstring for the two sources)."""
     cfg = resolved_config(load_run(outdir))
-    if cfg is not None and isinstance(cfg.get("trajectory"), dict):
+    # a file trajectory's spline needs its pose file: use groundtruth.txt instead
+    if (
+        cfg is not None
+        and isinstance(cfg.get("trajectory"), dict)
+        and cfg["trajectory"].get("file") is None
+    ):
         from pydantic import ValidationError
 
         from roslan.config.base import Pose

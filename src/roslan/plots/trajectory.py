@@ -61,6 +61,8 @@ def _closed_form(outdir: Path, n: int) -> tuple[TrajectoryTable, float, float, f
     cfg = resolved_config(load_run(outdir))
     if cfg is None or not isinstance(cfg.get("trajectory"), dict):
         return None
+    if cfg["trajectory"].get("file") is not None:
+        return None  # the spline needs the pose file; the caller uses the exported table
     from pydantic import ValidationError
 
     from roslan.errors import RoslanError

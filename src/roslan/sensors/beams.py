@@ -330,10 +330,6 @@ class PointCloudSensor:
         """(PointCloud2 height, is_dense): unorganized by default."""
         return 1, True
 
-    def scan_span_ns(self) -> int:
-        """Time from a scan's stamp to its last firing, ns (default: a whole period)."""
-        return round(1e9 / float(self.config.rate))
-
     def topics(self) -> list[TopicSpec]:
         return [TopicSpec(self.config.topic, POINTCLOUD2)]
 
@@ -347,9 +343,10 @@ class PointCloudSensor:
         index = ctx.path(f"lidar/{cfg.name}/timestamps.txt")
         self._writer = ScanWriter(index.parent, index)
         height, dense = self.cloud_layout()
-        # only scans whose last firing lies within the run (and its ground truth)
-        last = int(ctx.trajectory.duration_ns) - self.scan_span_ns()
-        for seq, t0 in enumerate(sample_times_ns(cfg.rate, last).tolist()):
+        # a scan fires over [t0, t0 + 1/rate): only whole scans that end within the
+        # trajectory (and so within the ground-truth record) are produced
+        last_start = ctx.trajectory.duration_ns - round(1e9 / cfg.rate)
+        for seq, t0 in enumerate(sample_times_ns(cfg.rate, last_start).tolist()):
             pts = self.scan(ctx.trajectory, caster, t0, rng)
             self._writer.write(t0, pts)
             stamp = ctx.stamp(t0)

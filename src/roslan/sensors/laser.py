@@ -169,10 +169,9 @@ class Laser:
         self._fh = ctx.path(f"laser_{c.name}.txt").open("w", encoding="utf-8", newline="\n")
         # t r_0 .. r_n: no header line (columns and angles in OUTDIR/README.md)
         angle_max = float(self.angles[-1])
-        # only scans whose last beam fires within the run (and its ground truth)
-        span = math.ceil((c.n_beams - 1) * c.beam_time * 1e9)
-        last = int(ctx.trajectory.duration_ns) - span
-        for seq, t0 in enumerate(sample_times_ns(c.rate, last).tolist()):
+        # a scan sweeps over [t0, t0 + 1/rate): only whole scans within the trajectory
+        last_start = ctx.trajectory.duration_ns - round(1e9 / c.rate)
+        for seq, t0 in enumerate(sample_times_ns(c.rate, last_start).tolist()):
             ranges, inten = self.scan(ctx.trajectory, caster, t0, rng)
             txt = " ".join(np.char.mod("%.6f", ranges.astype(np.float64)).tolist())
             self._fh.write(f"{format_seconds([t0])[0]} {txt}\n")

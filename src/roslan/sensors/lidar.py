@@ -268,10 +268,6 @@ class Lidar(PointCloudSensor):
         self.T_body_sensor = config.pose.matrix()
 
     # ------------------------------------------------------------------ interface
-    def scan_span_ns(self) -> int:
-        """Time from a turn's stamp to its last firing, ns."""
-        return math.ceil(float(self.offsets.max()) * 1e9)
-
     def cloud_layout(self) -> tuple[int, bool]:
         """Organized: one row per ring, NaN where nothing returned (not dense)."""
         return (self.spec.n_lasers, False) if self.config.organized else (1, True)

@@ -110,21 +110,32 @@ def load_vehicle_block(path: Path, trajectory: TrajectoryConfig) -> TrajectoryCo
 
 
 def _run(args: argparse.Namespace) -> int:
-    trajectory = load_trajectory_block(Path(args.config))
-    trajectory = load_vehicle_block(Path(args.config), trajectory)
+    from roslan.errors import ConfigError
+    from roslan.trajectory.spline import make_trajectory
+
+    if (args.config is None) == (args.from_file is None):
+        msg = "give either CONFIG (a simulation YAML) or --from FILE (a TUM pose file)"
+        raise ConfigError(msg)
+    if args.from_file is not None:
+        trajectory = TrajectoryConfig.model_validate({"file": str(args.from_file)})
+        base_dir = None
+    else:
+        trajectory = load_trajectory_block(Path(args.config))
+        trajectory = load_vehicle_block(Path(args.config), trajectory)
+        base_dir = Path(args.config).parent
     with warnings.catch_warnings():
         # every hard-landing note reaches the user (one "warning: ..." line each, printed
         # by roslan.cli), even if the same text was shown earlier in this process
         warnings.simplefilter("always", TrajectoryWarning)
-        traj = Trajectory(trajectory)
+        traj = make_trajectory(trajectory, base_dir=base_dir)
     write_into(traj, Path(args.output), overwrite=args.overwrite, plot=not args.no_plot)
     files = "trajectory.csv, groundtruth.txt, summary.json"
     if not args.no_plot:
         files += ", trajectory.png"
-    print(
-        f"touchdown T = {traj.T:.6f} s, tau(0) = {traj.tau0:.6f} s, "
-        f"{len(traj.table_times())} samples -> {args.output}/ ({files})"
-    )
+    head = f"touchdown T = {traj.T:.6f} s, tau(0) = {traj.tau0:.6f} s"
+    if trajectory.file is not None:
+        head = f"duration {traj.T:.6f} s (spline through {trajectory.file})"
+    print(f"{head}, {len(traj.table_times())} samples -> {args.output}/ ({files})")
     return 0
 
 
@@ -138,7 +149,14 @@ def register(subparsers: Any) -> None:
             "(frame F), groundtruth.txt (TUM, world), summary.json and trajectory.png."
         ),
     )
-    p.add_argument("config", type=Path, metavar="CONFIG", help="simulation YAML file")
+    p.add_argument("config", type=Path, nargs="?", metavar="CONFIG", help="simulation YAML file")
+    p.add_argument(
+        "--from",
+        dest="from_file",
+        type=Path,
+        metavar="FILE",
+        help="fit a TUM pose file (t x y z qx qy qz qw, world frame) instead of a CONFIG",
+    )
     p.add_argument(
         "-o",
         "--output",

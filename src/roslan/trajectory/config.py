@@ -83,6 +83,14 @@ class TrajectoryConfig(StrictModel):
     sample_dt: Annotated[FiniteFloat, Field(ge=MIN_SAMPLE_DT_S, le=MAX_DURATION_S)] = 0.1
     hold: Annotated[FiniteFloat, Field(ge=0, le=MAX_DURATION_S)] = 0.0
     flapping: Flapping = Flapping()
+    file: str | None = None
+    """A pose file (TUM ``t x y z qx qy qz qw``, world frame) to fly instead of a tau landing;
+    relative to the config file's folder."""
+    smoothing: NonNegativeFloat = 0.0
+    """File trajectories: 0 interpolates the poses (quintic spline); > 0 is the smoothing
+    spline's penalty (``scipy.interpolate.make_smoothing_spline`` ``lam``) per axis."""
+    max_gap: Annotated[FiniteFloat, Field(gt=0, le=MAX_DURATION_S)] = 1.0
+    """File trajectories: the longest time (s) allowed between consecutive poses."""
 
     @field_validator("k")
     @classmethod
@@ -119,6 +127,24 @@ class TrajectoryConfig(StrictModel):
 
     @model_validator(mode="after")
     def _check(self) -> TrajectoryConfig:
+        if self.file is not None:
+            tau = sorted(
+                {"k", "kappa", "initial", "approach", "goal", "flapping"} & self.model_fields_set
+            )
+            fields = type(self).model_fields
+            # a saved, resolved config repeats the defaults: only other values clash
+            tau_given = [
+                k
+                for k in tau
+                if getattr(self, k) != fields[k].get_default(call_default_factory=True)
+            ]
+            if tau_given:
+                msg = (
+                    f"'file' flies the poses of the file; {', '.join(tau_given)} belong to a tau "
+                    "landing: remove them (with 'file': smoothing, max_gap, hold, sample_dt)"
+                )
+                raise ValueError(msg)
+            return self
         if self.approach is not None:
             given = self.initial.model_fields_set if "initial" in self.model_fields_set else set()
             # An explicit null (as in a saved, resolved config) does not count as given.

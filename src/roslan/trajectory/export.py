@@ -87,8 +87,9 @@ def plot_trajectory(traj: Trajectory, table: State, path: Path) -> None:
     p = dense.gaps[:, :3]
     ax3.plot(p[:, 0], p[:, 1], p[:, 2], color="0.55", lw=0.8, ls="--", label="path")
     landing = table.t <= traj.T
-    q = table.gaps[landing, :3]
-    v = table.rates[landing, :3]
+    stride = max(1, int(np.count_nonzero(landing)) // 40)  # at most ~40 arrows
+    q = table.gaps[landing, :3][::stride]
+    v = table.rates[landing, :3][::stride]
     span = float(np.ptp(p, axis=0).max()) or 1.0
     vmax = float(np.linalg.norm(v, axis=1).max()) or 1.0
     # arrows: at each table row, the velocity (length proportional to speed)
@@ -102,7 +103,10 @@ def plot_trajectory(traj: Trajectory, table: State, path: Path) -> None:
     ax3.set_xlabel("x [m]")
     ax3.set_ylabel("y [m]")
     ax3.set_zlabel("z [m]")
-    ax3.set_title(f"path in goal frame F (k = {traj.k:g}, T = {traj.T:.3f} s)")
+    if getattr(traj.config, "file", None) is not None:
+        ax3.set_title(f"path relative to the last pose (file, {traj.T:.3f} s)")
+    else:
+        ax3.set_title(f"path in goal frame F (k = {traj.k:g}, T = {traj.T:.3f} s)")
     ax3.legend(loc="upper left", fontsize=8)
     units = {"x": "m", "y": "m", "z": "m", "roll": "rad", "pitch": "rad", "yaw": "rad"}
     for i, name in enumerate(GAPS):
