@@ -37,7 +37,7 @@ CHILD = textwrap.dedent(
     """
     import json, resource, sys, time
     from pathlib import Path
-    from roslan.pipeline.cli import load_config
+    from roslan.cli.simulate import load_config
     from roslan.simulate import run_simulation
 
     scale, outdir, workers = float(sys.argv[1]), Path(sys.argv[2]), sys.argv[3]

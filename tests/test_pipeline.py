@@ -399,7 +399,7 @@ def test_cli_default_job_and_seed(
     no_plot: None,
 ) -> None:
     # the packaged default job, shortened: patch the loader to keep the test fast
-    import roslan.pipeline.cli as pcli
+    import roslan.cli.simulate as pcli
 
     cfg, path = pcli.load_config(None)
     assert path is None

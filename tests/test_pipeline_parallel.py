@@ -225,7 +225,7 @@ def test_sensor_error_in_child_is_reraised(tmp_path: Path, monkeypatch: pytest.M
     assert list(tmp_path.iterdir()) == []  # no OUTDIR, no .partial folder
     assert _children() == []
     # the CLI prints the message, no traceback
-    monkeypatch.setattr("roslan.pipeline.cli.load_config", lambda p: (tiny_config(), None))
+    monkeypatch.setattr("roslan.cli.simulate.load_config", lambda p: (tiny_config(), None))
     code = main(["simulate", "-o", str(tmp_path / "cli"), "--quiet", "--workers", "1"])
     assert code == 2
     assert list(tmp_path.iterdir()) == []

@@ -48,7 +48,7 @@ import sys
 
 sys.path.insert(0, {src!r})
 if os.environ.get("ROSLAN_README_FAST") and __name__ == "__main__":
-    import roslan.pipeline.cli as _cli
+    import roslan.cli.simulate as _cli
     from roslan.trajectory.config import Initial
 
     _load = _cli.load_config

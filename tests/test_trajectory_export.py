@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import roslan.cli
-import roslan.plots.cli
+import roslan.cli.plot
 from roslan.errors import OutputError
 from roslan.io.files import atomic_write
 from roslan.io.text import format_seconds, write_columns
@@ -40,7 +40,7 @@ trajectory:
 def _only_our_commands(monkeypatch: pytest.MonkeyPatch) -> None:
     # other command modules are not under test here
     monkeypatch.setattr(
-        roslan.cli, "COMMAND_MODULES", ("roslan.trajectory.cli", "roslan.plots.cli")
+        roslan.cli, "COMMAND_MODULES", ("roslan.cli.trajectory", "roslan.cli.plot")
     )
 
 

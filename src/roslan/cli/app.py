@@ -18,12 +18,12 @@ __all__ = ["main"]
 # Each module defines ``register(subparsers)``, adding its command(s) with
 # ``parser.set_defaults(func=callable(args) -> int)``.
 COMMAND_MODULES: tuple[str, ...] = (
-    "roslan.trajectory.cli",
-    "roslan.datasets_cli",
-    "roslan.pipeline.cli",
-    "roslan.plots.cli",
+    "roslan.cli.trajectory",
+    "roslan.cli.datasets",
+    "roslan.cli.simulate",
+    "roslan.cli.plot",
     "roslan.plots.preview",
-    "roslan.scene.cli",
+    "roslan.cli.scene",
 )
 
 
