@@ -16,7 +16,7 @@ from roslan.cli import main
 from roslan.config.sim import SimConfig
 from roslan.errors import OutputError
 from roslan.estimate import estimate_run, format_bytes, format_seconds
-from roslan.simulate import run_simulation
+from roslan.pipeline import run_simulation
 
 
 def _config() -> SimConfig:

@@ -21,11 +21,11 @@ from pipeline_helpers import SHORT_TRAJECTORY, short_config, tree_bytes
 from roslan.cli import main
 from roslan.config.sim import SimConfig
 from roslan.errors import ConfigError, OutputError, SensorError
+from roslan.pipeline import run_simulation
 from roslan.pipeline.context import Context, stream_key
 from roslan.sensors import registry
 from roslan.sensors.base import Message
 from roslan.sensors.imu import Imu, ImuConfig
-from roslan.simulate import run_simulation
 from roslan.trajectory.frames import quat_xyzw_to_matrix
 
 
@@ -456,7 +456,7 @@ def test_plot_rendered_in_process_when_threads_run(tmp_path: Path) -> None:
 def test_final_rename_never_replaces_an_outdir_that_appeared(tmp_path: Path) -> None:
     """Without overwrite, an OUTDIR created by someone else during the run is kept and the
     finished run is not moved over it; with overwrite it is replaced."""
-    import roslan.pipeline.run as run_mod
+    from roslan.rundir.folder import finalize
 
     tmp = tmp_path / ".out.partial-abc"
     tmp.mkdir()
@@ -464,10 +464,10 @@ def test_final_rename_never_replaces_an_outdir_that_appeared(tmp_path: Path) -> 
     outdir = tmp_path / "out"
     outdir.mkdir()  # appeared "meanwhile" (even empty: rename(2) would replace it)
     with pytest.raises(OutputError, match="appeared while this run was writing"):
-        run_mod._finalize(tmp, outdir, overwrite=False)
+        finalize(tmp, outdir, overwrite=False)
     assert outdir.is_dir()
     assert list(outdir.iterdir()) == []
     assert (tmp / "run.json").exists()
-    run_mod._finalize(tmp, outdir, overwrite=True)
+    finalize(tmp, outdir, overwrite=True)
     assert (outdir / "run.json").exists()
     assert not tmp.exists()

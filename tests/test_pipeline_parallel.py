@@ -22,12 +22,12 @@ from roslan.cli import main
 from roslan.config.base import load_yaml_model
 from roslan.config.sim import SimConfig
 from roslan.errors import ConfigError, SensorError
+from roslan.pipeline import run_simulation
 from roslan.pipeline import worker as worker_mod
 from roslan.pipeline.worker import ByteQueue, WorkerError, plan_workers, resolve_workers
 from roslan.sensors.base import Message
 from roslan.sensors.camera import Camera
 from roslan.sensors.registry import sensor_class
-from roslan.simulate import run_simulation
 
 HERE = Path(__file__).parent
 

@@ -26,7 +26,7 @@ indexes a list given in the base (``trajectory.initial.position.2``). Every path
 checked against the config schema when the sweep is loaded, and every generated config
 is validated before anything runs: an invalid one is reported for its task only.
 
-Each task is one :func:`roslan.simulate.run_simulation` call, pure given its config
+Each task is one :func:`roslan.pipeline.run_simulation` call, pure given its config
 (seed included), writing ``OUT/<task>/`` (a ``roslan simulate`` OUTDIR). A task whose
 ``run.json`` says complete (same config) is skipped, so a batch can be resumed.
 """
@@ -73,7 +73,7 @@ __all__ = [
 
 Runner = Callable[[Any, Path, bool, "Path | None"], Mapping[str, Any]]
 """``runner(config: SimConfig, outdir, overwrite, config_path) -> run.json dict``; the
-default calls :func:`roslan.simulate.run_simulation` with ``quiet=True``."""
+default calls :func:`roslan.pipeline.run_simulation` with ``quiet=True``."""
 
 _AXIS_KINDS = ("grid", "zip", "sample")
 _SAMPLE_KEYS = ("n", "method", "seed", "ranges")
@@ -675,7 +675,7 @@ def read_run_json(folder: Path) -> dict[str, Any] | None:
 def _default_runner(
     config: Any, outdir: Path, overwrite: bool, config_path: Path | None
 ) -> Mapping[str, Any]:
-    from roslan.simulate import run_simulation
+    from roslan.pipeline import run_simulation
 
     info: Mapping[str, Any] = run_simulation(
         config, outdir, overwrite=overwrite, quiet=True, config_path=config_path
@@ -745,7 +745,7 @@ def _settle(outdir: Path) -> int:
     """Attempts recorded for the task writing ``outdir`` (0 if none); removes the record and
     the partial folders of failed attempts (only when no live run holds OUTDIR's lock)."""
     from roslan.errors import OutputError
-    from roslan.pipeline.outdir import clean_stale, outdir_lock
+    from roslan.rundir.folder import clean_stale, outdir_lock
 
     marker = _attempts_file(outdir)
     try:
@@ -819,7 +819,7 @@ def run_tasks(
         retries: extra attempts for a task that raised something other than a roslan
             error (those are deterministic: a task is pure given its config).
         overwrite: rerun tasks even when a complete ``run.json`` exists.
-        runner: replaces :func:`roslan.simulate.run_simulation` (tests, custom pipelines).
+        runner: replaces :func:`roslan.pipeline.run_simulation` (tests, custom pipelines).
     """
     out = Path(outdir).resolve()
     try:

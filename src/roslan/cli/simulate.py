@@ -66,7 +66,7 @@ def _simulate(args: argparse.Namespace) -> int:
 
 
 def _run(args: argparse.Namespace, config: SimConfig, path: Path | None) -> int:
-    from roslan.simulate import run_simulation
+    from roslan.pipeline import run_simulation
 
     formats = (
         None
@@ -77,7 +77,7 @@ def _run(args: argparse.Namespace, config: SimConfig, path: Path | None) -> int:
         from roslan.dryrun import print_run_estimate
 
         return print_run_estimate(config, args.outdir, formats)
-    run: dict[str, Any] = run_simulation(
+    run = run_simulation(
         config,
         args.outdir,
         overwrite=args.overwrite,
