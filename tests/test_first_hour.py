@@ -176,7 +176,7 @@ def test_a_sensor_without_scene_stops_before_any_work(
     )
     started: list[str] = []
     monkeypatch.setattr(run_mod, "WorkerPool", lambda *a: started.append("pool"))
-    monkeypatch.setattr(run_mod, "_make_temp", lambda *a: started.append("tmp"))
+    monkeypatch.setattr(run_mod, "make_temp", lambda *a: started.append("tmp"))
     assert main(["simulate", str(job), "-o", str(tmp_path / "out")]) == 2
     err = capsys.readouterr().err
     assert err.startswith(f"error: {job}: sensors[1] ('velo', type lidar) needs a scene")

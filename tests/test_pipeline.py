@@ -256,7 +256,7 @@ def test_interrupted_run_leaves_nothing(
     before = tree_bytes(old)
     _Exploding.error = error  # type: ignore[attr-defined]
     monkeypatch.setattr(registry, "sensor_class", lambda name: _Exploding)
-    monkeypatch.setattr("roslan.pipeline.run.sensor_class", lambda name: _Exploding)
+    monkeypatch.setattr("roslan.pipeline.plan.sensor_class", lambda name: _Exploding)
     with pytest.raises(type(error)):
         run_simulation(short_config(), old, quiet=True, overwrite=True)
     with pytest.raises(type(error)):
@@ -272,7 +272,8 @@ _SLOW_RUN = textwrap.dedent(
     from pathlib import Path
     from pipeline_helpers import short_config
     from roslan.sensors.imu import Imu
-    import roslan.pipeline.run as run
+    import roslan.pipeline.plan as plan
+    from roslan.pipeline import run_simulation
     class Slow(Imu):
         def messages(self, ctx):
             for i, m in enumerate(super().messages(ctx)):
@@ -280,9 +281,9 @@ _SLOW_RUN = textwrap.dedent(
                     print("started", flush=True)
                     time.sleep(60)
                 yield m
-    run.sensor_class = lambda name: Slow
+    plan.sensor_class = lambda name: Slow
     try:
-        run.run_simulation(short_config(), Path(sys.argv[1]), quiet=True)
+        run_simulation(short_config(), Path(sys.argv[1]), quiet=True)
     except KeyboardInterrupt:
         sys.exit(130)
     """
@@ -370,7 +371,7 @@ def test_misbehaving_sensor_is_reported(
             yield msgs[5]
             yield msgs[2]
 
-    monkeypatch.setattr("roslan.pipeline.run.sensor_class", lambda name: Backwards)
+    monkeypatch.setattr("roslan.pipeline.plan.sensor_class", lambda name: Backwards)
     with pytest.raises(SensorError, match="time-ordered"):
         run_simulation(short_config(), tmp_path / "out", quiet=True)
     assert list(tmp_path.iterdir()) == []

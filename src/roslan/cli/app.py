@@ -22,7 +22,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "roslan.cli.datasets",
     "roslan.cli.simulate",
     "roslan.cli.plot",
-    "roslan.plots.preview",
+    "roslan.cli.preview",
     "roslan.cli.scene",
 )
 

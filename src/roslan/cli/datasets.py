@@ -6,8 +6,8 @@ import argparse
 from pathlib import Path
 from typing import Any
 
+from roslan.cli.common import seed_arg
 from roslan.errors import ConfigError
-from roslan.limits import seed_arg
 
 __all__ = ["register"]
 
@@ -87,8 +87,8 @@ def _dataset_dry_run(args: argparse.Namespace, sensors: list[dict[str, Any]] | N
     import math
 
     from roslan.batch import make_tasks
+    from roslan.cli.dryrun import PlanRow, print_plan
     from roslan.dataset import dataset_plan
-    from roslan.dryrun import PlanRow, print_plan
 
     runs = dataset_plan(
         args.scenes, seed=args.seed, sensors=sensors, duration=args.duration,
@@ -131,7 +131,7 @@ def _batch(args: argparse.Namespace) -> int:
     sweep = load_sweep(args.sweep)
     tasks = sweep_tasks(sweep)
     if args.dry_run:
-        from roslan.dryrun import PlanRow, print_plan
+        from roslan.cli.dryrun import PlanRow, print_plan
 
         rows = [
             PlanRow(t.name, {k: _short(v) for k, v in t.overrides.items()}, t.config, t.error)

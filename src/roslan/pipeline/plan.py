@@ -18,9 +18,9 @@ from pathlib import Path
 
 from roslan.config.sim import SimConfig
 from roslan.errors import ConfigError, SensorError
-from roslan.estimate import check_free_space, estimate_run
 from roslan.io.bag import BagTopic
 from roslan.limits import preflight as check_limits
+from roslan.pipeline.estimate import check_free_space, estimate_run
 from roslan.pipeline.namespace import check_namespace
 from roslan.pipeline.worker import plan_workers, resolve_workers
 from roslan.rundir.extrinsics import static_transforms

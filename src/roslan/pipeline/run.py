@@ -35,7 +35,7 @@ from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from types import FrameType
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from roslan.config.sim import SimConfig
 from roslan.errors import ConfigError
@@ -57,9 +57,11 @@ from roslan.rundir.manifest import (
     make_manifest,
     write_json,
 )
-from roslan.scene.model import Scene
 from roslan.trajectory.generator import Trajectory
 from roslan.vehicle import base_link_trajectory
+
+if TYPE_CHECKING:
+    from roslan.scene.model import Scene
 
 __all__ = ["RunOptions", "run_simulation"]
 
@@ -199,24 +201,25 @@ class _Run:
     # -------------------------------------------------------------------- 1. plan: scene
     def _load_scene(self) -> None:
         config = self.config
-        if config.scene is None:
-            return
-        import roslan.scene as scene_mod
+        if config.scene is not None:
+            import roslan.scene as scene_mod
 
-        self.progress.phase(f"loading scene {config.scene!r}")
-        scene = scene_mod.load_scene(config.scene, base_dir=self.plan.base_dir, seed=config.seed)
-        self.scene = scene
+            self.progress.phase(f"loading scene {config.scene!r}")
+            self.scene = scene_mod.load_scene(
+                config.scene, base_dir=self.plan.base_dir, seed=config.seed
+            )
+        scene = self.scene
         # the goal is where the vehicle's contact point meets the surface: base_link's
         # trajectory ends above it (roslan.vehicle); only the goal moves, not the timing
         self.traj_config = base_link_trajectory(config.trajectory, config.vehicle, scene)
         if self.traj_config is not config.trajectory:
             self.traj = Trajectory(self.traj_config, warn=False)
-        if self.opts.allow_collision:
+        if scene is None or self.opts.allow_collision:
             return
+        from roslan.scene.clearance import check_clearance
+
         self.progress.phase("checking the path's clearance")
-        hit = scene_mod.check_clearance(
-            scene, self.traj, vehicle=config.vehicle, sensors=config.sensors
-        )
+        hit = check_clearance(scene, self.traj, vehicle=config.vehicle, sensors=config.sensors)
         if hit is not None:
             msg = (
                 f"scene {config.scene!r}: {hit}; change the trajectory, the sensor "
