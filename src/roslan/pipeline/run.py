@@ -69,6 +69,7 @@ from roslan.pipeline.worker import (
     resolve_workers,
     worker_nice,
 )
+from roslan.rundir.calibration import root_camera, write_calibration
 from roslan.sensors.base import Message, Sensor, StaticTransform
 from roslan.sensors.ground_truth import BASE_FRAME, WORLD_FRAME, GroundTruth
 from roslan.sensors.registry import sensor_class
@@ -716,6 +717,7 @@ def _run_simulation(
             writers_counts, writers = writers.counts, None
             t_done = time.perf_counter()
 
+            write_calibration(tmp, config.sensors)
             calib = tmp / "calib"
             calib.mkdir(exist_ok=True)
             with (calib / "extrinsics.yaml").open("w", encoding="utf-8") as fh:
@@ -800,9 +802,8 @@ def _run_simulation(
                 _playback(traj.duration, wall, fmts, counts), encoding="utf-8"
             )
             from roslan.io.readme import outdir_readme
-            from roslan.sensors.camera_model import ecd_root_camera
 
-            readme = outdir_readme(tmp, ecd_root_camera(config.sensors))
+            readme = outdir_readme(tmp, root_camera(config.sensors))
             (tmp / "README.md").write_text(readme, encoding="utf-8")
             _write_json(tmp / RUN_FILE, run)  # last: its presence marks a complete folder
             _finalize(tmp, outdir, overwrite)
