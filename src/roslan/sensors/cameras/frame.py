@@ -186,8 +186,8 @@ class _Eye:
 
     def buffer(self, key: str, shape: tuple[int, ...]) -> F32:
         """A float32 work array of ``shape`` reused from frame to frame: fresh multi-MB
-        arrays every frame cost page faults (~3,900 per 640x480 frame, ~5 ms on the
-        bench VM, when glibc returns the freed memory to the system)."""
+        arrays every frame cost page faults (thousands per 640x480 frame when glibc
+        returns the freed memory to the system)."""
         a = self.scratch.get(key)
         if a is None or a.shape != shape:
             a = self.scratch[key] = np.empty(shape, dtype=np.float32)
