@@ -10,7 +10,7 @@ run, ``calib/<camera>.yaml`` (ROS camera_info) of every camera, each camera's
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -21,20 +21,33 @@ if TYPE_CHECKING:
     from roslan.sensors.cameras.config import CameraIntrinsics
     from roslan.sensors.cameras.model import CameraModel
 
-__all__ = ["calib_txt", "camera_folder", "root_camera", "write_calibration"]
+__all__ = [
+    "calib_txt",
+    "camera_folder",
+    "root_camera",
+    "root_camera_name",
+    "write_calibration",
+]
 
 F64 = NDArray[np.float64]
 
 
-def root_camera(sensors: Sequence[Any]) -> str | None:
+def root_camera_name(sensors: Iterable[tuple[str, str]]) -> str | None:
     """Name of the camera whose files make up the OUTDIR root in the Event Camera Dataset
-    layout (``images.txt``, ``images/``, ``calib.txt``): the first event camera, else the
-    first frame camera (a stereo pair: its left eye); None without cameras."""
+    layout (``images.txt``, ``images/``, ``calib.txt``), from the ``(type, name)`` of every
+    sensor in config order: the first event camera, else the first frame camera (a stereo
+    pair: its left eye, ``<name>_left``); None without cameras."""
+    pairs = list(sensors)
     for types in (("event_camera",), ("camera", "stereo_camera")):
-        for s in sensors:
-            if getattr(s, "type", None) in types and _is_camera(s):
-                return str(s.calibration_cameras()[0].name)
+        for kind, name in pairs:
+            if kind in types:
+                return f"{name}_left" if kind == "stereo_camera" else name
     return None
+
+
+def root_camera(sensors: Sequence[Any]) -> str | None:
+    """:func:`root_camera_name` of sensor configs ``sensors``."""
+    return root_camera_name((str(s.type), str(s.name)) for s in sensors)
 
 
 def _is_camera(cfg: Any) -> bool:
