@@ -83,7 +83,7 @@ _SPECS = (
         "ImuConfig",
         "Imu",
         0.0,
-        "imu.txt (or imu/<name>.txt), calib/imu*.yaml",
+        "imu.txt + calib/imu.yaml (later IMUs: imu_<name>.txt, calib/imu_<name>.yaml)",
     ),
     SensorSpec(
         "camera",
@@ -107,7 +107,8 @@ _SPECS = (
         "StereoCameraConfig",
         "StereoCamera",
         3.0,
-        "<name>_left/ and <name>_right/ images, calib/<name>_{left,right}.yaml",
+        "per eye: images.txt + images/ (or <name>_left/..., <name>_right/...), calib.txt, "
+        "calib/<name>_left.yaml, calib/<name>_right.yaml",
     ),
     SensorSpec(
         "event_camera",
