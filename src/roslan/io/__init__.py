@@ -1,0 +1,62 @@
+"""Writers and readers of the files a run produces: bags (ROS 1 and ROS 2), messages,
+atomic files, PNG images, text tables, and the bounded, safe reading of user files.
+
+Names are imported on first use (PEP 562), so importing one light module of the
+package does not load the heavy ones.
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import Any
+
+_WHERE = {
+    "BAG_NAMES": "bag",
+    "BackgroundSink": "background",
+    "BagTopic": "bag",
+    "BagWriter": "bag",
+    "CHUNK_ROWS": "text",
+    "EXTRA_MSGDEFS": "messages",
+    "FixedLayout": "packing",
+    "Flavor": "messages",
+    "Leaf": "packing",
+    "MAX_IMAGE_BYTES": "safe_read",
+    "MAX_IMAGE_PIXELS": "safe_read",
+    "MAX_MESH_BYTES": "safe_read",
+    "MAX_YAML_ALIASES": "safe_read",
+    "MAX_YAML_BYTES": "safe_read",
+    "MAX_YAML_DEPTH": "safe_read",
+    "MAX_YAML_NODES": "safe_read",
+    "MessageStore": "messages",
+    "MultiBagWriter": "bag",
+    "PackedBatch": "packing",
+    "ROS1_MSG_TEXTS": "ros1_msgdefs",
+    "Ros1BagWriter": "bag",
+    "Ros2BagWriter": "bag",
+    "atomic_write": "files",
+    "atomic_write_bytes": "files",
+    "atomic_write_text": "files",
+    "check_image_header": "safe_read",
+    "check_regular_file": "safe_read",
+    "current_umask": "files",
+    "format_columns": "text",
+    "format_seconds": "text",
+    "os_error_text": "safe_read",
+    "parse_yaml": "safe_read",
+    "read_text": "safe_read",
+    "ros1_full_text": "ros1_msgdefs",
+    "set_path": "packing",
+    "write_columns": "text",
+    "write_png": "images",
+}
+
+__all__ = sorted(_WHERE)
+
+
+def __getattr__(name: str) -> Any:
+    try:
+        module = _WHERE[name]
+    except KeyError:
+        msg = f"module {__name__!r} has no attribute {name!r}"
+        raise AttributeError(msg) from None
+    return getattr(importlib.import_module(f"{__name__}.{module}"), name)
