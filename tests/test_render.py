@@ -143,7 +143,7 @@ def test_missing_egl_names_debian_packages(monkeypatch: pytest.MonkeyPatch) -> N
     def fail(**_: object) -> None:
         raise Exception("libEGL.so.1: cannot open shared object file")
 
-    monkeypatch.setattr(gl, "_context", None)
+    monkeypatch.setattr(gl.renderer, "_context", None)
     monkeypatch.setattr(moderngl, "create_standalone_context", fail)
     with pytest.raises(RenderError) as err:
         gl.create_context()
