@@ -28,7 +28,7 @@ from roslan.sensors.base import Message, SimContext, StaticTransform, TopicSpec,
 
 if TYPE_CHECKING:
     from roslan.io.messages import MessageStore
-    from roslan.render.raycast import RayCaster
+    from roslan.render.base import BeamCaster
     from roslan.trajectory.generator import Trajectory
 
 __all__ = [
@@ -198,7 +198,7 @@ class Measurement(NamedTuple):
 
 
 def measure(
-    caster: RayCaster,
+    caster: BeamCaster,
     origins: NDArray[np.floating[Any]],
     directions: NDArray[np.floating[Any]],
     *,
@@ -322,7 +322,7 @@ class PointCloudSensor:
     _writer: ScanWriter | None = None
 
     def scan(
-        self, trajectory: Any, caster: Any, t0_ns: int, rng: np.random.Generator
+        self, trajectory: Any, caster: BeamCaster, t0_ns: int, rng: np.random.Generator
     ) -> NDArray[Any]:  # pragma: no cover - every subclass has one
         raise NotImplementedError
 

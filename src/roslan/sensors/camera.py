@@ -46,6 +46,7 @@ from roslan.io.images import write_png
 from roslan.io.messages import MessageStore
 from roslan.io.text import format_seconds
 from roslan.jit import kernel
+from roslan.render import REC709_LUMA, FrameRenderer
 from roslan.sensors.base import (
     Message,
     SensorConfig,
@@ -277,7 +278,7 @@ def _non_affine(inv: F32, tol: float = 1e-3) -> F32:
     return (d2 > tol * top).astype(np.float32)
 
 
-_LUMA = np.array([0.2126, 0.7152, 0.0722], dtype=np.float32)  # Rec. 709, linear
+_LUMA = np.asarray(REC709_LUMA, dtype=np.float32)  # Rec. 709, linear
 
 
 # --------------------------------------------------------------------- helpers
@@ -435,7 +436,7 @@ class _ImagingCamera(_CameraBase):
         offs = ((np.arange(n) + 0.5) / n - 0.5) * exp_ns
         return (t_ns + np.round(offs)).astype(np.int64)
 
-    def render_linear(self, renderer: Any, e: _Eye, T_world_body: F64) -> F32:
+    def render_linear(self, renderer: FrameRenderer, e: _Eye, T_world_body: F64) -> F32:
         """Linear radiance of eye ``e`` averaged over the body poses (N, 4, 4): (H, W, 3),
         or (H, W) Rec. 709 luminance for ``mono8`` (the renderer's one-channel path).
 
@@ -519,7 +520,7 @@ class Camera(_ImagingCamera):
         e = self._eyes[0]
         enc = self.config.encoding
 
-        def frame(i: int, t: int, renderer: Any, T_wb: F64) -> list[Message]:
+        def frame(i: int, t: int, renderer: FrameRenderer, T_wb: F64) -> list[Message]:
             img = self.finish_image(self.render_linear(renderer, e, T_wb), rng)
             if self.config.write_images:
                 self._write_png(ctx, e, i, t, img)
@@ -562,7 +563,7 @@ class StereoCamera(_ImagingCamera):
         rng = ctx.rng(f"stereo_camera/{self.config.name}")
         enc = self.config.encoding
 
-        def frame(i: int, t: int, renderer: Any, T_wb: F64) -> list[Message]:
+        def frame(i: int, t: int, renderer: FrameRenderer, T_wb: F64) -> list[Message]:
             out: list[Message] = []
             for e in self._eyes:
                 img = self.finish_image(self.render_linear(renderer, e, T_wb), rng)
@@ -586,7 +587,7 @@ class DepthCamera(_CameraBase):
             [_Eye("", config.camera_model(), T_LINK_OPTICAL.copy(), c.topic, f"{c.frame}_optical")]
         )
 
-    def render_depth(self, renderer: Any, e: _Eye, T_world_body: F64) -> F32:
+    def render_depth(self, renderer: FrameRenderer, e: _Eye, T_world_body: F64) -> F32:
         """(H, W) float32 metric z-depth (inf: nothing hit) of eye ``e`` at one body pose (4, 4)."""
         assert e.plan is not None
         T = T_world_body @ self._T_body_sensor @ e.T_sensor_optical
@@ -599,6 +600,7 @@ class DepthCamera(_CameraBase):
             depth=True,
             near=self.config.near_clip,
         ).depth
+        assert z is not None
         if e.plan.identity:
             return np.asarray(z, dtype=np.float32)
         import cv2
