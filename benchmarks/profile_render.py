@@ -24,6 +24,8 @@ from typing import Any
 import numpy as np
 
 import roslan.render.gl as gl
+from roslan.render.gl import shaders
+from roslan.render.gl.context import gl_mat
 from roslan.scene import load_scene
 
 REPS = 15
@@ -64,7 +66,7 @@ def stages(r: gl.Renderer, T: np.ndarray, K: np.ndarray, w: int, h: int, ns: int
     # irrelevant here: the camera is far from every object's box)
     first, count, group, bfc = r.visible_ranges(clip, T[:3, 3])
     no_bfc = np.zeros_like(bfc)
-    all_first, all_count, all_group = r._c_first, r._c_count, r._c_group
+    all_first, all_count, all_group = r.buffers.c_first, r.buffers.c_count, r.buffers.c_group
     all_bfc = np.zeros(all_first.size, dtype=bool)
     n_vis = int(count.sum()) // 3
     cull_ms = _ms(lambda: r.visible_ranges(clip, T[:3, 3]))
@@ -76,8 +78,8 @@ def stages(r: gl.Renderer, T: np.ndarray, K: np.ndarray, w: int, h: int, ns: int
     r.render(T, K, w, h, samples=ns)  # targets and programs
     t = r._targets[(w, h, ns, False, True, r._rgb_target)]
     fbo = t.ms_fbo if ns > 1 else t.out_fbo
-    prog, vao = r._program(False, True)
-    prog["u_mvp"].write(gl._gl_mat(clip))
+    prog, vao = r.programs.color(False, True)
+    prog["u_mvp"].write(gl_mat(clip))
     prog["u_zrow"].value = tuple(T_cw[2])
     prog["u_cam_pos"].value = tuple(T[:3, 3])
 
@@ -101,15 +103,15 @@ def stages(r: gl.Renderer, T: np.ndarray, K: np.ndarray, w: int, h: int, ns: int
             ctx.enable_only(ctx.DEPTH_TEST)
             ctx.depth_func = "<"
             ctx.front_face = "cw"
-            r._shadow_tex.use(1)
+            r.shadow.tex.use(1)
             if one:
-                r._group_tex[0].use(0)
+                r.buffers.group_tex[0].use(0)
                 vao.render(ctx.TRIANGLES)
             else:
                 for a, b, g, c in zip(
                     fs.tolist(), cs.tolist(), gs.tolist(), bs.tolist(), strict=True
                 ):
-                    r._group_tex[g].use(0)
+                    r.buffers.group_tex[g].use(0)
                     (ctx.enable if c else ctx.disable)(ctx.CULL_FACE)
                     vao.render(ctx.TRIANGLES, vertices=b, first=a)
             ctx.disable(ctx.CULL_FACE)
@@ -133,8 +135,10 @@ def stages(r: gl.Renderer, T: np.ndarray, K: np.ndarray, w: int, h: int, ns: int
         ("no texture lookup", "texture(u_tex, v_uv).rgb", "vec3(1.0)"),
     ]:
         p2 = ctx.program(
-            vertex_shader=gl._source(gl._COLOR_VERT, lum=False, depth=True),
-            fragment_shader=gl._source(gl._COLOR_FRAG.replace(old, new), lum=False, depth=True),
+            vertex_shader=shaders.source(shaders.COLOR_VERT, lum=False, depth=True),
+            fragment_shader=shaders.source(
+                shaders.COLOR_FRAG.replace(old, new), lum=False, depth=True
+            ),
         )
         for k in ("u_to_sun", "u_sun", "u_ambient", "u_shadow_texel", "u_zrow", "u_cam_pos"):
             if k in p2:
@@ -149,12 +153,14 @@ def stages(r: gl.Renderer, T: np.ndarray, K: np.ndarray, w: int, h: int, ns: int
             f if a in attrs else f"{4 * int(f[0])}x"
             for f, a in zip(("3f", "3f", "2f", "3f"), ATTRS, strict=True)
         )
-        v2 = ctx.vertex_array(p2, [(r._vbo, fmt, *attrs)], r._ibo, index_element_size=4)
+        v2 = ctx.vertex_array(
+            p2, [(r.buffers.vbo, fmt, *attrs)], r.buffers.ibo, index_element_size=4
+        )
         report(f"draw, {name}", draw(first, count, group, bfc, vao=v2))
         v2.release()
         p2.release()
     if ns > 1:
-        rprog, quad = r._resolve(False, True)
+        rprog, quad = r.programs.resolve(False, True)
 
         def resolve() -> None:
             t.out_fbo.use()
@@ -167,7 +173,7 @@ def stages(r: gl.Renderer, T: np.ndarray, K: np.ndarray, w: int, h: int, ns: int
 
         print(f"  resolve (RGB + depth): {_ms(resolve):.1f} ms")
     else:
-        _, aquad = r._edge_filter(False)
+        _, aquad = r.programs.edge_filter(False, r._image)
 
         def edge_filter() -> None:
             t.aa_fbo.use()

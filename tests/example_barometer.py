@@ -81,7 +81,5 @@ class Barometer:
         pass  # the text file is complete once the stream starts
 
 
-SPEC = SensorSpec(
-    "barometer", __name__, "BarometerConfig", "Barometer", 0.0, "baro_<name>.txt"
-)
+SPEC = SensorSpec("barometer", __name__, "BarometerConfig", "Barometer", 0.0, "baro_<name>.txt")
 """The one line that registers the sensor (in roslan, it goes into sensors/registry.py)."""

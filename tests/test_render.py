@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 import roslan.render.gl as gl
+import roslan.render.gl.context as gl_context
 from camera_helpers import (
     BOARD_FILE_Z,
     board_corners,
@@ -18,6 +19,7 @@ from camera_helpers import (
     match_error,
 )
 from roslan.errors import RenderError
+from roslan.render import REC709_LUMA
 from roslan.scene.model import Lights, Material, Scene, SceneObject
 from roslan.sensors.cameras import CameraModel
 
@@ -143,7 +145,7 @@ def test_missing_egl_names_debian_packages(monkeypatch: pytest.MonkeyPatch) -> N
     def fail(**_: object) -> None:
         raise Exception("libEGL.so.1: cannot open shared object file")
 
-    monkeypatch.setattr(gl, "_context", None)
+    monkeypatch.setattr(gl_context, "_context", None)
     monkeypatch.setattr(moderngl, "create_standalone_context", fail)
     with pytest.raises(RenderError) as err:
         gl.create_context()
@@ -181,7 +183,7 @@ def test_edges_are_antialiased_and_luminance_matches(samples: int) -> None:
     assert res.color is not None
     assert lum.luminance is not None
     c = res.color
-    np.testing.assert_allclose(lum.luminance, c @ np.array(gl.LUMA, np.float32), atol=1e-3)
+    np.testing.assert_allclose(lum.luminance, c @ np.array(REC709_LUMA, np.float32), atol=1e-3)
     g = c.mean(axis=2)
     # ~ perimeter 8 m * 30 px/4 m = 60 px of edge: most edge pixels are blended
     partial = int(((g > 0.05) & (g < 0.95)).sum())
@@ -220,7 +222,7 @@ def test_culling_keeps_every_visible_triangle() -> None:
         inside = np.all((np.abs(clip[:, :3]) < w) & (w > 0), axis=1).reshape(-1, 3).any(axis=1)
         seen = inside.reshape(len(objs), 2).any(axis=1)  # per quad
         # index position -> quad: the renderer reorders faces; read its index buffer
-        idx = np.frombuffer(r._ibo.read(), np.uint32)
+        idx = np.frombuffer(r.buffers.ibo.read(), np.uint32)
         eye = T[:3, 3]
         drawn_by: list[np.ndarray] = []
         # (front to back whether back-face culling is on or off)
@@ -486,7 +488,7 @@ def test_sky_where_nothing_is_hit(samples: int) -> None:
         assert out.sum() > 1000
         tol = 1e-6 if samples == 1 else 1e-3  # (MSAA colour targets are half floats)
         np.testing.assert_allclose(res.color[:3, :], np.broadcast_to(sky, (3, 64, 3)), atol=tol)
-        np.testing.assert_allclose(lum.luminance[:3, :], float(np.dot(sky, gl.LUMA)), atol=tol)
+        np.testing.assert_allclose(lum.luminance[:3, :], float(np.dot(sky, REC709_LUMA)), atol=tol)
         np.testing.assert_array_equal(np.isinf(lum.depth), out)
         assert np.all(res.color[20:28, 28:36] > 0.999)  # the square itself is unchanged
         # edge pixels: between sky and white in every channel

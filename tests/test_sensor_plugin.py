@@ -9,10 +9,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from example_barometer import SPEC, isa_pressure
-from pipeline_helpers import SHORT_TRAJECTORY
 from rosbags.highlevel import AnyReader
 
+from example_barometer import SPEC, isa_pressure
+from pipeline_helpers import SHORT_TRAJECTORY
 from roslan.config.sim import SimConfig
 from roslan.errors import ConfigError
 from roslan.pipeline import run_simulation
@@ -43,7 +43,7 @@ def _config(**sensor: object) -> SimConfig:
 
 
 def test_unregistered_type_is_refused_with_the_allowed_list() -> None:
-    with pytest.raises(ValueError, match="unknown sensor type 'barometer'.*allowed: altimeter"):
+    with pytest.raises(ValueError, match=r"unknown sensor type 'barometer'.*allowed: altimeter"):
         _config()
 
 

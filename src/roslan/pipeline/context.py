@@ -6,7 +6,7 @@ import hashlib
 import importlib
 from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -15,6 +15,7 @@ from roslan.rundir.calibration import root_camera
 from roslan.sensors.base import SensorConfig
 
 if TYPE_CHECKING:
+    from roslan.render.base import BeamCaster, FrameRenderer
     from roslan.scene.model import Scene
     from roslan.trajectory.generator import Trajectory
 
@@ -62,8 +63,8 @@ class Context:
         self.scene_spec = scene_spec
         self.base_dir = base_dir
         self._scene = scene
-        self._renderer: Any = None
-        self._raycaster: Any = None
+        self._renderer: FrameRenderer | None = None
+        self._raycaster: BeamCaster | None = None
 
     def stamp(self, t_ns: int) -> int:
         """Absolute header stamp (ns) of trajectory time ``t_ns``."""
@@ -105,14 +106,14 @@ class Context:
             )
         return self._scene
 
-    def renderer(self) -> Any:
+    def renderer(self) -> FrameRenderer:
         """The process-wide OpenGL renderer of the scene (created on first use)."""
         if self._renderer is None:
             gl = importlib.import_module("roslan.render.gl")
             self._renderer = gl.get_renderer(self.scene)
         return self._renderer
 
-    def raycaster(self) -> Any:
+    def raycaster(self) -> BeamCaster:
         """The process-wide Embree ray caster of the scene (created on first use)."""
         if self._raycaster is None:
             rc = importlib.import_module("roslan.render.raycast")

@@ -6,11 +6,10 @@ casts its rays here, against exactly the triangles the rasterizer draws
 
 Threading: ``embreex``'s ``EmbreeScene.run`` loops over the rays in C with the
 GIL released around ``rtcIntersect1``, so a ``ThreadPoolExecutor`` over
-contiguous chunks of rays runs them in parallel. Measured on the 2-core dev
-machine (80k-triangle mesh, 200k incoherent rays): 1 thread 53 ms, 2 threads
-30 ms (1.8x). Batches smaller than :data:`PARALLEL_MIN_RAYS` run inline, where the
-thread hand-off would cost more than it saves. ``ROSLAN_RAYCAST_THREADS`` overrides
-the thread count (default: the CPUs this process may run on).
+contiguous chunks of rays runs them in parallel. Batches smaller than
+:data:`PARALLEL_MIN_RAYS` run inline, where the thread hand-off would cost more than
+it saves. ``ROSLAN_RAYCAST_THREADS`` overrides the thread count (default: the CPUs
+this process may run on).
 """
 
 from __future__ import annotations

@@ -37,6 +37,7 @@ from roslan.limits import MAX_RATE_HZ
 
 if TYPE_CHECKING:
     from roslan.io.messages import MessageStore
+    from roslan.render.base import BeamCaster, FrameRenderer
     from roslan.scene.model import Scene
     from roslan.trajectory.generator import Trajectory
 
@@ -174,11 +175,11 @@ class SimContext(Protocol):
         """The scene (raises a clear ConfigError if the config has none)."""
         ...
 
-    def renderer(self) -> Any:
+    def renderer(self) -> FrameRenderer:
         """The process-wide OpenGL renderer of the scene (created on first use)."""
         ...
 
-    def raycaster(self) -> Any:
+    def raycaster(self) -> BeamCaster:
         """The process-wide Embree ray caster of the scene (created on first use)."""
         ...
 

@@ -16,7 +16,7 @@ from roslan.sensors.base import Message, SimContext, StaticTransform, TopicSpec,
 from roslan.sensors.beams.pointcloud import POINTCLOUD2, pointcloud2
 
 if TYPE_CHECKING:
-    from roslan.render.raycast import RayCaster
+    from roslan.render.base import BeamCaster
 
 __all__ = ["Measurement", "PointCloudSensor", "ScanWriter", "measure"]
 
@@ -41,7 +41,7 @@ class Measurement(NamedTuple):
 
 
 def measure(
-    caster: RayCaster,
+    caster: BeamCaster,
     origins: NDArray[np.floating[Any]],
     directions: NDArray[np.floating[Any]],
     *,
@@ -126,7 +126,7 @@ class PointCloudSensor:
     _writer: ScanWriter | None = None
 
     def scan(
-        self, trajectory: Any, caster: Any, t0_ns: int, rng: np.random.Generator
+        self, trajectory: Any, caster: BeamCaster, t0_ns: int, rng: np.random.Generator
     ) -> NDArray[Any]:  # pragma: no cover - every subclass has one
         raise NotImplementedError
 

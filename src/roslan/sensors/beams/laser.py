@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterator
-from typing import IO, Annotated, Any, Literal
+from typing import IO, TYPE_CHECKING, Annotated, Any, Literal
 
 import numpy as np
 from numpy.typing import NDArray
@@ -41,6 +41,9 @@ from roslan.sensors.base import (
 )
 from roslan.sensors.beams.base import measure
 from roslan.sensors.beams.rays import rays_in_world
+
+if TYPE_CHECKING:
+    from roslan.render.base import BeamCaster
 
 __all__ = ["Laser", "LaserConfig"]
 
@@ -132,7 +135,7 @@ class Laser:
         return []  # base_link -> frame comes from the extrinsics (pipeline)
 
     def scan(
-        self, trajectory: Any, caster: Any, t0_ns: int, rng: np.random.Generator
+        self, trajectory: Any, caster: BeamCaster, t0_ns: int, rng: np.random.Generator
     ) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
         """One scan from ``t0_ns``: (ranges, intensities), each (n_beams,) float32."""
         c = self.config

@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Annotated, Any, Literal
+from typing import TYPE_CHECKING, Annotated, Any, Literal
 
 import numpy as np
 from numpy.typing import NDArray
@@ -40,6 +40,9 @@ from roslan.sensors.base import (
 from roslan.sensors.beams.base import PointCloudSensor, measure
 from roslan.sensors.beams.pointcloud import XYZIRT
 from roslan.sensors.beams.rays import rays_in_world
+
+if TYPE_CHECKING:
+    from roslan.render.base import BeamCaster
 
 __all__ = [
     "HDL32E_ELEVATIONS_DEG",
@@ -275,7 +278,7 @@ class Lidar(PointCloudSensor):
         return (self.spec.n_lasers, False) if self.config.organized else (1, True)
 
     def scan(
-        self, trajectory: Any, caster: Any, t0_ns: int, rng: np.random.Generator
+        self, trajectory: Any, caster: BeamCaster, t0_ns: int, rng: np.random.Generator
     ) -> NDArray[Any]:
         """One turn starting at ``t0_ns``: structured :data:`XYZIRT` points.
 

@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterator
-from typing import IO, Annotated, Any, ClassVar, Literal
+from typing import IO, TYPE_CHECKING, Annotated, Any, ClassVar, Literal
 
 import numpy as np
 from numpy.typing import NDArray
@@ -41,6 +41,9 @@ from roslan.sensors.base import (
     sample_times_ns,
 )
 from roslan.sensors.beams.rays import rays_in_world
+
+if TYPE_CHECKING:
+    from roslan.render.base import BeamCaster
 
 __all__ = [
     "Altimeter",
@@ -167,7 +170,7 @@ class RangeSensor:
         return [StaticTransform("base_link", self.config.frame, self.T_body_sensor)]
 
     def read(
-        self, trajectory: Any, caster: Any, t_ns: NDArray[np.int64], rng: np.random.Generator
+        self, trajectory: Any, caster: BeamCaster, t_ns: NDArray[np.int64], rng: np.random.Generator
     ) -> NDArray[np.float64]:
         """(N,) readings at trajectory instants ``t_ns`` (REP 117 +-inf conventions)."""
         c = self.config

@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Annotated, Any, Literal
+from typing import TYPE_CHECKING, Annotated, Any, Literal
 
 import numpy as np
 from numpy.typing import NDArray
@@ -43,6 +43,9 @@ from roslan.sensors.base import (
 from roslan.sensors.beams.base import PointCloudSensor, measure
 from roslan.sensors.beams.pointcloud import XYZIRT
 from roslan.sensors.beams.rays import rays_in_world
+
+if TYPE_CHECKING:
+    from roslan.render.base import BeamCaster
 
 __all__ = ["SOLID_STATE_PRESETS", "SolidStateLidar", "SolidStateLidarConfig", "SolidStatePreset"]
 
@@ -152,7 +155,7 @@ class SolidStateLidar(PointCloudSensor):
         self.T_body_sensor = config.pose.matrix()
 
     def scan(
-        self, trajectory: Any, caster: Any, t0_ns: int, rng: np.random.Generator
+        self, trajectory: Any, caster: BeamCaster, t0_ns: int, rng: np.random.Generator
     ) -> NDArray[Any]:
         """One frame from ``t0_ns``: (n_returns,) :data:`XYZIRT` points in firing order."""
         s = self.spec

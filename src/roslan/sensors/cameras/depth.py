@@ -7,13 +7,14 @@ Dataset files: ``depth/<name>/NNNNNNNN.png`` (16-bit, millimetres, 0 = no return
 from __future__ import annotations
 
 from collections.abc import Iterator
-from typing import Annotated, Any, Literal
+from typing import Annotated, Literal
 
 import numpy as np
 from numpy.typing import NDArray
 from pydantic import Field, model_validator
 
 from roslan.config.base import FiniteFloat
+from roslan.render import FrameRenderer
 from roslan.sensors.base import Message, SensorConfig, SimContext
 from roslan.sensors.cameras.config import CameraIntrinsics
 from roslan.sensors.cameras.frame import _CameraBase, _Eye, _pose_matrices
@@ -75,7 +76,7 @@ class DepthCamera(_CameraBase):
             [_Eye("", config.camera_model(), T_LINK_OPTICAL.copy(), c.topic, f"{c.frame}_optical")]
         )
 
-    def render_depth(self, renderer: Any, e: _Eye, T_world_body: F64) -> F32:
+    def render_depth(self, renderer: FrameRenderer, e: _Eye, T_world_body: F64) -> F32:
         """(H, W) float32 metric z-depth (inf: nothing hit) of eye ``e`` at one body pose (4, 4)."""
         assert e.plan is not None
         T = T_world_body @ self._T_body_sensor @ e.T_sensor_optical
@@ -88,6 +89,7 @@ class DepthCamera(_CameraBase):
             depth=True,
             near=self.config.near_clip,
         ).depth
+        assert z is not None
         if e.plan.identity:
             return np.asarray(z, dtype=np.float32)
         import cv2

@@ -326,9 +326,9 @@ class EventCamera:
         """Luminance (H, W), depth (H, W) or None, camera v and w (optical frame) at ``t_ns``."""
         cam = self.camera
         renderer = ctx.renderer()
-        plan = cam.render_plan(getattr(renderer, "max_size", None))
+        plan = cam.render_plan(renderer.max_size)
         T_wc, v, w = camera_twist(ctx.trajectory, t_ns, self.T_body_cam)
-        # luminance-only pass: one shaded channel, the cheapest read back (render/gl.py)
+        # luminance-only pass: one shaded channel, the cheapest read back (roslan.render.gl)
         res = renderer.render(
             T_wc,
             plan.K,

@@ -43,6 +43,7 @@ from roslan.errors import RenderError, SensorError
 from roslan.io.images import write_png
 from roslan.io.messages import MessageStore
 from roslan.io.text import format_seconds
+from roslan.render import REC709_LUMA, FrameRenderer
 from roslan.rundir.calibration import camera_folder
 from roslan.sensors.base import (
     Message,
@@ -165,7 +166,7 @@ def _renamed(m: CameraModel, name: str) -> CameraModel:
     return CameraModel(m.width, m.height, m.K, m.D, m.distortion_model, name, m.source)
 
 
-_LUMA = np.array([0.2126, 0.7152, 0.0722], dtype=np.float32)  # Rec. 709, linear
+_LUMA = np.asarray(REC709_LUMA, dtype=np.float32)  # Rec. 709, linear
 
 
 # --------------------------------------------------------------------- helpers
@@ -322,7 +323,7 @@ class _ImagingCamera(_CameraBase):
         offs = ((np.arange(n) + 0.5) / n - 0.5) * exp_ns
         return (t_ns + np.round(offs)).astype(np.int64)
 
-    def render_linear(self, renderer: Any, e: _Eye, T_world_body: F64) -> F32:
+    def render_linear(self, renderer: FrameRenderer, e: _Eye, T_world_body: F64) -> F32:
         """Linear radiance of eye ``e`` averaged over the body poses (N, 4, 4): (H, W, 3),
         or (H, W) Rec. 709 luminance for ``mono8`` (the renderer's one-channel path).
 
@@ -406,7 +407,7 @@ class Camera(_ImagingCamera):
         e = self._eyes[0]
         enc = self.config.encoding
 
-        def frame(i: int, t: int, renderer: Any, T_wb: F64) -> list[Message]:
+        def frame(i: int, t: int, renderer: FrameRenderer, T_wb: F64) -> list[Message]:
             img = self.finish_image(self.render_linear(renderer, e, T_wb), rng)
             if self.config.write_images:
                 self._write_png(ctx, e, i, t, img)
@@ -449,7 +450,7 @@ class StereoCamera(_ImagingCamera):
         rng = ctx.rng(f"stereo_camera/{self.config.name}")
         enc = self.config.encoding
 
-        def frame(i: int, t: int, renderer: Any, T_wb: F64) -> list[Message]:
+        def frame(i: int, t: int, renderer: FrameRenderer, T_wb: F64) -> list[Message]:
             out: list[Message] = []
             for e in self._eyes:
                 img = self.finish_image(self.render_linear(renderer, e, T_wb), rng)

@@ -1,0 +1,256 @@
+"""GLSL sources of the rasterizer's passes and :func:`source`, which prepends the
+``#version`` line and the variant ``#define`` lines.
+
+Variants (``#define``): ``LUM`` shades one luminance channel instead of RGB, ``DEPTH``
+adds the 1/z attachment, ``IMAGE`` loads the edge filter's texels with ``imageLoad``
+(GL 4.2). Every source sees ``const vec3 LUMA``, the Rec. 709 luminance weights.
+"""
+
+from __future__ import annotations
+
+from roslan.render.color import REC709_LUMA
+
+__all__ = [
+    "COLOR_FRAG",
+    "COLOR_VERT",
+    "FRAG_DEPTH",
+    "FRAG_EDGE_AA",
+    "FRAG_RESOLVE",
+    "FRAG_SHADOW",
+    "VERT_DEPTH",
+    "VERT_QUAD",
+    "VERT_SHADOW",
+    "source",
+]
+
+_INF_BITS = "uintBitsToFloat(0x7F800000u)"
+
+COLOR_VERT = """
+uniform mat4 u_mvp;          // clip from world
+uniform vec4 u_zrow;         // optical z from world (third row of T_cam_world)
+uniform mat4 u_light;        // shadow-map [0,1]^3 from world
+uniform vec3 u_cam_pos;
+uniform vec3 u_to_sun;       // unit vector towards the sun (world)
+uniform float u_sun;
+uniform float u_shadow_texel;  // shadow-map texel size in [0,1] units
+in vec3 in_pos;
+in vec3 in_normal;
+in vec2 in_uv;
+in vec3 in_albedo;
+out vec2 v_uv;
+out vec3 v_albedo;
+out float v_sun;
+out vec3 v_light;
+out float v_z;
+void main() {
+    vec4 p = vec4(in_pos, 1.0);
+    gl_Position = u_mvp * p;
+    // Two-sided: light the side facing the camera. For a flat face the sign of
+    // dot(n, cam - p) is the camera's side of its plane: the same at every vertex.
+    vec3 n = in_normal;
+    if (dot(n, u_cam_pos - in_pos) < 0.0) n = -n;
+    float ndl = max(dot(n, u_to_sun), 0.0);
+    v_uv = in_uv;
+    v_albedo = in_albedo;
+    v_sun = u_sun * ndl;
+    // slope-scaled bias against acne; linear in the (orthographic) light frame
+    float bias = u_shadow_texel * (1.5 + 2.0 * sqrt(max(1.0 - ndl * ndl, 0.0)) / max(ndl, 0.05));
+    vec4 lp = u_light * p;
+    v_light = vec3(lp.xy, lp.z - bias);
+    v_z = dot(u_zrow, p);
+}
+"""
+
+COLOR_FRAG = """
+uniform sampler2D u_tex;
+uniform sampler2DShadow u_shadow;
+in vec2 v_uv;
+uniform float u_ambient;
+in vec3 v_albedo;
+in float v_sun;
+in vec3 v_light;
+in float v_z;
+#ifdef DEPTH
+layout(location = 1) out float o_invz;
+#endif
+// the last channel carries 1/z for the edge filter (ignored by 1-channel MSAA targets)
+#ifdef LUM
+layout(location = 0) out vec2 o_color;
+#else
+layout(location = 0) out vec4 o_color;
+#endif
+void main() {
+    float lit = texture(u_shadow, v_light);  // bilinear PCF (compare + LINEAR)
+    vec3 c = clamp(texture(u_tex, v_uv).rgb * v_albedo * (u_ambient + v_sun * lit), 0.0, 1.0);
+    // optical z at the pixel centre (non-centroid), even for partially covered pixels
+    float invz = 1.0 / max(v_z, 1e-6);
+#ifdef LUM
+    o_color = vec2(dot(c, LUMA), invz);
+#else
+    o_color = vec4(c, invz);
+#endif
+#ifdef DEPTH
+    o_invz = invz;
+#endif
+}
+"""
+
+FRAG_DEPTH = """
+#version 410
+in float v_z;
+layout(location = 0) out float o_invz;
+void main() { o_invz = 1.0 / max(v_z, 1e-6); }
+"""
+
+VERT_DEPTH = """
+#version 410
+uniform mat4 u_mvp;
+uniform vec4 u_zrow;
+in vec3 in_pos;
+out float v_z;
+void main() {
+    vec4 p = vec4(in_pos, 1.0);
+    gl_Position = u_mvp * p;
+    v_z = dot(u_zrow, p);
+}
+"""
+
+VERT_SHADOW = """
+#version 410
+uniform mat4 u_mvp;
+in vec3 in_pos;
+void main() { gl_Position = u_mvp * vec4(in_pos, 1.0); }
+"""
+
+FRAG_SHADOW = """
+#version 410
+void main() {}
+"""
+
+VERT_QUAD = """
+#version 410
+void main() {
+    // one triangle covering the viewport
+    vec2 p = vec2((gl_VertexID << 1) & 2, gl_VertexID & 2);
+    gl_Position = vec4(p * 2.0 - 1.0, 0.0, 1.0);
+}
+"""
+
+FRAG_RESOLVE = f"""
+uniform sampler2DMS u_color;
+uniform int u_samples;
+#ifdef LUM
+layout(location = 0) out float o_color;
+#else
+layout(location = 0) out vec4 o_color;
+#endif
+#ifdef DEPTH
+uniform sampler2DMS u_invz;
+layout(location = 1) out float o_depth;
+#endif
+void main() {{
+    ivec2 p = ivec2(gl_FragCoord.xy);
+    vec4 c = vec4(0.0);
+    float m = 0.0;
+    for (int i = 0; i < u_samples; ++i) {{
+        c += texelFetch(u_color, p, i);
+#ifdef DEPTH
+        m = max(m, texelFetch(u_invz, p, i).r);   // nearest surface wins
+#endif
+    }}
+    c /= float(u_samples);
+#ifdef LUM
+    o_color = c.r;
+#else
+    o_color = vec4(c.rgb, 1.0);
+#endif
+#ifdef DEPTH
+    o_depth = m > 0.0 ? 1.0 / m : {_INF_BITS};
+#endif
+}}
+"""
+
+
+FRAG_EDGE_AA = """
+// Edge filter for 1-sample rendering (after FXAA 3.11, restricted to geometric edges).
+// u_color: RGB + 1/z in .a (LUM: luminance + 1/z in .rg); only point loads.
+// IMAGE: the same texture bound as a read-only image too (GL >= 4.2): llvmpipe's
+// imageLoad is ~1/3 cheaper than texelFetch (no sampler path), same values.
+uniform sampler2D u_color;
+#ifdef LUM
+layout(location = 0) out float o_color;
+#define ZCH 1
+#define LCH 0
+#ifdef IMAGE
+layout(rg32f) uniform readonly image2D u_image;
+#endif
+#else
+layout(location = 0) out vec4 o_color;
+#define ZCH 3
+#define LCH 1
+#ifdef IMAGE
+layout(rgba32f) uniform readonly image2D u_image;
+#endif
+#endif
+#ifdef IMAGE
+#define FETCH(q) imageLoad(u_image, q)
+#else
+#define FETCH(q) texelFetch(u_color, q, 0)
+#endif
+void main() {
+    // this pixel and its 4 neighbours, unfiltered (point loads: ~10 % cheaper than
+    // gathers on llvmpipe, and non-edge pixels pass through bit-exactly)
+    ivec2 p = ivec2(gl_FragCoord.xy);
+    ivec2 hi = textureSize(u_color, 0) - 1;
+    vec4 tm = FETCH(p);
+    vec4 tw = FETCH(ivec2(max(p.x - 1, 0), p.y));
+    vec4 te = FETCH(ivec2(min(p.x + 1, hi.x), p.y));
+    vec4 ts = FETCH(ivec2(p.x, max(p.y - 1, 0)));
+    vec4 tn = FETCH(ivec2(p.x, min(p.y + 1, hi.y)));
+    // Over a plane 1/z is affine in the image, so its second differences vanish: they
+    // are non-zero only at silhouettes and creases, the edges that rasterization
+    // aliases (texture detail lies on planes and is mip-mapped already).
+    float zm = tm[ZCH];
+    float d2 = max(abs(tn[ZCH] + ts[ZCH] - 2.0 * zm), abs(te[ZCH] + tw[ZCH] - 2.0 * zm));
+    float zmax = max(max(max(tw[ZCH], zm), max(ts[ZCH], tn[ZCH])), te[ZCH]);
+    // ~perceptual luma, like FXAA's (LUM: luminance; RGB: green, its 72 % share)
+    float w = sqrt(tw[LCH]), m = sqrt(tm[LCH]), s = sqrt(ts[LCH]);
+    float n = sqrt(tn[LCH]), e = sqrt(te[LCH]);
+    float lmin = min(m, min(min(n, s), min(e, w)));
+    float lmax = max(m, max(max(n, s), max(e, w)));
+    float range = lmax - lmin;
+    vec4 c = tm;
+    if (d2 > 1e-3 * zmax && range >= max(0.0156, 0.0625 * lmax)) {
+        bool horz = abs(n + s - 2.0 * m) >= abs(e + w - 2.0 * m);  // step across in y
+        float l1 = horz ? s : w;
+        float l2 = horz ? n : e;
+        // the neighbour across the edge, towards the larger luma step
+        vec4 t = abs(l1 - m) >= abs(l2 - m) ? (horz ? ts : tw) : (horz ? tn : te);
+        // sub-pixel coverage estimate from the neighbourhood
+        float sub = clamp(abs(0.25 * (n + s + e + w) - m) / max(range, 1e-6), 0.0, 1.0);
+        sub = smoothstep(0.0, 1.0, sub);
+        // resample linearly across the edge, from this pixel's centre: the bilinear
+        // sample at an offset along one axis, from the texels already loaded (llvmpipe
+        // runs a sampler call in a branch for every pixel of a mixed SIMD group)
+        c = mix(tm, t, max(sub * sub * 0.75, 0.25));
+    }
+#ifdef LUM
+    o_color = c.r;
+#else
+    o_color = vec4(c.rgb, 1.0);
+#endif
+}
+"""
+
+
+def source(body: str, *, lum: bool, depth: bool, image: bool = False) -> str:
+    """``body`` with the ``#version`` line, the variant defines and ``LUMA`` prepended."""
+    defs = ["#version 420" if image else "#version 410"]
+    if image:
+        defs.append("#define IMAGE")
+    if lum:
+        defs.append("#define LUM")
+    if depth:
+        defs.append("#define DEPTH")
+    defs.append("const vec3 LUMA = vec3({:.4f}, {:.4f}, {:.4f});".format(*REC709_LUMA))
+    return "\n".join(defs) + "\n" + body
