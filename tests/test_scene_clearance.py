@@ -10,7 +10,7 @@ import pytest
 import yaml
 
 from roslan.config.base import Pose
-from roslan.dataset import default_sensor_suite
+from roslan.batch.paper import default_sensor_suite
 from roslan.scene import check_clearance, load_scene
 from roslan.sensors.registry import config_class
 from roslan.trajectory import Trajectory, TrajectoryConfig

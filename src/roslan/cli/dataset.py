@@ -57,7 +57,7 @@ def _formats(value: str | None) -> list[str] | None:
 
 def _dataset(args: argparse.Namespace) -> int:
     from roslan.batch import iter_errors, print_summary
-    from roslan.dataset import build_dataset
+    from roslan.batch.paper import build_dataset
 
     sensors = _load_sensors(args.sensors) if args.sensors else None
     if args.dry_run:
@@ -87,7 +87,7 @@ def _dataset_dry_run(args: argparse.Namespace, sensors: list[dict[str, Any]] | N
     import math
 
     from roslan.batch import make_tasks
-    from roslan.dataset import dataset_plan
+    from roslan.batch.paper import dataset_plan
     from roslan.dryrun import PlanRow, print_plan
 
     runs = dataset_plan(
@@ -156,7 +156,7 @@ def _batch(args: argparse.Namespace) -> int:
 
 
 def register(subparsers: Any) -> None:
-    from roslan.dataset import PAPER_SCENES
+    from roslan.batch.paper import PAPER_SCENES
 
     p = subparsers.add_parser(
         "dataset",

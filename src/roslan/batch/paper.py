@@ -42,7 +42,7 @@ from typing import Any
 
 import numpy as np
 
-from roslan.batch import BatchReport, Runner, make_tasks, read_run_json, run_tasks
+from roslan.batch.runner import BatchReport, Runner, make_tasks, read_run_json, run_tasks
 from roslan.errors import ConfigError
 
 __all__ = [
@@ -357,7 +357,7 @@ def _count_events(folder: Path, info: Mapping[str, Any]) -> int:
 
 def write_index(outdir: Path, runs: Sequence[DatasetRun]) -> Path:
     """``outdir/index.csv``: one row per simulation (parameters + run.json figures)."""
-    from roslan.batch import _duration, _messages
+    from roslan.batch.runner import _duration, _messages
 
     buf = io.StringIO()
     writer = csv.writer(buf, lineterminator="\n")
