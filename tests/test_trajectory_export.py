@@ -39,9 +39,7 @@ trajectory:
 @pytest.fixture(autouse=True)
 def _only_our_commands(monkeypatch: pytest.MonkeyPatch) -> None:
     # other command modules are not under test here
-    monkeypatch.setattr(
-        roslan.cli, "COMMAND_MODULES", ("roslan.cli.trajectory", "roslan.cli.plot")
-    )
+    monkeypatch.setattr(roslan.cli, "COMMAND_MODULES", ("roslan.cli.trajectory", "roslan.cli.plot"))
 
 
 def run_cli(*argv: str) -> int:

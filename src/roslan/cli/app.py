@@ -20,6 +20,7 @@ __all__ = ["main"]
 COMMAND_MODULES: tuple[str, ...] = (
     "roslan.cli.trajectory",
     "roslan.cli.dataset",
+    "roslan.cli.batch",
     "roslan.cli.simulate",
     "roslan.cli.plot",
     "roslan.plots.preview",
