@@ -62,7 +62,7 @@ def _cluster_startup(workers: int) -> float:
         silence_logs=logging.CRITICAL,
     )
     client = Client(cluster)
-    client.submit(lambda: __import__("roslan.simulate") and 1).result()
+    client.submit(lambda: __import__("roslan.pipeline") and 1).result()
     dt = time.perf_counter() - t0
     client.close()
     cluster.close()

@@ -38,7 +38,7 @@ CHILD = textwrap.dedent(
     import json, resource, sys, time
     from pathlib import Path
     from roslan.cli.simulate import load_config
-    from roslan.simulate import run_simulation
+    from roslan.pipeline import run_simulation
 
     scale, outdir, workers = float(sys.argv[1]), Path(sys.argv[2]), sys.argv[3]
     workers = workers if workers == "auto" else int(workers)

@@ -23,7 +23,7 @@ CHILD = textwrap.dedent(
     import json, resource, sys, time, tracemalloc
     from pathlib import Path
     from roslan.config.sim import SimConfig
-    from roslan.simulate import run_simulation
+    from roslan.pipeline import run_simulation
 
     duration, outdir, trace = float(sys.argv[1]), Path(sys.argv[2]), sys.argv[3] == "1"
     # T = z0 / (k v0) with k = 0.5, v0 = 1 m/s: z0 = duration / 2 gives T = duration

@@ -20,8 +20,8 @@ from roslan.io.bag import BagTopic, MultiBagWriter, _ros2_qos
 from roslan.io.messages import Flavor, MessageStore
 from roslan.io.packing import FixedLayout
 from roslan.io.ros1_msgdefs import ros1_full_text
+from roslan.pipeline import run_simulation
 from roslan.sensors.ground_truth import TAU_LAYOUT, _Layouts
-from roslan.simulate import run_simulation
 from roslan.trajectory.generator import COMPONENTS
 
 

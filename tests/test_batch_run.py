@@ -13,7 +13,7 @@ import cloudpickle
 import pytest
 
 from roslan.batch import make_tasks, parse_sweep, run_tasks, sweep_tasks, validate_config
-from roslan.simulate import run_simulation
+from roslan.pipeline import run_simulation
 
 # Workers unpickle the fault-injecting runners below by value (this module is not
 # importable from a worker process).

@@ -18,6 +18,7 @@ from pipeline_helpers import SHORT_TRAJECTORY
 from roslan.config.base import validate_model
 from roslan.config.sim import SimConfig
 from roslan.errors import ConfigError, SensorError
+from roslan.pipeline import run_simulation
 from roslan.sensors.base import sample_times_ns
 from roslan.sensors.camera import (
     Camera,
@@ -31,7 +32,6 @@ from roslan.sensors.camera import (
     srgb_lut,
 )
 from roslan.sensors.camera_model import T_LINK_OPTICAL, CameraModel, load_calibration
-from roslan.simulate import run_simulation
 from roslan.trajectory import Trajectory, TrajectoryConfig
 
 CAM = {"rate": 10.0, "resolution": [64, 48], "fx": 40.0, "pose": {"rpy": [0.0, 0.5, 0.0]}}

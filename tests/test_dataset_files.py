@@ -10,7 +10,7 @@ import pytest
 
 from pipeline_helpers import SHORT_TRAJECTORY
 from roslan.config.sim import SimConfig
-from roslan.simulate import run_simulation
+from roslan.pipeline import run_simulation
 
 pd = pytest.importorskip("pandas")
 cv2 = pytest.importorskip("cv2")

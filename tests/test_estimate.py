@@ -15,8 +15,8 @@ import yaml
 from roslan.cli import main
 from roslan.config.sim import SimConfig
 from roslan.errors import OutputError
-from roslan.estimate import estimate_run, format_bytes, format_seconds
-from roslan.simulate import run_simulation
+from roslan.pipeline import run_simulation
+from roslan.pipeline.estimate import estimate_run, format_bytes, format_seconds
 
 
 def _config() -> SimConfig:
@@ -90,7 +90,7 @@ def test_free_space_check_refuses_with_the_estimate(
     def small(path: Any) -> Any:
         return shutil._ntuple_diskusage(10**12, 10**12 - 10**6, 10**6)  # type: ignore[attr-defined]
 
-    monkeypatch.setattr("roslan.estimate.shutil.disk_usage", small)
+    monkeypatch.setattr("roslan.pipeline.estimate.shutil.disk_usage", small)
     with pytest.raises(OutputError) as err:
         run_simulation(cfg, tmp_path / "out", quiet=True)
     text = str(err.value)

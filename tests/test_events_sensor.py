@@ -438,8 +438,8 @@ def test_packets_by_event_count(tmp_path: Path) -> None:
 
 def test_plot_events(run_dir: tuple[Path, Any, list[Any]], tmp_path: Path) -> None:
     from roslan.cli import main
-    from roslan.plots.data import open_events
     from roslan.plots.events import event_rate
+    from roslan.rundir.events import open_events
 
     tmp, _, _ = run_dir
     assert main(["plot", "events", str(tmp), "-o", str(tmp_path / "plots"), "--frames", "2"]) == 0

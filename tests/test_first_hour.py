@@ -176,7 +176,7 @@ def test_a_sensor_without_scene_stops_before_any_work(
     )
     started: list[str] = []
     monkeypatch.setattr(run_mod, "WorkerPool", lambda *a: started.append("pool"))
-    monkeypatch.setattr(run_mod, "_make_temp", lambda *a: started.append("tmp"))
+    monkeypatch.setattr(run_mod, "make_temp", lambda *a: started.append("tmp"))
     assert main(["simulate", str(job), "-o", str(tmp_path / "out")]) == 2
     err = capsys.readouterr().err
     assert err.startswith(f"error: {job}: sensors[1] ('velo', type lidar) needs a scene")
@@ -188,7 +188,7 @@ def test_a_sensor_without_scene_stops_before_any_work(
 
 
 def test_preflight_accepts_scene_free_sensors() -> None:
-    from roslan.pipeline.run import preflight
+    from roslan.pipeline import preflight
     from roslan.trajectory.generator import Trajectory
 
     cfg = SimConfig.model_validate(
@@ -241,9 +241,9 @@ def test_progress_names_each_phase_and_quiet_silences_it(
 def test_progress_bar_on_a_terminal_shows_the_time_left() -> None:
     from rich.progress import TimeRemainingColumn
 
-    from roslan.pipeline.run import _Progress
+    from roslan.pipeline.report import Progress
 
-    p = _Progress(quiet=False)
+    p = Progress(quiet=False)
     p._console.is_terminal  # noqa: B018 - a property
     p._console._force_terminal = True
     p.phase("loading scene 'x'")
@@ -303,7 +303,7 @@ def test_pyproject_license_is_an_spdx_string_for_a_setuptools_that_reads_it() ->
 # ------------------------------------------------------------------ figures
 @pytest.fixture(scope="module")
 def sensor_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    from roslan.simulate import run_simulation
+    from roslan.pipeline import run_simulation
 
     cfg = SimConfig.model_validate(
         {
@@ -416,7 +416,7 @@ def test_overview_3d_panel_ticks_do_not_overlap_and_markers_match_the_legend(
 
 def test_imu_only_overview_shows_the_imu(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     import roslan.plots.overview as ov
-    from roslan.simulate import run_simulation
+    from roslan.pipeline import run_simulation
 
     cfg = SimConfig.model_validate(
         {
@@ -473,7 +473,7 @@ def test_event_frames_have_labelled_axes(
 ) -> None:
     pytest.importorskip("numba")
     import roslan.plots.events as ev
-    from roslan.simulate import run_simulation
+    from roslan.pipeline import run_simulation
 
     cfg = SimConfig.model_validate(
         {

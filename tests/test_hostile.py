@@ -66,7 +66,7 @@ def _stop_before_writing(monkeypatch: pytest.MonkeyPatch) -> None:
     def stop(outdir: Path) -> Path:
         raise OutputError(PASSED)
 
-    monkeypatch.setattr(run_mod, "_make_temp", stop)
+    monkeypatch.setattr(run_mod, "make_temp", stop)
 
 
 def _cli(argv: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str]:
@@ -494,7 +494,7 @@ def test_enospc_is_a_clean_error(
     def full(outdir: Path) -> Path:
         raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(outdir / "landing.bag"))
 
-    monkeypatch.setattr(run_mod, "_make_temp", full)
+    monkeypatch.setattr(run_mod, "make_temp", full)
     job = tmp_path / "job.yaml"
     job.write_text(SHORT)
     rc, err = _cli(["simulate", str(job), "-o", str(tmp_path / "out"), "--quiet"], capsys)

@@ -21,11 +21,11 @@ from pipeline_helpers import SHORT_TRAJECTORY, short_config, tree_bytes
 from roslan.cli import main
 from roslan.config.sim import SimConfig
 from roslan.errors import ConfigError, OutputError, SensorError
+from roslan.pipeline import run_simulation
 from roslan.pipeline.context import Context, stream_key
 from roslan.sensors import registry
 from roslan.sensors.base import Message
 from roslan.sensors.imu import Imu, ImuConfig
-from roslan.simulate import run_simulation
 from roslan.trajectory.frames import quat_xyzw_to_matrix
 
 
@@ -256,7 +256,7 @@ def test_interrupted_run_leaves_nothing(
     before = tree_bytes(old)
     _Exploding.error = error  # type: ignore[attr-defined]
     monkeypatch.setattr(registry, "sensor_class", lambda name: _Exploding)
-    monkeypatch.setattr("roslan.pipeline.run.sensor_class", lambda name: _Exploding)
+    monkeypatch.setattr("roslan.pipeline.plan.sensor_class", lambda name: _Exploding)
     with pytest.raises(type(error)):
         run_simulation(short_config(), old, quiet=True, overwrite=True)
     with pytest.raises(type(error)):
@@ -272,7 +272,8 @@ _SLOW_RUN = textwrap.dedent(
     from pathlib import Path
     from pipeline_helpers import short_config
     from roslan.sensors.imu import Imu
-    import roslan.pipeline.run as run
+    import roslan.pipeline.plan as plan
+    from roslan.pipeline import run_simulation
     class Slow(Imu):
         def messages(self, ctx):
             for i, m in enumerate(super().messages(ctx)):
@@ -280,9 +281,9 @@ _SLOW_RUN = textwrap.dedent(
                     print("started", flush=True)
                     time.sleep(60)
                 yield m
-    run.sensor_class = lambda name: Slow
+    plan.sensor_class = lambda name: Slow
     try:
-        run.run_simulation(short_config(), Path(sys.argv[1]), quiet=True)
+        run_simulation(short_config(), Path(sys.argv[1]), quiet=True)
     except KeyboardInterrupt:
         sys.exit(130)
     """
@@ -370,7 +371,7 @@ def test_misbehaving_sensor_is_reported(
             yield msgs[5]
             yield msgs[2]
 
-    monkeypatch.setattr("roslan.pipeline.run.sensor_class", lambda name: Backwards)
+    monkeypatch.setattr("roslan.pipeline.plan.sensor_class", lambda name: Backwards)
     with pytest.raises(SensorError, match="time-ordered"):
         run_simulation(short_config(), tmp_path / "out", quiet=True)
     assert list(tmp_path.iterdir()) == []
@@ -456,7 +457,7 @@ def test_plot_rendered_in_process_when_threads_run(tmp_path: Path) -> None:
 def test_final_rename_never_replaces_an_outdir_that_appeared(tmp_path: Path) -> None:
     """Without overwrite, an OUTDIR created by someone else during the run is kept and the
     finished run is not moved over it; with overwrite it is replaced."""
-    import roslan.pipeline.run as run_mod
+    from roslan.rundir.folder import finalize
 
     tmp = tmp_path / ".out.partial-abc"
     tmp.mkdir()
@@ -464,10 +465,10 @@ def test_final_rename_never_replaces_an_outdir_that_appeared(tmp_path: Path) -> 
     outdir = tmp_path / "out"
     outdir.mkdir()  # appeared "meanwhile" (even empty: rename(2) would replace it)
     with pytest.raises(OutputError, match="appeared while this run was writing"):
-        run_mod._finalize(tmp, outdir, overwrite=False)
+        finalize(tmp, outdir, overwrite=False)
     assert outdir.is_dir()
     assert list(outdir.iterdir()) == []
     assert (tmp / "run.json").exists()
-    run_mod._finalize(tmp, outdir, overwrite=True)
+    finalize(tmp, outdir, overwrite=True)
     assert (outdir / "run.json").exists()
     assert not tmp.exists()

@@ -22,12 +22,12 @@ from roslan.cli import main
 from roslan.config.base import load_yaml_model
 from roslan.config.sim import SimConfig
 from roslan.errors import ConfigError, SensorError
+from roslan.pipeline import run_simulation
 from roslan.pipeline import worker as worker_mod
 from roslan.pipeline.worker import ByteQueue, WorkerError, plan_workers, resolve_workers
 from roslan.sensors.base import Message
 from roslan.sensors.camera import Camera
 from roslan.sensors.registry import sensor_class
-from roslan.simulate import run_simulation
 
 HERE = Path(__file__).parent
 
@@ -113,7 +113,7 @@ class SlowCamera(Camera):
 def _patch_camera(monkeypatch: pytest.MonkeyPatch, cls: type) -> None:
     real = sensor_class
     monkeypatch.setattr(
-        "roslan.pipeline.run.sensor_class", lambda name: cls if name == "camera" else real(name)
+        "roslan.pipeline.plan.sensor_class", lambda name: cls if name == "camera" else real(name)
     )
 
 
@@ -291,12 +291,13 @@ def test_stopping_the_parent_stops_the_children(tmp_path: Path, sig: signal.Sign
         import sys
         sys.path.insert(0, {str(HERE)!r})
         from pathlib import Path
-        import roslan.pipeline.run as run
+        import roslan.pipeline.plan as plan
+        from roslan.pipeline import run_simulation
         from roslan.sensors.registry import sensor_class
         from test_pipeline_parallel import SlowCamera, tiny_config
-        run.sensor_class = lambda n: SlowCamera if n == "camera" else sensor_class(n)
+        plan.sensor_class = lambda n: SlowCamera if n == "camera" else sensor_class(n)
         try:
-            run.run_simulation(tiny_config(), Path(sys.argv[1]), quiet=True, workers=2,
+            run_simulation(tiny_config(), Path(sys.argv[1]), quiet=True, workers=2,
                                overview=False)
         except KeyboardInterrupt:
             sys.exit(130)

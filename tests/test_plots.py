@@ -187,8 +187,9 @@ import imageio.v3 as iio  # noqa: E402
 import pytest  # noqa: E402
 
 from roslan.cli import main  # noqa: E402
-from roslan.plots.data import PlotError, open_events  # noqa: E402
+from roslan.errors import PlotError  # noqa: E402
 from roslan.plots.style import AXIS_COLORS, DPI, EVENT_NEG_RGB, EVENT_POS_RGB  # noqa: E402
+from roslan.rundir.events import open_events  # noqa: E402
 
 
 @pytest.fixture(scope="module")
@@ -304,7 +305,7 @@ def test_plot_lidar_scan_choice_and_errors(run_dir: Path, tmp_path: Path) -> Non
 
 
 def test_lidar_reader_uses_timestamps_and_drops_nan(tmp_path: Path) -> None:
-    from roslan.plots.data import find_lidar
+    from roslan.rundir.readers import find_lidar
 
     folder = tmp_path / "lidar" / "vlp"
     folder.mkdir(parents=True)
@@ -325,8 +326,8 @@ def test_lidar_reader_uses_timestamps_and_drops_nan(tmp_path: Path) -> None:
 
 
 def test_plot_imu_truth_is_the_closed_form(run_dir: Path, tmp_path: Path) -> None:
-    from roslan.plots.data import load_imu
     from roslan.plots.imu import imu_truth, plot_imu
+    from roslan.rundir.readers import load_imu
 
     data = load_imu(run_dir, "x")
     truth = imu_truth(run_dir, data)
@@ -342,8 +343,8 @@ def test_plot_imu_truth_is_the_closed_form(run_dir: Path, tmp_path: Path) -> Non
 
 def test_imu_truth_from_groundtruth_fallback(run_dir: Path) -> None:
     """Differentiated TUM poses agree with the closed form at base_link."""
-    from roslan.plots.data import load_groundtruth
     from roslan.plots.imu import _truth_from_poses
+    from roslan.rundir.readers import load_groundtruth
 
     gt = load_groundtruth(run_dir)
     assert gt is not None

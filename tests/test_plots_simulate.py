@@ -31,12 +31,12 @@ CONFIG = {
 def test_pictures_of_a_real_run(tmp_path: Path) -> None:
     from roslan.config.base import validate_model
     from roslan.config.sim import SimConfig
+    from roslan.pipeline import run_simulation
     from roslan.plots.imu import plot_imu
     from roslan.plots.lidar import plot_lidar
     from roslan.plots.overview import write_overview
     from roslan.plots.preview import make_preview
     from roslan.plots.trajectory import plot_trajectory
-    from roslan.simulate import run_simulation
 
     out = tmp_path / "run"
     config = validate_model(SimConfig, CONFIG, "test")

@@ -15,11 +15,11 @@ from rosbags.highlevel import AnyReader
 
 from roslan.config.sim import SimConfig
 from roslan.io.messages import Flavor, MessageStore
+from roslan.pipeline import run_simulation
 from roslan.pipeline.context import Context
-from roslan.pipeline.run import static_transforms
+from roslan.rundir.extrinsics import static_transforms
 from roslan.sensors.base import Sensor
 from roslan.sensors.registry import SENSOR_TYPES, config_class, sensor_class
-from roslan.simulate import run_simulation
 from roslan.trajectory import Trajectory, TrajectoryConfig
 from roslan.vehicle import VehicleConfig, base_link_trajectory
 

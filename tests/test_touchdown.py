@@ -354,7 +354,7 @@ def test_default_job_event_rate_falls_at_touchdown(tmp_path: Path) -> None:
     # scene and mount): near the ground the rate must fall with the speed, not burst
     from importlib.resources import files
 
-    from roslan.simulate import run_simulation
+    from roslan.pipeline import run_simulation
 
     data = yaml.safe_load((files("roslan") / "data" / "default.yaml").read_text())
     data["sensors"] = [s for s in data["sensors"] if s["type"] == "event_camera"]

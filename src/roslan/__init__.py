@@ -1,7 +1,7 @@
 """roslan: multi-sensor simulation of bio-inspired ornithopter landings.
 
 The closed-form tau-theory trajectory (:mod:`roslan.trajectory`) is sampled by
-each simulated sensor at its own instants; the pipeline (:mod:`roslan.simulate`)
+each simulated sensor at its own instants; the pipeline (:mod:`roslan.pipeline`)
 merges their messages by stamp into ROS 1 / ROS 2 bags and dataset text files.
 """
 

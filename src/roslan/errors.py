@@ -10,6 +10,7 @@ from __future__ import annotations
 __all__ = [
     "ConfigError",
     "OutputError",
+    "PlotError",
     "RenderError",
     "RoslanError",
     "SceneError",
@@ -48,3 +49,7 @@ class OutputError(RoslanError):
 
 class RenderError(RoslanError):
     """The OpenGL renderer could not be created or used."""
+
+
+class PlotError(RoslanError):
+    """A plot cannot be drawn: an input it needs is missing or unreadable."""

@@ -27,8 +27,8 @@ __all__ = [
     "MIN_SAMPLE_DT_S",
     "ROS1_MAX_TIME_NS",
     "check_seed",
+    "format_bytes",
     "preflight",
-    "seed_arg",
 ]
 
 MAX_SEED = 2**63 - 1
@@ -71,27 +71,13 @@ def check_seed(seed: Any, where: str) -> int:
     return seed
 
 
-def seed_arg(text: str) -> int:
-    """argparse ``type=`` for ``--seed``: an integer in [0, 2**63 - 1]."""
-    import argparse
-
-    try:
-        value = int(text)
-    except ValueError:
-        value = -1
-    if not 0 <= value <= MAX_SEED:
-        shown = text if len(text) <= 40 else text[:37] + "..."
-        msg = f"{shown!r}: must be an integer in [0, 2**63 - 1]"
-        raise argparse.ArgumentTypeError(msg)
-    return value
-
-
-def _fmt_bytes(n: float) -> str:
-    for unit in ("B", "KiB", "MiB", "GiB", "TiB", "PiB"):
-        if n < 1024 or unit == "PiB":
-            return f"{n:.3g} {unit}"
-        n /= 1024
-    return f"{n:.3g} PiB"  # pragma: no cover
+def format_bytes(n: float) -> str:
+    """``1.2 GB``, ``350 MB``, ``12 kB`` (decimal units, 2 significant digits)."""
+    for unit, scale in (("GB", 1e9), ("MB", 1e6), ("kB", 1e3)):
+        if n >= scale:
+            v = n / scale
+            return f"{v:.1f} {unit}" if v < 10 else f"{v:.0f} {unit}"
+    return f"{n:.0f} B"
 
 
 def preflight(config: Any, duration_s: float, formats: Sequence[str], source: str) -> None:
@@ -125,7 +111,8 @@ def preflight(config: Any, duration_s: float, formats: Sequence[str], source: st
         if need > MAX_WORKING_BYTES:
             msg = (
                 f"{source}: sensors[{i}] ({s.name}): a {w}x{h} frame needs about "
-                f"{_fmt_bytes(need)} of working memory (limit {_fmt_bytes(MAX_WORKING_BYTES)}); "
+                f"{format_bytes(need)} of working memory "
+                f"(limit {format_bytes(MAX_WORKING_BYTES)}); "
                 "lower resolution or render_scale"
             )
             raise ConfigError(msg)

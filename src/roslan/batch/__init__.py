@@ -2,8 +2,8 @@
 
 ``sweep`` (the sweep language) -> ``tasks`` (one validated config per output folder) ->
 ``runner`` (in this process or on Dask; resumable) -> ``report`` (``batch.json``, summary).
-``paper`` plans and indexes the paper's dataset on top of them; ``runinfo`` reads what a
-finished run folder says (``run.json``, event files).
+``paper`` plans and indexes the paper's dataset on top of them. What a finished run folder
+says (``run.json``) is read through :mod:`roslan.rundir.manifest`.
 """
 
 from __future__ import annotations
@@ -17,7 +17,6 @@ from roslan.batch.paper import (
     write_index,
 )
 from roslan.batch.report import BatchReport, TaskResult, iter_errors, print_summary
-from roslan.batch.runinfo import read_run_json, run_duration, run_events, run_messages
 from roslan.batch.runner import Runner, run_tasks
 from roslan.batch.sweep import (
     Sweep,
@@ -50,10 +49,6 @@ __all__ = [
     "make_tasks",
     "parse_sweep",
     "print_summary",
-    "read_run_json",
-    "run_duration",
-    "run_events",
-    "run_messages",
     "run_tasks",
     "set_dotted",
     "sweep_tasks",

@@ -43,12 +43,12 @@ from typing import Any
 import numpy as np
 
 from roslan.batch.report import BatchReport
-from roslan.batch.runinfo import read_run_json, run_duration, run_events, run_messages
 from roslan.batch.runner import Runner, run_tasks
 from roslan.batch.tasks import make_tasks
 from roslan.errors import ConfigError
 from roslan.io.files import atomic_write_text
 from roslan.plots.dataset import plot_trajectories
+from roslan.rundir.manifest import read_manifest, run_duration, run_messages
 
 __all__ = [
     "APPROACH_ANGLE",
@@ -58,6 +58,7 @@ __all__ = [
     "PAPER_TRAJECTORIES",
     "DatasetRun",
     "build_dataset",
+    "count_events",
     "dataset_plan",
     "default_sensor_suite",
     "write_index",
@@ -319,6 +320,25 @@ INDEX_COLUMNS = (
 )
 
 
+def count_events(folder: Path) -> int:
+    """Events a run wrote: rows of the first ``events.h5`` under ``folder``, else lines of
+    the first ``events.txt``, else 0 (run.json does not count events)."""
+    h5 = sorted(folder.rglob("events.h5"))
+    if h5:
+        import h5py
+
+        with h5py.File(h5[0], "r") as f:
+            return int(f["events/t"].shape[0])
+    txt = sorted(folder.rglob("events.txt"))
+    if txt:
+        count = 0
+        with txt[0].open("rb") as fh:
+            for block in iter(lambda: fh.read(1 << 22), b""):
+                count += block.count(b"\n")
+        return count
+    return 0
+
+
 def write_index(outdir: Path, runs: Sequence[DatasetRun]) -> Path:
     """``outdir/index.csv``: one row per simulation (parameters + run.json figures)."""
     buf = io.StringIO()
@@ -326,7 +346,7 @@ def write_index(outdir: Path, runs: Sequence[DatasetRun]) -> Path:
     writer.writerow(INDEX_COLUMNS)
     for run in runs:
         folder = outdir / run.folder
-        info = read_run_json(folder)
+        info = read_manifest(folder)
         if info is None:
             duration = _touchdown(run.config["trajectory"])
             events: str | int = ""
@@ -335,7 +355,7 @@ def write_index(outdir: Path, runs: Sequence[DatasetRun]) -> Path:
         else:
             d = run_duration(info)
             duration = d if d is not None else _touchdown(run.config["trajectory"])
-            events = run_events(folder)
+            events = count_events(folder)
             messages = run_messages(info)
             status = "complete"
         writer.writerow(

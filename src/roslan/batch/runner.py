@@ -18,16 +18,16 @@ from pathlib import Path
 from typing import Any
 
 from roslan.batch.report import BatchJournal, BatchReport, TaskProgress, TaskResult
-from roslan.batch.runinfo import read_run_json, run_duration, run_messages
 from roslan.batch.tasks import Task, config_fingerprint
 from roslan.config.base import validate_model
 from roslan.errors import ConfigError, RoslanError
+from roslan.rundir.manifest import read_manifest, run_duration, run_messages
 
 __all__ = ["LOCAL_CLUSTER_CONFIG", "Runner", "run_tasks"]
 
 Runner = Callable[[Any, Path, bool, "Path | None"], Mapping[str, Any]]
 """``runner(config: SimConfig, outdir, overwrite, config_path) -> run.json dict``; the
-default calls :func:`roslan.simulate.run_simulation` with ``quiet=True``."""
+default calls :func:`roslan.pipeline.run_simulation` with ``quiet=True``."""
 
 Outcome = Mapping[str, Any] | BaseException
 """What one task gave: :func:`_execute`'s summary, or the exception it raised."""
@@ -38,7 +38,7 @@ Record = Callable[[Task, Outcome, int], None]
 def _default_runner(
     config: Any, outdir: Path, overwrite: bool, config_path: Path | None
 ) -> Mapping[str, Any]:
-    from roslan.simulate import run_simulation
+    from roslan.pipeline import run_simulation
 
     info: Mapping[str, Any] = run_simulation(
         config, outdir, overwrite=overwrite, quiet=True, config_path=config_path
@@ -85,7 +85,7 @@ def _settle(outdir: Path) -> int:
     """Attempts recorded for the task writing ``outdir`` (0 if none); removes the record and
     the partial folders of failed attempts (only when no live run holds OUTDIR's lock)."""
     from roslan.errors import OutputError
-    from roslan.pipeline.outdir import clean_stale, outdir_lock
+    from roslan.rundir.folder import clean_stale, outdir_lock
 
     marker = _attempts_file(outdir)
     try:
@@ -153,7 +153,7 @@ def run_tasks(
         retries: extra attempts for a task that raised something other than a roslan
             error (those are deterministic: a task is pure given its config).
         overwrite: rerun tasks even when a complete ``run.json`` exists.
-        runner: replaces :func:`roslan.simulate.run_simulation` (tests, custom pipelines).
+        runner: replaces :func:`roslan.pipeline.run_simulation` (tests, custom pipelines).
         meta: extra top-level entries of ``batch.json`` (the command, its inputs).
     """
     out = Path(outdir).resolve()
@@ -208,7 +208,7 @@ def _plan(
             res.status, res.error = "invalid", task.error
             continue
         folder = out / task.name
-        info = read_run_json(folder)
+        info = read_manifest(folder)
         if info is not None and not overwrite:
             if _existing_matches(task, info):
                 res.status = "skipped"

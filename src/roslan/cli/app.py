@@ -23,7 +23,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "roslan.cli.batch",
     "roslan.cli.simulate",
     "roslan.cli.plot",
-    "roslan.plots.preview",
+    "roslan.cli.preview",
     "roslan.cli.scene",
 )
 

@@ -52,7 +52,7 @@ def _batch(args: argparse.Namespace) -> int:
     sweep = load_sweep(args.sweep)
     tasks = sweep_tasks(sweep)
     if args.dry_run:
-        from roslan.dryrun import PlanRow, print_plan
+        from roslan.cli.dryrun import PlanRow, print_plan
 
         rows = [
             PlanRow(t.name, {k: _short(v) for k, v in t.overrides.items()}, t.config, t.error)

@@ -7,8 +7,8 @@ from pathlib import Path
 from typing import Any
 
 from roslan.cli.batch import add_cluster_args
+from roslan.cli.common import seed_arg
 from roslan.errors import ConfigError
-from roslan.limits import seed_arg
 
 __all__ = ["register"]
 
@@ -62,7 +62,7 @@ def _dataset_dry_run(args: argparse.Namespace, sensors: list[dict[str, Any]] | N
 
     from roslan.batch.paper import dataset_plan
     from roslan.batch.tasks import make_tasks
-    from roslan.dryrun import PlanRow, print_plan
+    from roslan.cli.dryrun import PlanRow, print_plan
 
     runs = dataset_plan(
         args.scenes, seed=args.seed, sensors=sensors, duration=args.duration,

@@ -6,7 +6,7 @@ import argparse
 from pathlib import Path
 from typing import Any
 
-from roslan.limits import seed_arg
+from roslan.cli.common import seed_arg
 
 __all__ = ["register"]
 

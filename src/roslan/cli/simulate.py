@@ -8,10 +8,10 @@ from importlib.resources import as_file, files
 from pathlib import Path
 from typing import Any
 
+from roslan.cli.common import FORMAT_CHOICES, bag_formats, seed_arg
 from roslan.config.base import load_yaml_model
 from roslan.config.sim import SimConfig
 from roslan.errors import ConfigError
-from roslan.limits import seed_arg
 
 __all__ = ["load_config", "register"]
 
@@ -66,18 +66,14 @@ def _simulate(args: argparse.Namespace) -> int:
 
 
 def _run(args: argparse.Namespace, config: SimConfig, path: Path | None) -> int:
-    from roslan.simulate import run_simulation
+    from roslan.pipeline import run_simulation
 
-    formats = (
-        None
-        if args.format is None
-        else (("ros1", "ros2") if args.format == "both" else (args.format,))
-    )
+    formats = bag_formats(args.format)
     if args.dry_run:
-        from roslan.dryrun import print_run_estimate
+        from roslan.cli.dryrun import print_run_estimate
 
         return print_run_estimate(config, args.outdir, formats)
-    run: dict[str, Any] = run_simulation(
+    run = run_simulation(
         config,
         args.outdir,
         overwrite=args.overwrite,
@@ -113,7 +109,7 @@ def register(subparsers: Any) -> None:
         "-o", "--outdir", type=Path, required=True, metavar="OUTDIR", help="output folder"
     )
     p.add_argument("--seed", type=seed_arg, default=None, help="override the config's seed (>= 0)")
-    p.add_argument("--format", choices=("ros1", "ros2", "both"), default=None, help="bag format(s)")
+    p.add_argument("--format", choices=FORMAT_CHOICES, default=None, help="bag format(s)")
     p.add_argument(
         "--overwrite", action="store_true", help="replace an existing OUTDIR (after success)"
     )

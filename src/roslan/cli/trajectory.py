@@ -16,6 +16,7 @@ from pydantic import ValidationError
 
 from roslan.config.base import format_validation_error, load_yaml
 from roslan.errors import ConfigError, OutputError
+from roslan.io.files import current_umask
 from roslan.trajectory.config import TrajectoryConfig
 from roslan.trajectory.export import write_trajectory_files
 from roslan.trajectory.generator import Trajectory, TrajectoryWarning
@@ -48,18 +49,12 @@ def write_into(traj: Trajectory, outdir: Path, *, overwrite: bool, plot: bool = 
         raise OutputError(msg) from err
     try:
         write_trajectory_files(traj, tmp, plot=plot)
-        os.chmod(tmp, 0o777 & ~_umask())
+        os.chmod(tmp, 0o777 & ~current_umask())
         os.rename(tmp, out)
     except BaseException:
         with contextlib.suppress(OSError):
             shutil.rmtree(tmp)
         raise
-
-
-def _umask() -> int:
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
 
 
 def load_trajectory_block(path: Path) -> TrajectoryConfig:

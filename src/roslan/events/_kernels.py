@@ -17,7 +17,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from roslan.jit import kernel
+from roslan.events.jit import kernel
 
 
 @kernel

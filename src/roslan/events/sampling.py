@@ -18,7 +18,7 @@ from typing import Literal
 import numpy as np
 from numpy.typing import NDArray
 
-from roslan.jit import kernel
+from roslan.events.jit import kernel
 from roslan.trajectory.generator import Trajectory
 
 __all__ = ["AdaptiveSampler", "camera_twist", "max_flow_speed", "motion_field", "pixel_rays"]

@@ -254,7 +254,7 @@ class BagWriter(Protocol):
 
     def add_topics(self, topics: Sequence[BagTopic]) -> None: ...
 
-    def write(self, topic: str, stamp_ns: int, data: bytes) -> None: ...
+    def write(self, topic: str, stamp_ns: int, data: bytes | bytearray | memoryview) -> None: ...
 
     def connection(self, topic: str) -> Connection: ...
 
@@ -272,7 +272,7 @@ class _BagWriter:
     _writer: Any
     _conns: dict[str, Connection]
 
-    def write(self, topic: str, stamp_ns: int, data: bytes) -> None:
+    def write(self, topic: str, stamp_ns: int, data: bytes | bytearray | memoryview) -> None:
         self._writer.write(self._conns[topic], stamp_ns, data)
 
     def connection(self, topic: str) -> Connection:
@@ -402,24 +402,17 @@ class MultiBagWriter:
     def write(self, topic: str, stamp_ns: int, build: Any) -> None:
         """Write one message (``build`` as in ``Message.build``) at record time ``stamp_ns``."""
         for store, msgtype, raw_write, conn in self._targets[topic]:
-            data = build(store)
-            if type(data) is not bytes and not isinstance(data, bytearray | memoryview):
-                data = store.serialize(data, msgtype)
-            raw_write(conn, stamp_ns, data)
+            raw_write(conn, stamp_ns, store.encode(build, msgtype))
         self.counts[topic] += 1
 
-    def build(self, topic: str, build: Any) -> list[bytes]:
+    def build(self, topic: str, build: Any) -> list[bytes | bytearray | memoryview]:
         """The wire bytes of one message for each writer (``write_data`` writes them)."""
         msgtype = self.msgtypes[topic]
-        out = []
-        for w in self.writers:
-            data = build(w.store)
-            if not isinstance(data, bytes | bytearray | memoryview):
-                data = w.store.serialize(data, msgtype)
-            out.append(data)
-        return out
+        return [w.store.encode(build, msgtype) for w in self.writers]
 
-    def write_data(self, topic: str, stamp_ns: int, datas: Sequence[bytes]) -> None:
+    def write_data(
+        self, topic: str, stamp_ns: int, datas: Sequence[bytes | bytearray | memoryview]
+    ) -> None:
         """Write bytes from :meth:`build` (one entry per writer)."""
         for w, data in zip(self.writers, datas, strict=True):
             w.write(topic, stamp_ns, data)

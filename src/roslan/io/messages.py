@@ -94,6 +94,14 @@ class MessageStore:
             return bytes(self.typestore.serialize_ros1(msg, msgtype))
         return bytes(self.typestore.serialize_cdr(msg, msgtype))
 
+    def encode(self, build: Any, msgtype: str) -> bytes | bytearray | memoryview:
+        """Wire bytes of one message described by ``build`` (``Message.build``: a callable
+        of the store returning a message object or ready wire bytes)."""
+        data = build(self)
+        if isinstance(data, bytes | bytearray | memoryview):
+            return data
+        return self.serialize(data, msgtype)
+
     def image(
         self, frame_id: str, stamp_ns: int, data: NDArray[Any], encoding: str, seq: int = 0
     ) -> bytes:

@@ -1,8 +1,10 @@
-"""The simulation pipeline: context handed to sensors, stamp-merged streaming to bags, CLI."""
+"""The simulation pipeline: plan a run, merge every sensor's messages by stamp into the
+bags, write the run folder (:func:`run_simulation`)."""
 
 from __future__ import annotations
 
 from roslan.pipeline.context import Context
-from roslan.pipeline.run import run_simulation
+from roslan.pipeline.plan import RunPlan, make_plan, preflight
+from roslan.pipeline.run import RunOptions, run_simulation
 
-__all__ = ["Context", "run_simulation"]
+__all__ = ["Context", "RunOptions", "RunPlan", "make_plan", "preflight", "run_simulation"]

@@ -51,11 +51,11 @@ from collections import deque
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from multiprocessing.connection import Connection
-from operator import itemgetter
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from roslan.errors import ConfigError, RoslanError
+from roslan.pipeline.merge import MERGE_KEY, CheckedStream, MergeItem, tagged
 from roslan.sensors.base import Message, SensorConfig
 
 if TYPE_CHECKING:
@@ -65,7 +65,6 @@ if TYPE_CHECKING:
 
 __all__ = [
     "HEAVY_TYPES",
-    "MERGE_KEY",
     "QUEUE_BYTES",
     "ByteQueue",
     "WorkerError",
@@ -98,12 +97,6 @@ others fill the gaps instead of slowing it down. Outputs do not depend on it."""
 
 JOIN_TIMEOUT_S = 30.0
 """Longest wait for a finished worker to exit, and for a terminated one (then SIGKILL)."""
-
-MergeItem = tuple[int, int, Message]
-"""``(t_ns, order, message)``: merge key first; ``order`` = component position."""
-
-MERGE_KEY = itemgetter(0, 1)
-"""Key of the stamp merge: ``(t_ns, order)``."""
 
 
 class WorkerError(RoslanError):
@@ -300,7 +293,6 @@ def _run_job(job: WorkerJob, put: Callable[[Any], None]) -> None:
     """Stream the assigned sensors of ``job``; ``put`` sends one protocol record."""
     from roslan.io.messages import Flavor, MessageStore
     from roslan.pipeline.context import Context
-    from roslan.pipeline.run import _Stream
     from roslan.trajectory.spline import make_trajectory
 
     if job.nice > 0:
@@ -320,15 +312,11 @@ def _run_job(job: WorkerJob, put: Callable[[Any], None]) -> None:
     stores = [MessageStore(Flavor(f)) for f in job.formats]
     sensors = [cls(job.sensors[i]) for cls, i in zip(job.classes, job.assigned, strict=True)]
     streams = [
-        _Stream(s.config.name, s.messages(ctx), {t.topic for t in s.topics()}, job.profile)
+        CheckedStream(s.config.name, s.messages(ctx), {t.topic for t in s.topics()}, job.profile)
         for s in sensors
     ]
     build_s = [0.0] * len(sensors)
     index = {i + 1: k for k, i in enumerate(job.assigned)}  # merge order -> sensor position
-
-    def tagged(order: int, stream: _Stream) -> Iterator[MergeItem]:
-        for msg in stream:
-            yield msg.t_ns, order, msg
 
     merged = heapq.merge(
         *(tagged(i + 1, st) for i, st in zip(job.assigned, streams, strict=True)),
@@ -338,15 +326,8 @@ def _run_job(job: WorkerJob, put: Callable[[Any], None]) -> None:
     dumps = pickle.dumps
     for t_ns, order, msg in merged:
         t0 = perf()
-        datas = []
-        for store in stores:
-            data = msg.build(store)
-            if not isinstance(data, bytes | bytearray | memoryview):
-                data = store.serialize(data, msg.msgtype)
-            elif not isinstance(data, bytes):
-                data = bytes(data)
-            datas.append(data)
-        record = ("m", t_ns, order, msg.topic, msg.msgtype, tuple(datas))
+        datas = tuple(bytes(store.encode(msg.build, msg.msgtype)) for store in stores)
+        record = ("m", t_ns, order, msg.topic, msg.msgtype, datas)
         build_s[index[order]] += perf() - t0
         put(dumps(record, protocol=pickle.HIGHEST_PROTOCOL))
     close_s = []

@@ -14,26 +14,19 @@ forward pass), so memory stays bounded by one window.
 
 from __future__ import annotations
 
-import argparse
 import math
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from roslan.plots.data import (
-    EventSource,
-    ImageSequence,
-    PlotError,
-    find_images,
-    open_events,
-    sensor_configs,
-)
+from roslan.errors import PlotError
 from roslan.plots.raster import event_frame
 from roslan.plots.style import figure, save_figure, style
+from roslan.rundir.events import EventSource, open_events
+from roslan.rundir.readers import ImageSequence, find_images, sensor_configs
 
-__all__ = ["event_rate", "plot_events", "register"]
+__all__ = ["event_rate", "plot_events"]
 
 COMMAND = "roslan plot events"
 
@@ -163,45 +156,6 @@ def plot_events(
             ax.legend(loc="upper left")
             written.append(save_figure(fig, out / "event_rate.png"))
     return written
-
-
-def _run(args: argparse.Namespace) -> int:
-    files = plot_events(
-        Path(args.outdir),
-        Path(args.output),
-        window=args.window,
-        frames=args.frames,
-        times=args.times,
-    )
-    for f in files:
-        print(f)
-    return 0
-
-
-def register(plot_subparsers: Any) -> None:
-    """Add ``events`` to the ``roslan plot`` group."""
-    p = plot_subparsers.add_parser(
-        "events",
-        help="event frames over the APS image and the event rate (paper Fig. 5a/c)",
-        description="Event frames (ON blue, OFF red) over the grayscale image, and the event rate.",
-    )
-    p.add_argument("outdir", metavar="OUTDIR", help="a roslan simulate output folder")
-    p.add_argument("-o", "--output", required=True, metavar="DIR", help="folder for the PNGs")
-    p.add_argument(
-        "--window", type=float, default=0.01, help="seconds of events per frame (default: 0.01)"
-    )
-    p.add_argument(
-        "--frames", type=int, default=6, help="number of frames, evenly spread (default: 6)"
-    )
-    p.add_argument(
-        "--times",
-        type=float,
-        nargs="+",
-        default=None,
-        metavar="T",
-        help="window starts, s (instead of --frames)",
-    )
-    p.set_defaults(func=_run)
 
 
 def _root_has_events(outdir: Path) -> bool:

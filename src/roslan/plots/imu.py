@@ -12,7 +12,6 @@ sits at base_link with identity rotation; the figure says which truth it shows.
 
 from __future__ import annotations
 
-import argparse
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -21,20 +20,11 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from roslan.plots.data import (
-    ImuData,
-    PlotError,
-    add_outdir_command,
-    find_imu_files,
-    load_groundtruth,
-    load_imu,
-    load_run,
-    missing_input,
-    resolved_config,
-)
+from roslan.errors import PlotError
 from roslan.plots.style import AXIS_COLORS, MEASURED_ALPHA, figure, save_figure, style
+from roslan.rundir.readers import ImuData, load_groundtruth, load_imu, load_run, resolved_config
 
-__all__ = ["ImuTruth", "imu_truth", "plot_imu", "register"]
+__all__ = ["ImuTruth", "imu_truth", "plot_imu"]
 
 F64 = NDArray[np.float64]
 COMMAND = "roslan plot imu"
@@ -181,34 +171,3 @@ def plot_imu(outdir: Path, out: Path | None = None, imu_file: Path | None = None
         axes[0, 0].legend(loc="upper left", fontsize=7)
         fig.suptitle(f"IMU in its own frame - truth: {truth.source}", fontsize=10)
         return save_figure(fig, out)
-
-
-def _run(args: argparse.Namespace) -> int:
-    outdir = Path(args.outdir)
-    imu_file = None
-    if args.imu is not None:
-        files = {p.stem: p for p in find_imu_files(outdir)}
-        key = "imu" if args.imu in files and args.imu == "imu" else f"imu_{args.imu}"
-        imu_file = files.get(key) or files.get(args.imu)
-        if imu_file is None:
-            raise missing_input(COMMAND, outdir, f"IMU file for sensor {args.imu!r}", "imu")
-    print(plot_imu(outdir, args.output, imu_file))
-    return 0
-
-
-def register(sub: Any) -> None:
-    """Add ``imu`` to the ``roslan plot`` subcommands."""
-    p = add_outdir_command(
-        sub,
-        "imu",
-        "accelerometer and gyroscope samples against the noise-free truth",
-        __doc__,
-        "PNG to write (default OUTDIR/plots/imu.png)",
-    )
-    p.add_argument(
-        "--imu",
-        default=None,
-        metavar="NAME",
-        help="which IMU of a run with several (default: the first, imu.txt)",
-    )
-    p.set_defaults(func=_run)

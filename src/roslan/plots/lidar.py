@@ -8,17 +8,16 @@ point at its own firing instant, not de-skewed), coloured by laser ring, height
 
 from __future__ import annotations
 
-import argparse
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from roslan.plots.data import LidarScan, LidarSequence, PlotError, add_outdir_command, find_lidar
+from roslan.errors import PlotError
 from roslan.plots.style import figure, save_figure, style
+from roslan.rundir.readers import LidarScan, LidarSequence, find_lidar
 
-__all__ = ["COLOR_BY", "choose_scan", "plot_lidar", "register", "scan_values"]
+__all__ = ["COLOR_BY", "choose_scan", "plot_lidar", "scan_values"]
 
 F64 = NDArray[np.float64]
 COMMAND = "roslan plot lidar"
@@ -158,43 +157,3 @@ def plot_lidar(
         cb = fig.colorbar(sc2, ax=[ax3, ax2], shrink=0.8, pad=0.01, aspect=30)
         cb.set_label(vlabel)
         return save_figure(fig, out, tight=True)
-
-
-def _run(args: argparse.Namespace) -> int:
-    print(
-        plot_lidar(
-            Path(args.outdir), args.output, sensor=args.sensor, scan=args.scan, color_by=args.color
-        )
-    )
-    return 0
-
-
-def register(sub: Any) -> None:
-    """Add ``lidar`` to the ``roslan plot`` subcommands."""
-    p = add_outdir_command(
-        sub,
-        "lidar",
-        "one LiDAR scan as a coloured point cloud (perspective and bird's-eye)",
-        __doc__,
-        "PNG to write (default OUTDIR/plots/lidar_<name>.png)",
-    )
-    p.add_argument(
-        "--sensor",
-        default=None,
-        metavar="NAME",
-        help="which LiDAR (folder under OUTDIR/lidar; default: the first)",
-    )
-    p.add_argument(
-        "--scan",
-        type=int,
-        default=None,
-        metavar="INDEX",
-        help="scan index (default: the middle scan; negative counts from the end)",
-    )
-    p.add_argument(
-        "--color",
-        choices=COLOR_BY,
-        default="ring",
-        help="colour points by laser ring (default), height, intensity or range",
-    )
-    p.set_defaults(func=_run)

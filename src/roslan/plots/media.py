@@ -10,18 +10,17 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from roslan.plots.data import (
-    EventSource,
-    ImageSequence,
-    LidarSequence,
-    PlotError,
-    find_images,
-    find_lidar,
-    open_events,
-    sensor_configs,
-)
+from roslan.errors import PlotError
 from roslan.plots.raster import event_frame
 from roslan.plots.trajectory import TrajectorySamples, load_samples
+from roslan.rundir.events import EventSource, open_events
+from roslan.rundir.readers import (
+    ImageSequence,
+    LidarSequence,
+    find_images,
+    find_lidar,
+    sensor_configs,
+)
 
 __all__ = ["RunMedia", "render_events"]
 

@@ -9,17 +9,17 @@ input that exists but cannot be read is reported in its panel instead of failing
 
 from __future__ import annotations
 
-import argparse
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from roslan.plots.data import ImuData, PlotError, add_outdir_command, load_imu
+from roslan.errors import PlotError
 from roslan.plots.media import RunMedia, render_events
 from roslan.plots.style import AXIS_COLORS, GAP_COLORS, MEASURED_ALPHA, figure, save_figure, style
+from roslan.rundir.readers import ImuData, load_imu
 
-__all__ = ["EVENT_WINDOW_NS", "register", "write_overview"]
+__all__ = ["EVENT_WINDOW_NS", "write_overview"]
 
 COMMAND = "roslan plot overview"
 EVENT_WINDOW_NS = 20_000_000
@@ -260,20 +260,3 @@ def _lidar_panel(ax: Any, media: RunMedia, t_ns: int) -> None:
     cb = ax.figure.colorbar(sc, ax=ax, shrink=0.85, pad=0.01)
     cb.set_label("height z (sensor) [m]")
     ax.set_title(f"LiDAR '{seq.name}' bird's-eye, t = {scan.t_ns * 1e-9:.3f} s")
-
-
-def _run(args: argparse.Namespace) -> int:
-    print(write_overview(Path(args.outdir), args.output))
-    return 0
-
-
-def register(sub: Any) -> None:
-    """Add ``overview`` to the ``roslan plot`` subcommands."""
-    p = add_outdir_command(
-        sub,
-        "overview",
-        "one small figure of a run: trajectory, camera, event frame, LiDAR scan",
-        __doc__,
-        "PNG to write (default OUTDIR/overview.png)",
-    )
-    p.set_defaults(func=_run)

@@ -16,7 +16,6 @@ than real time. ``--gif`` writes an animated GIF at half size and at most 12 fps
 
 from __future__ import annotations
 
-import argparse
 import math
 import os
 import sys
@@ -27,7 +26,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from roslan.plots.data import LidarScan, PlotError, add_outdir_command
+from roslan.errors import PlotError
 from roslan.plots.media import RunMedia, render_events
 from roslan.plots.raster import (
     BACKGROUND_RGB,
@@ -37,8 +36,9 @@ from roslan.plots.raster import (
     placeholder,
 )
 from roslan.plots.trajectory import TrajectorySamples
+from roslan.rundir.readers import LidarScan
 
-__all__ = ["PreviewInfo", "make_preview", "register"]
+__all__ = ["PreviewInfo", "make_preview"]
 
 U8 = NDArray[np.uint8]
 COMMAND = "roslan preview"
@@ -331,51 +331,3 @@ def _header(strip: U8, t_ns: int, duration_ns: int, speed: float, name: str) -> 
         1,
         cv2.LINE_AA,
     )
-
-
-def _run(args: argparse.Namespace) -> int:
-    info = make_preview(
-        Path(args.outdir),
-        args.output,
-        gif=True if args.gif else None,
-        fps=args.fps,
-        speed=args.speed,
-        window_ms=args.window_ms,
-        panel_width=args.panel_width,
-        progress=not args.quiet,
-    )
-    print(f"{info.path} ({info.frames} frames, {info.size[0]}x{info.size[1]} at {info.fps:g} fps)")
-    return 0
-
-
-def register(subparsers: Any) -> None:
-    """Add the top-level ``preview`` command."""
-    p = add_outdir_command(
-        subparsers,
-        "preview",
-        "synchronized video of a run: camera, events, LiDAR, trajectory, time",
-        __doc__,
-        "video to write (default OUTDIR/preview.mp4, or .gif with --gif)",
-    )
-    p.add_argument("--gif", action="store_true", help="write an animated GIF (half size, <=12 fps)")
-    p.add_argument("--fps", type=float, default=30.0, help="video frames per second (default 30)")
-    p.add_argument(
-        "--speed",
-        type=float,
-        default=1.0,
-        help="trajectory seconds per video second (default 1: real time)",
-    )
-    p.add_argument(
-        "--window-ms",
-        type=float,
-        default=20.0,
-        help="event accumulation window per frame, ms (default 20)",
-    )
-    p.add_argument(
-        "--panel-width",
-        type=int,
-        default=480,
-        help="width of each of the 4 panels, px (default 480)",
-    )
-    p.add_argument("-q", "--quiet", action="store_true", help="no progress output")
-    p.set_defaults(func=_run)

@@ -2,19 +2,17 @@
 
 from __future__ import annotations
 
-import argparse
 import math
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
-from roslan.errors import ConfigError, OutputError
+from roslan.errors import ConfigError
 from roslan.io.files import atomic_write
 from roslan.trajectory.tau import classify, gap
 
-__all__ = ["DEFAULT_KS", "plot_tau_family", "register"]
+__all__ = ["DEFAULT_KS", "plot_tau_family"]
 
 DEFAULT_KS = (0.2, 0.4, 0.5, 0.7, 1.0)
 
@@ -63,32 +61,3 @@ def plot_tau_family(
     fig.tight_layout()
     with atomic_write(path, "wb") as fh:
         fig.savefig(fh, format="png", metadata={"Software": None})
-
-
-def _run(args: argparse.Namespace) -> int:
-    out = Path(args.output)
-    if not out.parent.is_dir():
-        msg = f"{out}: folder {out.parent} does not exist"
-        raise OutputError(msg)
-    plot_tau_family(list(args.k), out)
-    print(f"wrote {out}")
-    return 0
-
-
-def register(plot_subparsers: Any) -> None:
-    """Add ``tau-family`` to the ``roslan plot`` group."""
-    p = plot_subparsers.add_parser(
-        "tau-family",
-        help="gap closure for several k (paper Fig. 1)",
-        description="Gap, rate and acceleration of tau-constant closure for several k.",
-    )
-    p.add_argument("-o", "--output", required=True, metavar="FILE.png", help="PNG to write")
-    p.add_argument(
-        "--k",
-        type=float,
-        nargs="+",
-        default=list(DEFAULT_KS),
-        metavar="K",
-        help="tau-dot values, 0 < k <= 1 (default: %(default)s)",
-    )
-    p.set_defaults(func=_run)

@@ -9,7 +9,6 @@ exported ``trajectory.csv`` rows are drawn as dots over the curves either way.
 
 from __future__ import annotations
 
-import argparse
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -18,17 +17,16 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from roslan.plots.data import (
+from roslan.plots.style import AXIS_COLORS, GAP_COLORS, figure, save_figure, style
+from roslan.rundir.readers import (
     TrajectoryTable,
-    add_outdir_command,
     load_run,
     load_summary,
     load_trajectory_table,
     resolved_config,
 )
-from roslan.plots.style import AXIS_COLORS, GAP_COLORS, figure, save_figure, style
 
-__all__ = ["TrajectorySamples", "load_samples", "plot_trajectory", "register"]
+__all__ = ["TrajectorySamples", "load_samples", "plot_trajectory"]
 
 F64 = NDArray[np.float64]
 COMMAND = "roslan plot trajectory"
@@ -284,21 +282,3 @@ def plot_trajectory(outdir: Path, out: Path | None = None) -> Path:
         _draw_3d(ax3, s)
         _draw_gaps(ax_pos, ax_ang, ax_tau, s)
         return save_figure(fig, out)
-
-
-def _run(args: argparse.Namespace) -> int:
-    path = plot_trajectory(Path(args.outdir), args.output)
-    print(path)
-    return 0
-
-
-def register(sub: Any) -> None:
-    """Add ``trajectory`` to the ``roslan plot`` subcommands."""
-    p = add_outdir_command(
-        sub,
-        "trajectory",
-        "3-D landing path with velocity vectors and orientation triads; gaps and tau vs time",
-        __doc__,
-        "PNG to write (default OUTDIR/plots/trajectory.png)",
-    )
-    p.set_defaults(func=_run)

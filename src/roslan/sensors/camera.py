@@ -42,10 +42,10 @@ from pydantic import Field, model_validator
 
 from roslan.config.base import FiniteFloat
 from roslan.errors import RenderError, SensorError
+from roslan.events.jit import kernel
 from roslan.io.images import write_png
 from roslan.io.messages import MessageStore
 from roslan.io.text import format_seconds
-from roslan.jit import kernel
 from roslan.sensors.base import (
     Message,
     SensorConfig,

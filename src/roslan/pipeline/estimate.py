@@ -20,6 +20,7 @@ from typing import Any
 
 from roslan.config.sim import SimConfig
 from roslan.errors import OutputError
+from roslan.limits import format_bytes
 
 __all__ = [
     "RunEstimate",
@@ -209,15 +210,6 @@ def _rays_per_scan(s: Any) -> float:
         return float(spec.azimuth_steps * spec.n_lasers)
     except Exception:
         return 32 * 2170 * 10.0 / float(s.rate)
-
-
-def format_bytes(n: float) -> str:
-    """``1.2 GB``, ``350 MB``, ``12 kB`` (decimal units, 2 significant digits)."""
-    for unit, scale in (("GB", 1e9), ("MB", 1e6), ("kB", 1e3)):
-        if n >= scale:
-            v = n / scale
-            return f"{v:.1f} {unit}" if v < 10 else f"{v:.0f} {unit}"
-    return f"{n:.0f} B"
 
 
 def format_seconds(s: float) -> str:

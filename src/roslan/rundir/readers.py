@@ -1,4 +1,4 @@
-"""Readers of a run's OUTDIR for the plots and the preview video.
+"""Readers of a run's OUTDIR: the files the plots, the preview video and batch read.
 
 Every reader raises :class:`PlotError` naming the file and the sensor a plot needs
 when an input is missing or unreadable. Times are read from the dataset text files
@@ -12,29 +12,24 @@ at a time.
 
 from __future__ import annotations
 
-import argparse
 import json
-import math
-from collections.abc import Iterator, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
-from itertools import islice
 from pathlib import Path
-from typing import Any, TextIO
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from roslan.errors import RoslanError
+from roslan.errors import PlotError
 
 __all__ = [
-    "EventSource",
     "ImageSequence",
     "ImuData",
     "LidarScan",
     "LidarSequence",
     "PlotError",
     "TrajectoryTable",
-    "add_outdir_command",
     "find_images",
     "find_lidar",
     "load_imu",
@@ -42,36 +37,17 @@ __all__ = [
     "load_summary",
     "load_trajectory_table",
     "missing_input",
-    "open_events",
+    "require_run_folder",
     "resolved_config",
     "seconds_to_ns",
     "sensor_configs",
 ]
 
 
-def add_outdir_command(
-    subparsers: Any, name: str, help_text: str, doc: str | None, output_help: str
-) -> argparse.ArgumentParser:
-    """A subcommand reading one ``roslan simulate`` OUTDIR, with an optional ``-o`` file."""
-    p: argparse.ArgumentParser = subparsers.add_parser(
-        name,
-        help=help_text,
-        description=doc,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
-    p.add_argument("outdir", metavar="OUTDIR", help="output folder of a roslan simulate run")
-    p.add_argument("-o", "--output", type=Path, default=None, help=output_help)
-    return p
-
-
 F64 = NDArray[np.float64]
 I64 = NDArray[np.int64]
 
 TRAJECTORY_HEADER = "t,x,y,z,roll,pitch,yaw,vx,vy,vz,vroll,vpitch,vyaw,ax,ay,az,aroll,apitch,ayaw"
-
-
-class PlotError(RoslanError):
-    """A plot cannot be drawn: an input it needs is missing or unreadable."""
 
 
 def missing_input(command: str, outdir: Path, what: str, sensor_type: str | None) -> PlotError:
@@ -87,7 +63,7 @@ def seconds_to_ns(t: NDArray[Any]) -> I64:
     return np.rint(np.asarray(t, dtype=np.float64) * 1e9).astype(np.int64)
 
 
-def _check_outdir(outdir: Path, command: str) -> None:
+def require_run_folder(outdir: Path, command: str) -> None:
     if not outdir.is_dir():
         msg = f"{command}: {outdir} is not a directory (give a roslan simulate OUTDIR)"
         raise PlotError(msg)
@@ -191,7 +167,7 @@ class TrajectoryTable:
 
 def load_trajectory_table(outdir: Path, command: str) -> TrajectoryTable:
     """``trajectory.csv`` (written by every run)."""
-    _check_outdir(outdir, command)
+    require_run_folder(outdir, command)
     path = outdir / "trajectory.csv"
     if not path.is_file():
         raise missing_input(command, outdir, "trajectory.csv (the trajectory table)", None)
@@ -232,7 +208,7 @@ def find_imu_files(outdir: Path) -> list[Path]:
 
 def load_imu(outdir: Path, command: str, path: Path | None = None) -> ImuData:
     """The IMU text file ``t ax ay az gx gy gz`` (Event Camera Dataset layout)."""
-    _check_outdir(outdir, command)
+    require_run_folder(outdir, command)
     if path is None:
         files = find_imu_files(outdir)
         if not files:
@@ -354,178 +330,6 @@ def find_images(outdir: Path, prefer: Sequence[str] = ()) -> list[ImageSequence]
         return len(prefer)
 
     return sorted(seqs, key=rank)
-
-
-# ---------------------------------------------------------------- events
-class EventSource:
-    """Events of one event camera, read by time window.
-
-    ``window(t0_ns, t1_ns)`` returns ``(x, y, p)`` of the events with
-    ``t0_ns <= t < t1_ns``: x, y (M,) int64 pixel coordinates, p (M,) int8 polarity
-    in {-1, +1}. From ``events.h5`` any window is a binary search; from ``events.txt``
-    windows must come in non-decreasing order (the file is walked forward once).
-    """
-
-    CHUNK = 1 << 20  # events.txt lines read per step
-
-    def __init__(self, path: Path, width: int | None, height: int | None) -> None:
-        self.path = path
-        self.width = width
-        self.height = height
-        self._h5: Any = None
-        self._t_scale = 1
-        self._fh: TextIO | None = None
-        self._buf_t: I64 = np.empty(0, np.int64)
-        self._buf_xyp: NDArray[np.int64] = np.empty((0, 3), np.int64)
-        self._eof = False
-        self._last_t1 = -(1 << 62)
-        if path.suffix == ".h5":
-            import h5py
-
-            try:
-                self._h5 = h5py.File(path, "r")
-                g = self._h5["events"]
-                self._t, self._x, self._y, self._p = g["t"], g["x"], g["y"], g["p"]
-                # exact ns when present, else DSEC's microseconds
-                self._t_scale = 1 if "t_ns" in g else 1000
-                if "t_ns" in g:
-                    self._t = g["t_ns"]
-            except (OSError, KeyError) as err:
-                msg = f"{path}: cannot read events/t, events/x, events/y, events/p: {err}"
-                raise PlotError(msg) from err
-            for key in ("width", "height"):
-                for holder in (self._h5.attrs, g.attrs):
-                    if key in holder and getattr(self, key) is None:
-                        setattr(self, key, int(holder[key]))
-
-    def close(self) -> None:
-        if self._h5 is not None:
-            self._h5.close()
-            self._h5 = None
-        if self._fh is not None:
-            self._fh.close()
-            self._fh = None
-
-    def __enter__(self) -> EventSource:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
-
-    # -- HDF5
-    def _h5_search(self, t_ns: int) -> int:
-        """First index with t >= t_ns (bisection reading single elements: O(log N) reads)."""
-        lo, hi = 0, int(self._t.shape[0])
-        while lo < hi:
-            mid = (lo + hi) // 2
-            if int(self._t[mid]) * self._t_scale < t_ns:
-                lo = mid + 1
-            else:
-                hi = mid
-        return lo
-
-    def window(
-        self, t0_ns: int, t1_ns: int
-    ) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.int8]]:
-        if self._h5 is not None:
-            i0, i1 = self._h5_search(t0_ns), self._h5_search(t1_ns)
-            x = np.asarray(self._x[i0:i1], dtype=np.int64)
-            y = np.asarray(self._y[i0:i1], dtype=np.int64)
-            p = np.where(np.asarray(self._p[i0:i1]) > 0, 1, -1).astype(np.int8)
-            return x, y, p
-        return self._txt_window(t0_ns, t1_ns)
-
-    # -- text
-    def _txt_window(
-        self, t0_ns: int, t1_ns: int
-    ) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.int8]]:
-        if t1_ns < self._last_t1:
-            # going back in time: restart the forward walk
-            self.close()
-            self._buf_t = np.empty(0, np.int64)
-            self._buf_xyp = np.empty((0, 3), np.int64)
-            self._eof = False
-        self._last_t1 = t1_ns
-        if self._fh is None and not self._eof:
-            self._fh = self.path.open()
-        keep = self._buf_t >= t0_ns
-        self._buf_t, self._buf_xyp = self._buf_t[keep], self._buf_xyp[keep]
-        while not self._eof and (self._buf_t.size == 0 or self._buf_t[-1] < t1_ns):
-            t, xyp = self._read_chunk()
-            keep = t >= t0_ns
-            self._buf_t = np.concatenate([self._buf_t, t[keep]])
-            self._buf_xyp = np.concatenate([self._buf_xyp, xyp[keep]])
-        sel = (self._buf_t >= t0_ns) & (self._buf_t < t1_ns)
-        xyp = self._buf_xyp[sel]
-        return xyp[:, 0], xyp[:, 1], np.where(xyp[:, 2] > 0, 1, -1).astype(np.int8)
-
-    def _read_chunk(self) -> tuple[I64, NDArray[np.int64]]:
-        assert self._fh is not None
-        lines = [ln for ln in islice(self._fh, self.CHUNK) if ln.strip() and ln[0] != "#"]
-        if not lines:
-            self._eof = True
-            self._fh.close()
-            self._fh = None
-            return np.empty(0, np.int64), np.empty((0, 3), np.int64)
-        try:
-            data = np.loadtxt(lines, ndmin=2)
-        except ValueError as err:
-            msg = f"{self.path}: expected lines 't x y p': {err}"
-            raise PlotError(msg) from err
-        if data.shape[1] != 4:
-            msg = f"{self.path}: {data.shape[1]} columns; expected 't x y p'"
-            raise PlotError(msg)
-        return seconds_to_ns(data[:, 0]), data[:, 1:4].astype(np.int64)
-
-    def time_range_ns(self) -> tuple[int, int] | None:
-        """(first, last) event time, or None without events. Reads the text file fully."""
-        if self._h5 is not None:
-            n = int(self._t.shape[0])
-            return None if n == 0 else (int(self._t[0]), int(self._t[n - 1]))
-        first = last = None
-        with self.path.open() as fh:
-            for line in fh:
-                if line.strip() and line[0] != "#":
-                    t = line.split(None, 1)[0]
-                    if first is None:
-                        first = t
-                    last = t
-        if first is None or last is None:
-            return None
-        return int(seconds_to_ns(np.asarray([float(first)]))[0]), int(
-            seconds_to_ns(np.asarray([float(last)]))[0]
-        )
-
-
-def open_events(outdir: Path, command: str) -> EventSource:
-    """The event stream of the run's event camera (``events.h5`` preferred over ``events.txt``)."""
-    _check_outdir(outdir, command)
-    candidates = [outdir / "events.h5", outdir / "events.txt"]
-    candidates += sorted(outdir.glob("*/events.h5")) + sorted(outdir.glob("*/events.txt"))
-    path = next((p for p in candidates if p.is_file()), None)
-    if path is None:
-        raise missing_input(command, outdir, "events (events.h5 or events.txt)", "event_camera")
-    width = height = None
-    for cfg in sensor_configs(outdir, "event_camera"):
-        w, h = _config_resolution(cfg)
-        if w is not None:
-            width, height = w, h
-            break
-    return EventSource(path, width, height)
-
-
-def _config_resolution(cfg: dict[str, Any]) -> tuple[int | None, int | None]:
-    """(width, height) of a camera-like sensor config, whatever the key layout."""
-    for holder in (cfg, cfg.get("intrinsics") or {}, cfg.get("camera") or {}):
-        if not isinstance(holder, dict):
-            continue
-        if "width" in holder and "height" in holder:
-            return int(holder["width"]), int(holder["height"])
-        if "resolution" in holder:
-            res = holder["resolution"]
-            if isinstance(res, list | tuple) and len(res) == 2:
-                return int(res[0]), int(res[1])
-    return None, None
 
 
 # ---------------------------------------------------------------- LiDAR
@@ -655,7 +459,7 @@ def _scan_times(folder: Path, paths: list[Path], rate: float | None) -> I64:
 
 def find_lidar(outdir: Path, command: str) -> list[LidarSequence]:
     """All LiDAR scan folders ``lidar/<name>/*.npz`` (raises the "add a lidar" error if none)."""
-    _check_outdir(outdir, command)
+    require_run_folder(outdir, command)
     root = outdir / "lidar"
     seqs: list[LidarSequence] = []
     if root.is_dir():
@@ -681,19 +485,3 @@ def find_lidar(outdir: Path, command: str) -> list[LidarSequence]:
     if not seqs:
         raise missing_input(command, outdir, "LiDAR scans (lidar/<name>/NNNNNN.npz)", "lidar")
     return seqs
-
-
-def chunks(n: int, size: int) -> Iterator[tuple[int, int]]:
-    """(start, stop) pairs covering range(n) in steps of ``size``."""
-    for i in range(0, n, size):
-        yield i, min(i + size, n)
-
-
-def nice_time_step(span: float, target: int = 6) -> float:
-    """A 1/2/5 x 10^k step giving about ``target`` ticks over ``span``."""
-    raw = max(span, 1e-9) / target
-    mag = 10 ** math.floor(math.log10(raw))
-    for m in (1, 2, 5, 10):
-        if m * mag >= raw:
-            return float(m * mag)
-    return float(10 * mag)

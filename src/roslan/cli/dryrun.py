@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from roslan.estimate import (
+from roslan.pipeline.estimate import (
     RunEstimate,
     batch_seconds,
     estimate_run,

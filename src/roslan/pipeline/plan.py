@@ -1,0 +1,155 @@
+"""Planning a run: every check that can fail, done before anything is written.
+
+:func:`make_plan` validates a config for one OUTDIR and returns a :class:`RunPlan`: the
+trajectory, the bag formats, every sensor constructed from its config, the ground truth
+with the /tf_static tree, who publishes each topic, and which sensors run in worker
+processes. It refuses (with an error that names the key or sensor) an existing OUTDIR
+without ``overwrite``, resource limits, a sensor that needs a scene without one, a full
+disk, clashing names, frames or topics.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+from roslan.config.sim import SimConfig
+from roslan.errors import ConfigError, SensorError
+from roslan.io.bag import BagTopic
+from roslan.limits import preflight as check_limits
+from roslan.pipeline.estimate import check_free_space, estimate_run
+from roslan.pipeline.namespace import check_namespace
+from roslan.pipeline.worker import plan_workers, resolve_workers
+from roslan.rundir.extrinsics import static_transforms
+from roslan.rundir.folder import check_outdir
+from roslan.sensors.base import Sensor
+from roslan.sensors.ground_truth import GroundTruth
+from roslan.sensors.registry import sensor_class
+from roslan.trajectory.generator import Trajectory
+from roslan.trajectory.spline import make_trajectory
+
+__all__ = ["BAG_FORMATS", "RunPlan", "make_plan", "preflight"]
+
+BAG_FORMATS = ("ros1", "ros2")
+
+
+@dataclass
+class RunPlan:
+    """Everything a run needs, validated."""
+
+    config: SimConfig
+    outdir: Path
+    config_path: Path | None
+    base_dir: Path | None
+    """Folder that relative paths of the config (scene, trajectory file) are resolved in."""
+    source: str
+    """How errors name the config: its path, or ``<config>``."""
+    formats: tuple[str, ...]
+    traj: Trajectory
+    sensors: list[Sensor]
+    ground_truth: GroundTruth
+    owners: dict[str, str]
+    """Topic -> the component publishing it (``ground_truth`` or a sensor name)."""
+    bag_topics: list[BagTopic]
+    """Every bag connection, in a fixed order: ground truth, then sensors in config order."""
+    groups: list[list[int]]
+    """Sensor indices per worker process (empty: every sensor runs in this process)."""
+
+
+def preflight(config: SimConfig, traj: Trajectory) -> None:
+    """Every check that needs no rendering and no scene loaded, run before any work
+    (before the scene loads, worker processes start or anything is written); each
+    failure names the key or sensor concerned. Add further cheap checks here."""
+    del traj  # kept in the signature for checks on the path
+    for i, sc in enumerate(config.sensors):
+        if config.scene is None and sc.needs_scene:
+            msg = (
+                f"sensors[{i}] ({sc.name!r}, type {sc.type}) needs a scene but the config "
+                "has none; add e.g. 'scene: warehouse' (built-ins: warehouse, refinery, "
+                "empty) or a scene YAML path"
+            )
+            raise ConfigError(msg)
+
+
+def _formats(config: SimConfig, formats: Sequence[str] | None) -> tuple[str, ...]:
+    fmts = tuple(formats) if formats is not None else tuple(config.output.formats)
+    for f in fmts:
+        if f not in BAG_FORMATS:
+            msg = f"bag format {f!r}: allowed 'ros1', 'ros2'"
+            raise ConfigError(msg)
+    return tuple(dict.fromkeys(fmts))
+
+
+def _sensors(config: SimConfig) -> list[Sensor]:
+    sensors: list[Sensor] = []
+    for i, sc in enumerate(config.sensors):
+        try:
+            sensors.append(sensor_class(sc.type)(sc))
+        except ValueError as err:
+            msg = f"sensors[{i}] ({sc.name}): {err}"
+            raise SensorError(msg) from err
+    return sensors
+
+
+def _topics(gt: GroundTruth, sensors: Sequence[Sensor]) -> tuple[dict[str, str], list[BagTopic]]:
+    owners: dict[str, str] = {t.topic: "ground_truth" for t in gt.topics()}
+    bag_topics = [BagTopic(t.topic, t.msgtype, t.topic in gt.LATCHED) for t in gt.topics()]
+    for s in sensors:
+        for t in s.topics():
+            if t.topic in owners:
+                msg = (
+                    f"sensors: topic {t.topic!r} of sensor {s.config.name!r} "
+                    "is already published by "
+                    f"{owners[t.topic]!r}; every topic must be unique"
+                )
+                raise ConfigError(msg)
+            owners[t.topic] = s.config.name
+            bag_topics.append(BagTopic(t.topic, t.msgtype))
+    return owners, bag_topics
+
+
+def make_plan(
+    config: SimConfig,
+    outdir: Path,
+    *,
+    overwrite: bool = False,
+    formats: Sequence[str] | None = None,
+    config_path: Path | None = None,
+    workers: int | str | None = None,
+) -> RunPlan:
+    """Validate ``config`` for a run into ``outdir`` (see the module docstring)."""
+    fmts = _formats(config, formats)
+    base_dir = config_path.parent.resolve() if config_path is not None else None
+    check_outdir(outdir, overwrite)
+    traj = make_trajectory(config.trajectory, base_dir=base_dir)
+    source = str(config_path) if config_path is not None else "<config>"
+    check_limits(config, traj.duration, fmts, source)
+    preflight(config, traj)
+    check_free_space(outdir, estimate_run(config, fmts).bytes, "this run")
+    sensors = _sensors(config)
+    check_namespace(sensors, source)
+    gt = GroundTruth(config.output.ground_truth_rate, static_transforms(sensors))
+    owners, bag_topics = _topics(gt, sensors)
+    n_workers = resolve_workers(
+        config.output.workers if workers is None else workers, config.sensors
+    )
+    # (children need an interpreter to start and a POSIX fd to talk through)
+    posix = bool(sys.executable) and os.name == "posix"
+    groups = plan_workers(config.sensors, n_workers) if posix else []
+    return RunPlan(
+        config=config,
+        outdir=outdir,
+        config_path=config_path,
+        base_dir=base_dir,
+        source=source,
+        formats=fmts,
+        traj=traj,
+        sensors=sensors,
+        ground_truth=gt,
+        owners=owners,
+        bag_topics=bag_topics,
+        groups=groups,
+    )
