@@ -37,8 +37,7 @@ import numpy as np
 from roslan.io.messages import Flavor, MessageStore
 from roslan.render.gl import create_context, get_renderer, projection_from_K
 from roslan.scene import load_scene
-from roslan.sensors.camera import Camera, CameraConfig
-from roslan.sensors.camera_model import T_LINK_OPTICAL
+from roslan.sensors.cameras import T_LINK_OPTICAL, Camera, CameraConfig
 
 
 class _Bare:

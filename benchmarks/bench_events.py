@@ -41,7 +41,7 @@ from roslan.events.sampling import AdaptiveSampler
 from roslan.io.messages import Flavor
 from roslan.pipeline.context import Context
 from roslan.scene import load_scene
-from roslan.sensors.event_camera import EventCamera, EventCameraConfig
+from roslan.sensors.cameras import EventCamera, EventCameraConfig
 from roslan.trajectory import Trajectory, TrajectoryConfig
 
 

@@ -28,8 +28,7 @@ from roslan.config.base import Pose, validate_model
 from roslan.io.messages import Flavor, MessageStore
 from roslan.render.raycast import get_raycaster
 from roslan.scene import load_scene
-from roslan.sensors.beams import measure, pointcloud2, rays_in_world
-from roslan.sensors.lidar import Lidar, LidarConfig
+from roslan.sensors.beams import Lidar, LidarConfig, measure, pointcloud2, rays_in_world
 from roslan.trajectory import Trajectory, TrajectoryConfig
 
 

@@ -20,7 +20,7 @@ from roslan.events import EventGenerator
 from roslan.events.sampling import AdaptiveSampler
 from roslan.pipeline.context import Context
 from roslan.scene import load_scene
-from roslan.sensors.event_camera import EventCamera, EventCameraConfig
+from roslan.sensors.cameras import EventCamera, EventCameraConfig
 from roslan.trajectory import Trajectory, TrajectoryConfig
 
 

@@ -125,6 +125,7 @@ class FakeContext:
         self.start_time_ns = START_NS
         self.seed = seed
         self.sensors: list[Any] = []
+        self.root_camera: str | None = None
         self.outdir = outdir
 
     def stamp(self, t_ns: int) -> int:

@@ -12,9 +12,14 @@ import pytest
 from range_helpers import FakeContext, LinearTrajectory, plane, run_sensor, scene
 from roslan.config.base import validate_model
 from roslan.io.messages import Flavor, MessageStore
-from roslan.sensors.laser import Laser, LaserConfig
-from roslan.sensors.lidar import Lidar, LidarConfig
-from roslan.sensors.solid_state_lidar import SolidStateLidar, SolidStateLidarConfig
+from roslan.sensors.beams import (
+    Laser,
+    LaserConfig,
+    Lidar,
+    LidarConfig,
+    SolidStateLidar,
+    SolidStateLidarConfig,
+)
 
 DURATION = 0.33  # s: not a multiple of any scan period below
 

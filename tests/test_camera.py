@@ -20,18 +20,20 @@ from roslan.config.sim import SimConfig
 from roslan.errors import ConfigError, SensorError
 from roslan.pipeline import run_simulation
 from roslan.sensors.base import sample_times_ns
-from roslan.sensors.camera import (
+from roslan.sensors.cameras import (
+    T_LINK_OPTICAL,
     Camera,
     CameraConfig,
+    CameraModel,
     DepthCamera,
     DepthCameraConfig,
     StereoCamera,
     StereoCameraConfig,
     encode_image,
     encode_linear,
+    load_calibration,
     srgb_lut,
 )
-from roslan.sensors.camera_model import T_LINK_OPTICAL, CameraModel, load_calibration
 from roslan.trajectory import Trajectory, TrajectoryConfig
 
 CAM = {"rate": 10.0, "resolution": [64, 48], "fx": 40.0, "pose": {"rpy": [0.0, 0.5, 0.0]}}

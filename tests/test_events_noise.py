@@ -115,7 +115,7 @@ def test_leak_phase_rejects_unknown() -> None:
 def test_config_leak_phase_key() -> None:
     from pydantic import ValidationError
 
-    from roslan.sensors.event_camera import EventCameraConfig
+    from roslan.sensors.cameras import EventCameraConfig
 
     base = {"type": "event_camera", "name": "dvs", "rate": 25.0, "topic": "/dvs"}
     assert EventCameraConfig.model_validate(base).model_params().leak_phase == "steady"

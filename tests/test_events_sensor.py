@@ -268,7 +268,8 @@ def _scene() -> Scene:
 
 def _run(tmp: Path, seed: int, **over: Any) -> tuple[Any, list[Any]]:
     from roslan.pipeline.context import Context
-    from roslan.sensors.event_camera import EventCamera, EventCameraConfig
+    from roslan.rundir.calibration import write_calibration
+    from roslan.sensors.cameras import EventCamera, EventCameraConfig
 
     traj = Trajectory(
         TrajectoryConfig(
@@ -295,6 +296,7 @@ def _run(tmp: Path, seed: int, **over: Any) -> tuple[Any, list[Any]]:
     sensor = EventCamera(cfg)
     msgs = list(sensor.messages(ctx))
     sensor.close(ctx)
+    write_calibration(tmp, ctx.sensors)  # once per run, as the pipeline does
     return sensor, msgs
 
 
@@ -465,7 +467,7 @@ def h5py_file(path: Path) -> Any:
 
 
 def test_distorted_camera_flow_matches_projection() -> None:
-    from roslan.sensors.event_camera import EventCamera, EventCameraConfig
+    from roslan.sensors.cameras import EventCamera, EventCameraConfig
 
     cfg = EventCameraConfig.model_validate(
         {

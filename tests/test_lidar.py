@@ -12,7 +12,7 @@ from range_helpers import FakeContext, LinearTrajectory, plane, run_sensor, scen
 from roslan.config.base import validate_model
 from roslan.errors import ConfigError
 from roslan.io.messages import Flavor, MessageStore
-from roslan.sensors.lidar import Lidar, LidarConfig
+from roslan.sensors.beams import Lidar, LidarConfig
 
 # Velodyne HDL-32E manual: laser ids 0..31 (firing order) -> elevation, deg
 DATASHEET = [-30.67, -9.33, -29.33, -8.00, -28.00, -6.67, -26.67, -5.33, -25.33, -4.00,

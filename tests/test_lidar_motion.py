@@ -12,8 +12,7 @@ from hypothesis import strategies as st
 
 from range_helpers import FakeContext, LinearTrajectory, run_sensor, scene, vertical_wall_x
 from roslan.config.base import Pose, validate_model
-from roslan.sensors.beams import rays_in_world
-from roslan.sensors.lidar import Lidar, LidarConfig
+from roslan.sensors.beams import Lidar, LidarConfig, rays_in_world
 from roslan.trajectory import Trajectory, TrajectoryConfig
 
 WALL_X = 12.0
@@ -148,7 +147,8 @@ def test_rotation_helpers_match_scipy(
 ) -> None:
     from scipy.spatial.transform import Rotation
 
-    from roslan.sensors.beams import _rotate, rotvec_log
+    from roslan.sensors.beams.rays import _rotate
+    from roslan.trajectory.frames import rotation_log as rotvec_log
 
     r = np.array([rv]) * scale
     vec = np.array([v])

@@ -11,7 +11,7 @@ import pytest
 from range_helpers import FakeContext, LinearTrajectory, run_sensor, scene, vertical_wall_x
 from roslan.config.base import validate_model
 from roslan.errors import ConfigError
-from roslan.sensors.solid_state_lidar import SolidStateLidar, SolidStateLidarConfig
+from roslan.sensors.beams import SolidStateLidar, SolidStateLidarConfig
 
 WALL_X = 6.0
 

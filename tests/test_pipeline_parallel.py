@@ -26,7 +26,7 @@ from roslan.pipeline import run_simulation
 from roslan.pipeline import worker as worker_mod
 from roslan.pipeline.worker import ByteQueue, WorkerError, plan_workers, resolve_workers
 from roslan.sensors.base import Message
-from roslan.sensors.camera import Camera
+from roslan.sensors.cameras import Camera
 from roslan.sensors.registry import sensor_class
 
 HERE = Path(__file__).parent
@@ -239,7 +239,7 @@ def test_failed_run_stops_the_event_cameras_file_thread(
     # temporary OUTDIR is removed
     import threading
 
-    from roslan.sensors.event_camera import EventCamera
+    from roslan.sensors.cameras import EventCamera
 
     real_write = EventCamera._write_events
 

@@ -12,8 +12,7 @@ from range_helpers import FakeContext, LinearTrajectory, box, plane, run_sensor,
 from roslan.config.base import validate_model
 from roslan.errors import ConfigError
 from roslan.io.messages import Flavor, MessageStore
-from roslan.sensors.laser import Laser, LaserConfig
-from roslan.sensors.range import Altimeter, AltimeterConfig, Sonar, SonarConfig
+from roslan.sensors.beams import Altimeter, AltimeterConfig, Laser, LaserConfig, Sonar, SonarConfig
 
 
 def _sonar(**kw: object) -> Sonar:

@@ -19,7 +19,7 @@ from camera_helpers import (
 )
 from roslan.errors import RenderError
 from roslan.scene.model import Lights, Material, Scene, SceneObject
-from roslan.sensors.camera_model import CameraModel
+from roslan.sensors.cameras import CameraModel
 
 
 @pytest.fixture(scope="module")

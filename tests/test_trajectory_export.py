@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import roslan.cli
+import roslan.cli.app
 import roslan.cli.plot
 from roslan.errors import OutputError
 from roslan.io.files import atomic_write
@@ -39,7 +39,9 @@ trajectory:
 @pytest.fixture(autouse=True)
 def _only_our_commands(monkeypatch: pytest.MonkeyPatch) -> None:
     # other command modules are not under test here
-    monkeypatch.setattr(roslan.cli, "COMMAND_MODULES", ("roslan.cli.trajectory", "roslan.cli.plot"))
+    monkeypatch.setattr(
+        roslan.cli.app, "COMMAND_MODULES", ("roslan.cli.trajectory", "roslan.cli.plot")
+    )
 
 
 def run_cli(*argv: str) -> int:

@@ -11,6 +11,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from roslan.errors import ConfigError
+from roslan.rundir.calibration import root_camera
 from roslan.sensors.base import SensorConfig
 
 if TYPE_CHECKING:
@@ -57,6 +58,7 @@ class Context:
         self.seed = int(seed)
         self.start_time_ns = int(start_time_ns)
         self.sensors: Sequence[SensorConfig] = tuple(sensors)
+        self.root_camera = root_camera(self.sensors)
         self.scene_spec = scene_spec
         self.base_dir = base_dir
         self._scene = scene

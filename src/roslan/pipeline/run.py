@@ -46,6 +46,7 @@ from roslan.pipeline.merge import CheckedStream, MergeItem, pump, tagged
 from roslan.pipeline.plan import RunPlan, make_plan
 from roslan.pipeline.report import BackgroundPlot, Progress, playback_text, print_profile
 from roslan.pipeline.worker import WorkerJob, WorkerPool, worker_nice
+from roslan.rundir.calibration import root_camera, write_calibration
 from roslan.rundir.extrinsics import write_extrinsics
 from roslan.rundir.folder import clean_stale, finalize, make_temp, outdir_lock
 from roslan.rundir.manifest import (
@@ -57,6 +58,7 @@ from roslan.rundir.manifest import (
     make_manifest,
     write_json,
 )
+from roslan.rundir.readme import outdir_readme
 from roslan.trajectory.generator import Trajectory
 from roslan.vehicle import base_link_trajectory
 
@@ -340,6 +342,7 @@ class _Run:
 
     def _write_run_files(self, counts: dict[str, int]) -> RunManifest:
         plan, tmp = self.plan, self.tmp
+        write_calibration(tmp, self.config.sensors)
         write_extrinsics(tmp, plan.sensors, plan.ground_truth.static)
         topics: dict[str, TopicEntry] = {
             t.topic: {
@@ -372,10 +375,7 @@ class _Run:
         (tmp / "PLAYBACK.md").write_text(
             playback_text(self.traj.duration, wall, plan.formats, counts), encoding="utf-8"
         )
-        from roslan.rundir.readme import outdir_readme
-        from roslan.sensors.camera_model import ecd_root_camera
-
-        readme = outdir_readme(tmp, ecd_root_camera(self.config.sensors))
+        readme = outdir_readme(tmp, root_camera(self.config.sensors))
         (tmp / "README.md").write_text(readme, encoding="utf-8")
         write_json(tmp / RUN_FILE, manifest)  # last: its presence marks a complete folder
         return manifest

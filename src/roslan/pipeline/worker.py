@@ -57,6 +57,7 @@ from typing import TYPE_CHECKING, Any
 from roslan.errors import ConfigError, RoslanError
 from roslan.pipeline.merge import MERGE_KEY, CheckedStream, MergeItem, tagged
 from roslan.sensors.base import Message, SensorConfig
+from roslan.sensors.registry import render_cost
 
 if TYPE_CHECKING:
     from roslan.io.messages import MessageStore
@@ -64,7 +65,6 @@ if TYPE_CHECKING:
     from roslan.trajectory.config import TrajectoryConfig
 
 __all__ = [
-    "HEAVY_TYPES",
     "QUEUE_BYTES",
     "ByteQueue",
     "WorkerError",
@@ -74,17 +74,6 @@ __all__ = [
     "resolve_workers",
     "worker_nice",
 ]
-
-HEAVY_TYPES: dict[str, float] = {
-    # sensor type -> rough relative cost (only used to balance sensors over workers)
-    "event_camera": 4.0,
-    "stereo_camera": 3.0,
-    "camera": 2.0,
-    "depth_camera": 2.0,
-    "lidar": 1.0,
-    "solid_state_lidar": 1.0,
-}
-"""Sensor types that run in worker processes when workers are enabled (OpenGL / Embree)."""
 
 QUEUE_BYTES = 64 << 20
 """Most message bytes a worker holds ready ahead of the writer (plus one message)."""
@@ -133,7 +122,7 @@ def resolve_workers(workers: int | str, sensors: Sequence[SensorConfig]) -> int:
     most N (never more than there are render-heavy sensors). ``0``: everything in this
     process.
     """
-    heavy = sum(1 for s in sensors if s.type in HEAVY_TYPES)
+    heavy = sum(1 for s in sensors if render_cost(s.type) > 0)
     if workers == "auto":
         cpus = usable_cpus()
         if cpus < 2 or multiprocessing.parent_process() is not None:
@@ -148,23 +137,23 @@ def resolve_workers(workers: int | str, sensors: Sequence[SensorConfig]) -> int:
 def plan_workers(sensors: Sequence[SensorConfig], n_workers: int) -> list[list[int]]:
     """Split the render-heavy sensors (indices into ``sensors``) over ``n_workers``
     processes: costliest first onto the least loaded worker; each group sorted."""
-    heavy = [i for i, s in enumerate(sensors) if s.type in HEAVY_TYPES]
+    heavy = [i for i, s in enumerate(sensors) if render_cost(s.type) > 0]
     n = min(n_workers, len(heavy))
     if n <= 0:
         return []
     load = [0.0] * n
     groups: list[list[int]] = [[] for _ in range(n)]
-    for i in sorted(heavy, key=lambda i: (-HEAVY_TYPES[sensors[i].type], i)):
+    for i in sorted(heavy, key=lambda i: (-render_cost(sensors[i].type), i)):
         k = min(range(n), key=lambda k: (load[k], k))
         groups[k].append(i)
-        load[k] += HEAVY_TYPES[sensors[i].type]
+        load[k] += render_cost(sensors[i].type)
     return sorted(sorted(g) for g in groups)
 
 
 def worker_nice(groups: Sequence[Sequence[int]], sensors: Sequence[SensorConfig]) -> list[int]:
     """``nice`` increment of each group of :func:`plan_workers`: 0 for the costliest group
     (the first of equals), :data:`LIGHT_NICE` for the others."""
-    loads = [sum(HEAVY_TYPES[sensors[i].type] for i in g) for g in groups]
+    loads = [sum(render_cost(sensors[i].type) for i in g) for g in groups]
     if not loads:
         return []
     top = loads.index(max(loads))

@@ -22,6 +22,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from roslan.errors import PlotError
+from roslan.rundir.calibration import root_camera_name
 
 __all__ = [
     "ImageSequence",
@@ -303,12 +304,8 @@ def _read_listing(listing: Path, outdir: Path) -> ImageSequence:
 def _root_camera_name(outdir: Path) -> str | None:
     """The camera whose images.txt is at the OUTDIR root (run.json's first event camera,
     else its first camera; a stereo camera's left eye)."""
-    for types in (("event_camera",), ("camera", "stereo_camera")):
-        cfgs = sensor_configs(outdir, types)
-        if cfgs:
-            name = str(cfgs[0].get("name"))
-            return f"{name}_left" if cfgs[0].get("type") == "stereo_camera" else name
-    return None
+    cfgs = sensor_configs(outdir, ("event_camera", "camera", "stereo_camera"))
+    return root_camera_name((str(c.get("type")), str(c.get("name"))) for c in cfgs)
 
 
 def find_images(outdir: Path, prefer: Sequence[str] = ()) -> list[ImageSequence]:

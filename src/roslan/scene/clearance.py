@@ -64,7 +64,7 @@ def vehicle_points(vehicle: Any = None, sensors: Sequence[Any] = ()) -> VehicleP
         sensors: sensor configs: each one's ``pose`` origin, and for rendering sensors
             (camera-like configs) the near-plane corners and centre of every eye.
     """
-    from roslan.sensors.camera_model import CameraIntrinsics
+    from roslan.sensors.cameras.config import CameraIntrinsics
     from roslan.vehicle import VehicleConfig, body_points
 
     v = vehicle if vehicle is not None else VehicleConfig()

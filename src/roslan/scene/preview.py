@@ -96,7 +96,7 @@ def render_views(
         RenderError: no OpenGL (EGL) is available.
     """
     from roslan.render.gl import get_renderer
-    from roslan.sensors.camera import encode_linear, srgb_lut
+    from roslan.sensors.cameras.encoding import encode_linear, srgb_lut
 
     r = get_renderer(scene)
     f = 0.5 * width / math.tan(math.radians(PREVIEW_FOV_DEG) / 2)

@@ -8,7 +8,8 @@ stamp and writes them to the bags; sensors write their own dataset files
 (``imu.txt``, ``events.txt``...) through ``ctx.path(...)`` while they stream.
 
 Adding a sensor = one new module (a config model with ``type: Literal[...]`` and a
-class satisfying :class:`Sensor`) + one line in :mod:`roslan.sensors.registry`.
+class satisfying :class:`Sensor`) + one :class:`~roslan.sensors.registry.SensorSpec` line in
+:mod:`roslan.sensors.registry`.
 """
 
 from __future__ import annotations
@@ -151,6 +152,10 @@ class SimContext(Protocol):
     start_time_ns: int
     seed: int
     sensors: Sequence[SensorConfig]
+    root_camera: str | None
+    """The camera whose dataset files go to the OUTDIR root (Event Camera Dataset layout;
+    :func:`roslan.rundir.calibration.root_camera`); every other camera writes into
+    ``<camera>/``."""
 
     def stamp(self, t_ns: int) -> int:
         """Absolute header stamp (ns) of trajectory time ``t_ns``."""
@@ -192,7 +197,7 @@ class Sensor(Protocol):
     def messages(self, ctx: SimContext) -> Iterator[Message]: ...
 
     def close(self, ctx: SimContext) -> None:
-        """Finish dataset files (flush, write calibration). Called after the stream ends."""
+        """Finish dataset files (flush, close). Called after the stream ends."""
         ...
 
 

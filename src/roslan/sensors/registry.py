@@ -1,40 +1,131 @@
-"""Sensor types by name. Adding a sensor = one line here + its module.
+"""Sensor types by name. Adding a sensor = its module + one :class:`SensorSpec` line here.
 
-Each entry maps the config ``type`` to ``(module, config class, sensor class)``;
-modules are imported on first use so heavy back-ends (OpenGL, Embree) load only
-when a config uses them. Config modules themselves must stay light to import.
+Each spec names the config ``type``, the module holding its config and sensor classes,
+its render cost and the files it writes. Modules are imported on first use so heavy
+back-ends (OpenGL, Embree) load only when a config uses them.
 """
 
 from __future__ import annotations
 
+import builtins
 import importlib
+from dataclasses import dataclass
 from functools import cache
 from typing import Any
 
 from roslan.sensors.base import SensorConfig
 
-__all__ = ["SENSOR_TYPES", "config_class", "sensor_class"]
+__all__ = [
+    "SENSOR_TYPES",
+    "SensorSpec",
+    "config_class",
+    "render_cost",
+    "sensor_class",
+    "sensor_spec",
+]
 
-SENSOR_TYPES: dict[str, tuple[str, str, str]] = {
-    # type: (module, config class, sensor class)
-    "lidar": ("roslan.sensors.lidar", "LidarConfig", "Lidar"),
-    "solid_state_lidar": (
-        "roslan.sensors.solid_state_lidar",
+
+@dataclass(frozen=True)
+class SensorSpec:
+    """One sensor type.
+
+    Attributes:
+        type: the config's ``type`` key.
+        module: dotted module holding the config and sensor classes.
+        config: name of the config class (a :class:`SensorConfig`) in ``module``.
+        sensor: name of the sensor class in ``module``.
+        render_cost: rough relative cost of rendering / ray casting it, used to balance
+            sensors over worker processes; 0: it does not render (runs in the main process).
+        outputs: the dataset files it writes into OUTDIR.
+    """
+
+    type: str
+    module: str
+    config: str
+    sensor: str
+    render_cost: float
+    outputs: str
+
+    def config_class(self) -> builtins.type[SensorConfig]:
+        module = importlib.import_module(self.module)
+        cls: builtins.type[SensorConfig] = getattr(module, self.config)
+        return cls
+
+    def sensor_class(self) -> Any:
+        return getattr(importlib.import_module(self.module), self.sensor)
+
+
+_B = "roslan.sensors.beams"
+_C = "roslan.sensors.cameras"
+_SPECS = (
+    SensorSpec(
+        "lidar",
+        f"{_B}.lidar",
+        "LidarConfig",
+        "Lidar",
+        1.0,
+        "lidar/<name>/NNNNNN.npz, lidar/<name>/timestamps.txt",
+    ),
+    SensorSpec(
+        "solid_state_lidar",
+        f"{_B}.solid_state",
         "SolidStateLidarConfig",
         "SolidStateLidar",
+        1.0,
+        "lidar/<name>/NNNNNN.npz, lidar/<name>/timestamps.txt",
     ),
-    "laser": ("roslan.sensors.laser", "LaserConfig", "Laser"),
-    "sonar": ("roslan.sensors.range", "SonarConfig", "Sonar"),
-    "altimeter": ("roslan.sensors.range", "AltimeterConfig", "Altimeter"),
-    "imu": ("roslan.sensors.imu", "ImuConfig", "Imu"),
-    "camera": ("roslan.sensors.camera", "CameraConfig", "Camera"),
-    "depth_camera": ("roslan.sensors.camera", "DepthCameraConfig", "DepthCamera"),
-    "stereo_camera": ("roslan.sensors.camera", "StereoCameraConfig", "StereoCamera"),
-    "event_camera": ("roslan.sensors.event_camera", "EventCameraConfig", "EventCamera"),
-}
+    SensorSpec("laser", f"{_B}.laser", "LaserConfig", "Laser", 0.0, "laser_<name>.txt"),
+    SensorSpec("sonar", f"{_B}.range", "SonarConfig", "Sonar", 0.0, "range_<name>.txt"),
+    SensorSpec("altimeter", f"{_B}.range", "AltimeterConfig", "Altimeter", 0.0, "range_<name>.txt"),
+    SensorSpec(
+        "imu",
+        "roslan.sensors.imu",
+        "ImuConfig",
+        "Imu",
+        0.0,
+        "imu.txt + calib/imu.yaml (later IMUs: imu_<name>.txt, calib/imu_<name>.yaml)",
+    ),
+    SensorSpec(
+        "camera",
+        f"{_C}.frame",
+        "CameraConfig",
+        "Camera",
+        2.0,
+        "images.txt + images/ (or <name>/...), calib.txt, calib/<name>.yaml",
+    ),
+    SensorSpec(
+        "depth_camera",
+        f"{_C}.depth",
+        "DepthCameraConfig",
+        "DepthCamera",
+        2.0,
+        "depth/<name>/NNNNNNNN.png, depth_<name>.txt, calib/<name>.yaml",
+    ),
+    SensorSpec(
+        "stereo_camera",
+        f"{_C}.frame",
+        "StereoCameraConfig",
+        "StereoCamera",
+        3.0,
+        "per eye: images.txt + images/ (or <name>_left/..., <name>_right/...), calib.txt, "
+        "calib/<name>_left.yaml, calib/<name>_right.yaml",
+    ),
+    SensorSpec(
+        "event_camera",
+        f"{_C}.event",
+        "EventCameraConfig",
+        "EventCamera",
+        4.0,
+        "events.txt, events.h5, images/ (or <name>/...), calib.txt, calib/<name>.yaml",
+    ),
+)
+
+SENSOR_TYPES: dict[str, SensorSpec] = {s.type: s for s in _SPECS}
+"""Every sensor type: config ``type`` -> :class:`SensorSpec`."""
 
 
-def _entry(type_name: str) -> tuple[str, str, str]:
+def sensor_spec(type_name: str) -> SensorSpec:
+    """The spec of ``type_name``; ValueError (with the allowed types) if unknown."""
     try:
         return SENSOR_TYPES[type_name]
     except KeyError:
@@ -49,12 +140,16 @@ def _entry(type_name: str) -> tuple[str, str, str]:
 
 @cache
 def config_class(type_name: str) -> type[SensorConfig]:
-    module, cfg, _ = _entry(type_name)
-    cls: type[SensorConfig] = getattr(importlib.import_module(module), cfg)
-    return cls
+    return sensor_spec(type_name).config_class()
 
 
 @cache
 def sensor_class(type_name: str) -> Any:
-    module, _, sensor = _entry(type_name)
-    return getattr(importlib.import_module(module), sensor)
+    return sensor_spec(type_name).sensor_class()
+
+
+def render_cost(type_name: str) -> float:
+    """Relative render cost of a sensor type (0: it does not render, or an unknown type);
+    sensors of cost > 0 run in worker processes when workers are enabled."""
+    spec = SENSOR_TYPES.get(type_name)
+    return spec.render_cost if spec is not None else 0.0

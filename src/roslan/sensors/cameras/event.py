@@ -14,8 +14,9 @@ from depth + camera twist), feeds the frames to the vectorized pixel model
   (32FC1, m) at ``ground_truth_rate`` when enabled;
 * dataset files (Event Camera Dataset layout): the first event camera's at the OUTDIR
   root, every other one's in ``<name>/``: ``events.txt``, ``events.h5``, APS frames in
-  ``images.txt`` + ``images/NNNNNNNN.png``, ``calib.txt``; plus ``calib/<name>.yaml``
-  (camera_info) and, from the first camera-like sensor, ``calib/camchain.yaml``.
+  ``images.txt`` + ``images/NNNNNNNN.png``; the run writes its ``calib.txt``,
+  ``calib/<name>.yaml`` and ``calib/camchain.yaml``
+  (:func:`roslan.rundir.calibration.write_calibration`).
 
 Headers are in ``<frame>_optical`` (z forward, x right, y down).
 """
@@ -47,6 +48,7 @@ from roslan.io.background import BackgroundSink
 from roslan.io.images import write_png
 from roslan.io.messages import MessageStore
 from roslan.limits import MAX_RATE_HZ
+from roslan.rundir.calibration import camera_folder
 from roslan.sensors.base import (
     Message,
     SensorConfig,
@@ -55,14 +57,9 @@ from roslan.sensors.base import (
     TopicSpec,
     sample_times_ns,
 )
-from roslan.sensors.camera_model import (
-    CameraIntrinsics,
-    CameraModel,
-    RenderPlan,
-    ecd_folder,
-    write_calibration_files,
-)
-from roslan.trajectory.frames import OPTICAL_FROM_BODY
+from roslan.sensors.cameras.config import CameraIntrinsics, intrinsics_model
+from roslan.sensors.cameras.encoding import srgb_curve
+from roslan.sensors.cameras.model import T_LINK_OPTICAL, CameraModel, RenderPlan
 
 __all__ = ["SENSOR_PRESETS", "EventCamera", "EventCameraConfig", "SensorPreset"]
 
@@ -181,7 +178,7 @@ class EventCameraConfig(SensorConfig, CameraIntrinsics):
         if self.fx is None and self.fy is None:
             update["fx"] = update["fy"] = sp.focal_px * w / sp.width
         filled = self.model_copy(update=update)
-        return CameraModel.from_config(filled, name=self.name, source=f"sensor {self.name!r}")
+        return intrinsics_model(filled, name=self.name, source=f"sensor {self.name!r}")
 
     @property
     def has_aps(self) -> bool:
@@ -206,9 +203,9 @@ class EventCameraConfig(SensorConfig, CameraIntrinsics):
 
 
 def _srgb8(lin: NDArray[np.floating]) -> NDArray[np.uint8]:
-    x = np.clip(np.asarray(lin, dtype=np.float32), 0.0, 1.0)
-    s = np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1 / 2.4) - 0.055)
-    return np.rint(s * 255.0).astype(np.uint8)
+    s = srgb_curve(np.clip(np.asarray(lin, dtype=np.float32), 0.0, 1.0))
+    out: NDArray[np.uint8] = np.rint(s * 255.0).astype(np.uint8)
+    return out
 
 
 class _Camera:
@@ -311,22 +308,16 @@ class EventCamera:
         return out
 
     def static_transforms(self) -> list[StaticTransform]:
-        T = np.eye(4)
-        T[:3, :3] = OPTICAL_FROM_BODY.T
-        return [StaticTransform(self.config.frame, self.optical_frame, T)]
+        return [StaticTransform(self.config.frame, self.optical_frame, T_LINK_OPTICAL.copy())]
 
     @property
     def T_body_cam(self) -> F64:
         """(4, 4) pose of the optical frame in base_link."""
-        T = self.config.pose.matrix()
-        R = np.eye(4)
-        R[:3, :3] = OPTICAL_FROM_BODY.T
-        out: F64 = T @ R
-        return out
+        return self.config.base_T_optical()
 
     def _prefix(self, ctx: SimContext) -> str:
         """'' for the OUTDIR-root camera (the first event camera), else '<name>/'."""
-        return ecd_folder(ctx.sensors, self.config.name)
+        return camera_folder(ctx.root_camera, self.config.name)
 
     # -------------------------------------------------------------- rendering
     def render(
@@ -504,7 +495,6 @@ class EventCamera:
         self._images_fh.write(f"{s}.{ns:09d} {rel}\n")
 
     def close(self, ctx: SimContext) -> None:
-        write_calibration_files(ctx, self.config)
         if self._sink is not None:
             sink, self._sink = self._sink, None
             sink.close()  # the last writes, and any error of one

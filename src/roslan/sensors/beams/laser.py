@@ -39,7 +39,8 @@ from roslan.sensors.base import (
     TopicSpec,
     sample_times_ns,
 )
-from roslan.sensors.beams import measure, rays_in_world
+from roslan.sensors.beams.base import measure
+from roslan.sensors.beams.rays import rays_in_world
 
 __all__ = ["Laser", "LaserConfig"]
 

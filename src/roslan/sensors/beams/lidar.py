@@ -8,7 +8,7 @@ does), at ``rate`` turns per second, pointing along +x at ``t0``: the beam's azi
 is ``-2 pi rate (c P + l dt)`` - each laser at the azimuth of its own instant.
 
 Every beam leaves from the sensor pose at its own firing instant along the
-closed-form trajectory (see :mod:`roslan.sensors.beams`), so the cloud carries
+closed-form trajectory (see :mod:`roslan.sensors.beams.rays`), so the cloud carries
 the motion distortion a real spinning LiDAR has.
 
 Output convention (velodyne_pointcloud XYZIRT): one sensor_msgs/PointCloud2 per
@@ -37,7 +37,9 @@ from roslan.sensors.base import (
     SensorConfig,
     TopicName,
 )
-from roslan.sensors.beams import XYZIRT, PointCloudSensor, measure, rays_in_world
+from roslan.sensors.beams.base import PointCloudSensor, measure
+from roslan.sensors.beams.pointcloud import XYZIRT
+from roslan.sensors.beams.rays import rays_in_world
 
 __all__ = [
     "HDL32E_ELEVATIONS_DEG",

@@ -20,7 +20,7 @@ counts all lines. Each beam leaves from the sensor pose at its own instant, as f
 spinning LiDAR (:mod:`roslan.sensors.beams`).
 
 Output: one sensor_msgs/PointCloud2 per frame (``rate`` Hz) with the same XYZIRT
-layout as :mod:`roslan.sensors.lidar` (``ring`` = line, ``time`` = s after the stamp,
+layout as :mod:`roslan.sensors.beams.lidar` (``ring`` = line, ``time`` = s after the stamp,
 in [0, 1/rate)), points in the sensor frame at their own instants; dataset files
 ``lidar/<name>/NNNNNN.npz``.
 """
@@ -40,7 +40,9 @@ from roslan.sensors.base import (
     SensorConfig,
     TopicName,
 )
-from roslan.sensors.beams import XYZIRT, PointCloudSensor, measure, rays_in_world
+from roslan.sensors.beams.base import PointCloudSensor, measure
+from roslan.sensors.beams.pointcloud import XYZIRT
+from roslan.sensors.beams.rays import rays_in_world
 
 __all__ = ["SOLID_STATE_PRESETS", "SolidStateLidar", "SolidStateLidarConfig", "SolidStatePreset"]
 

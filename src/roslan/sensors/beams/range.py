@@ -40,7 +40,7 @@ from roslan.sensors.base import (
     TopicSpec,
     sample_times_ns,
 )
-from roslan.sensors.beams import rays_in_world
+from roslan.sensors.beams.rays import rays_in_world
 
 __all__ = [
     "Altimeter",

@@ -1,4 +1,4 @@
-"""Camera intrinsics, lens distortion and calibration files.
+"""Camera intrinsics and lens distortion.
 
 :class:`CameraModel` is the pinhole ``K`` plus a distortion model in OpenCV's
 conventions (pixel centres at integer coordinates):
@@ -13,44 +13,32 @@ model for every output pixel (Newton iterations to 1e-12, verified by projecting
 back with OpenCV), sizes a larger virtual pinhole image that contains every
 undistorted ray (plus interpolation margin) and precomputes ``cv2.remap`` maps,
 once per camera.
-
-Calibration files read and written: ROS ``camera_info`` YAML
-(camera_calibration_parsers keys) and Kalibr camchain YAML (``camN`` entries).
-:class:`CameraIntrinsics` is the config mixin every camera-like sensor (frame,
-depth, stereo, event camera) inherits for its intrinsics keys.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
 from dataclasses import dataclass, field
-from pathlib import Path
-from typing import TYPE_CHECKING, Annotated, Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
-from pydantic import Field, ValidationInfo, field_validator, model_validator
 
-from roslan.config.base import FiniteFloat, StrictModel, load_yaml
-from roslan.errors import ConfigError, SensorError
+from roslan.errors import SensorError
 from roslan.trajectory.frames import OPTICAL_FROM_BODY
 
 if TYPE_CHECKING:
     from roslan.io.messages import MessageStore
-    from roslan.sensors.base import SensorConfig, SimContext
 
 __all__ = [
+    "DEFAULT_HFOV_DEG",
+    "DEFAULT_RESOLUTION",
     "DISTORTION_MODELS",
     "RENDER_PIXELS_PER_OUTPUT",
     "T_LINK_OPTICAL",
-    "CalibCamera",
-    "CameraIntrinsics",
     "CameraModel",
     "RenderPlan",
     "auto_render_scale",
-    "load_calibration",
-    "write_calibration_files",
 ]
 
 F32 = NDArray[np.float32]
@@ -246,39 +234,6 @@ class CameraModel:
             D = np.append(D, 0.0)
         K = np.array([[fx, 0.0, cx], [0.0, fy, cy], [0.0, 0.0, 1.0]], dtype=np.float64)
         return cls(int(width), int(height), K, D, model, name, source)
-
-    @classmethod
-    def from_config(
-        cls, cfg: CameraIntrinsics, *, name: str = "camera", source: str = "config"
-    ) -> CameraModel:
-        """From a :class:`CameraIntrinsics` config (inline keys or its calibration file)."""
-        if cfg.calibration is not None:
-            model = load_calibration(cfg.calibration, camera=cfg.calibration_camera, name=name)
-            if cfg.resolution is not None and tuple(cfg.resolution) != (model.width, model.height):
-                msg = (
-                    f"{source}: resolution = {list(cfg.resolution)}: differs from the calibration "
-                    f"file {cfg.calibration} ({model.width}x{model.height}); omit it or match it"
-                )
-                raise SensorError(msg)
-            return model
-        w, h = cfg.resolution or DEFAULT_RESOLUTION
-        f_default = 0.5 * w / math.tan(math.radians(DEFAULT_HFOV_DEG) / 2.0)
-        fx = cfg.fx if cfg.fx is not None else (cfg.fy if cfg.fy is not None else f_default)
-        fy = cfg.fy if cfg.fy is not None else fx
-        cx = cfg.cx if cfg.cx is not None else (w - 1) / 2.0
-        cy = cfg.cy if cfg.cy is not None else (h - 1) / 2.0
-        return cls.create(
-            w,
-            h,
-            fx,
-            fy,
-            cx,
-            cy,
-            cfg.distortion_model,
-            cfg.distortion_coeffs,
-            name=name,
-            source=source,
-        )
 
     # ---------------------------------------------------------------- geometry
     @property
@@ -557,323 +512,3 @@ class CameraModel:
         if T_cn_cnm1 is not None:
             out["T_cn_cnm1"] = [[float(x) for x in row] for row in T_cn_cnm1]
         return out
-
-
-# ---------------------------------------------------------------- calibration files
-def load_calibration(
-    path: str | Path, *, camera: str | None = None, name: str | None = None
-) -> CameraModel:
-    """A :class:`CameraModel` from a ROS camera_info YAML or a Kalibr camchain YAML.
-
-    Args:
-        path: the YAML file.
-        camera: Kalibr entry to use (``cam0``...); default the first (``cam0``).
-        name: camera name to use instead of the file's.
-    Raises:
-        SensorError: missing/malformed file or values, naming the file and the key.
-    """
-    p = Path(path)
-    try:
-        data = load_yaml(p)
-    except ConfigError as err:
-        raise SensorError(str(err)) from None
-    src = str(p)
-    if not isinstance(data, dict):
-        msg = (
-            f"{src}: expected a ROS camera_info YAML or a Kalibr camchain YAML (a mapping), "
-            f"got {type(data).__name__}"
-        )
-        raise SensorError(msg)
-    if "camera_matrix" in data or "image_width" in data:
-        if camera is not None:
-            msg = (
-                f"{src}: calibration_camera = {camera!r}: "
-                "only Kalibr camchain files have several cameras"
-            )
-            raise SensorError(msg)
-        return _from_camera_info(data, src, name)
-    cams = sorted(k for k in data if isinstance(k, str) and k.startswith("cam"))
-    if cams:
-        key = camera or ("cam0" if "cam0" in data else cams[0])
-        if key not in data:
-            msg = (
-                f"{src}: calibration_camera = {key!r}: no such camera in the file; "
-                f"it has {', '.join(cams)}"
-            )
-            raise SensorError(msg)
-        return _from_kalibr(data[key], src, key, name)
-    msg = (
-        f"{src}: neither a ROS camera_info YAML (keys image_width, image_height, camera_matrix, "
-        "distortion_model, distortion_coefficients) nor a Kalibr camchain (keys cam0, cam1, ...)"
-    )
-    raise SensorError(msg)
-
-
-def _need(d: dict[str, Any], key: str, src: str, prefix: str = "") -> Any:
-    if not isinstance(d, dict) or key not in d:
-        msg = f"{src}: {prefix}{key}: missing key"
-        raise SensorError(msg)
-    return d[key]
-
-
-def _matrix(d: dict[str, Any], key: str, src: str, shape: tuple[int, int]) -> F64:
-    m = _need(d, key, src)
-    data = _need(m, "data", src, f"{key}.") if isinstance(m, dict) else m
-    try:
-        a = np.asarray(data, dtype=np.float64).reshape(-1)
-    except (TypeError, ValueError):
-        msg = f"{src}: {key}.data = {data!r}: must be a list of numbers"
-        raise SensorError(msg) from None
-    if a.size != shape[0] * shape[1]:
-        n = shape[0] * shape[1]
-        msg = f"{src}: {key}.data: needs {n} numbers ({shape[0]}x{shape[1]}), got {a.size}"
-        raise SensorError(msg)
-    return a.reshape(shape)
-
-
-def _from_camera_info(d: dict[str, Any], src: str, name: str | None) -> CameraModel:
-    w = _need(d, "image_width", src)
-    h = _need(d, "image_height", src)
-    if not isinstance(w, int) or not isinstance(h, int) or w < 1 or h < 1:
-        msg = f"{src}: image_width, image_height = {w!r}, {h!r}: must be positive integers"
-        raise SensorError(msg)
-    K = _matrix(d, "camera_matrix", src, (3, 3))
-    if K[0, 1] != 0 or K[1, 0] != 0 or K[2, 0] != 0 or K[2, 1] != 0 or K[2, 2] != 1:
-        msg = f"{src}: camera_matrix.data = {K.ravel().tolist()}: must be [fx 0 cx 0 fy cy 0 0 1]"
-        raise SensorError(msg)
-    model = _need(d, "distortion_model", src)
-    dist = d.get("distortion_coefficients", {"data": []})
-    coeffs = dist.get("data", []) if isinstance(dist, dict) else dist
-    keys = {
-        "fx": "camera_matrix.data[0] (fx)",
-        "fy": "camera_matrix.data[4] (fy)",
-        "cx": "camera_matrix.data[2] (cx)",
-        "cy": "camera_matrix.data[5] (cy)",
-        "distortion_coeffs": "distortion_coefficients.data",
-        "resolution": "image_width/image_height",
-    }
-    return CameraModel.create(
-        w,
-        h,
-        K[0, 0],
-        K[1, 1],
-        K[0, 2],
-        K[1, 2],
-        model,
-        coeffs,
-        name=name or str(d.get("camera_name") or "camera"),
-        source=src,
-        keys=keys,
-    )
-
-
-def _from_kalibr(d: Any, src: str, cam: str, name: str | None) -> CameraModel:
-    if not isinstance(d, dict):
-        msg = f"{src}: {cam}: must be a mapping (camera_model, intrinsics, ...)"
-        raise SensorError(msg)
-    cm = d.get("camera_model", "pinhole")
-    if cm != "pinhole":
-        msg = f"{src}: {cam}.camera_model = {cm!r}: only 'pinhole' is supported"
-        raise SensorError(msg)
-    intr = _need(d, "intrinsics", src, f"{cam}.")
-    res = _need(d, "resolution", src, f"{cam}.")
-    if not isinstance(intr, list) or len(intr) != 4:
-        msg = f"{src}: {cam}.intrinsics = {intr!r}: must be [fu, fv, pu, pv]"
-        raise SensorError(msg)
-    if not isinstance(res, list) or len(res) != 2:
-        msg = f"{src}: {cam}.resolution = {res!r}: must be [width, height]"
-        raise SensorError(msg)
-    keys = {
-        "fx": f"{cam}.intrinsics[0] (fu)",
-        "fy": f"{cam}.intrinsics[1] (fv)",
-        "cx": f"{cam}.intrinsics[2] (pu)",
-        "cy": f"{cam}.intrinsics[3] (pv)",
-        "distortion_model": f"{cam}.distortion_model",
-        "distortion_coeffs": f"{cam}.distortion_coeffs",
-        "resolution": f"{cam}.resolution",
-    }
-    return CameraModel.create(
-        res[0],
-        res[1],
-        intr[0],
-        intr[1],
-        intr[2],
-        intr[3],
-        d.get("distortion_model", "none"),
-        d.get("distortion_coeffs", []),
-        name=name or cam,
-        source=src,
-        keys=keys,
-    )
-
-
-# ---------------------------------------------------------------- config mixin
-class CameraIntrinsics(StrictModel):
-    """Intrinsics keys of every camera-like sensor config.
-
-    Either inline (``resolution``, ``fx``, ``fy``, ``cx``, ``cy``,
-    ``distortion_model``, ``distortion_coeffs``; defaults: 640x480, 90 deg horizontal
-    field of view, centred principal point, no distortion) or ``calibration``: a ROS
-    camera_info YAML or Kalibr camchain YAML (``calibration_camera`` picks ``camN``),
-    relative paths resolved against the config file's folder.
-    """
-
-    resolution: (
-        tuple[Annotated[int, Field(ge=1, le=65536)], Annotated[int, Field(ge=1, le=65536)]] | None
-    ) = None
-    fx: FiniteFloat | None = None
-    fy: FiniteFloat | None = None
-    cx: FiniteFloat | None = None
-    cy: FiniteFloat | None = None
-    distortion_model: str = "none"
-    distortion_coeffs: tuple[FiniteFloat, ...] = ()
-    calibration: Path | None = None
-    calibration_camera: str | None = None
-    near_clip: Annotated[FiniteFloat, Field(ge=1e-4, le=1.0)] = 0.01
-    """Near clipping distance of the renderer (m): surfaces closer to the optical centre
-    are not drawn. The clearance check refuses a run in which scene geometry comes
-    closer than this to any corner of the near-clipping rectangle."""
-
-    @field_validator("calibration", mode="after")
-    @classmethod
-    def _resolve(cls, v: Path | None, info: ValidationInfo) -> Path | None:
-        if v is None or v.is_absolute():
-            return v
-        base = (info.context or {}).get("base_dir")
-        return (Path(base) / v) if base is not None else v
-
-    @model_validator(mode="after")
-    def _check_intrinsics(self) -> CameraIntrinsics:
-        if self.calibration is not None:
-            inline = [k for k in ("fx", "fy", "cx", "cy") if getattr(self, k) is not None]
-            if inline or self.distortion_coeffs or self.distortion_model != "none":
-                keys = inline + (["distortion_model/distortion_coeffs"] if len(inline) < 4 else [])
-                msg = (
-                    f"calibration = {self.calibration}: give either a calibration file "
-                    f"or inline {', '.join(keys)}, not both"
-                )
-                raise ValueError(msg)
-        self.calibration_cameras()  # builds (validates) the models: SensorError -> ValueError
-        return self
-
-    def camera_model(self) -> CameraModel:
-        """The validated :class:`CameraModel` of this config."""
-        name = str(getattr(self, "name", "camera"))
-        return CameraModel.from_config(self, name=name, source=self._source())
-
-    def _source(self) -> str:
-        name = getattr(self, "name", None)
-        return f"sensor {name!r}" if name else "camera"
-
-    def calibration_cameras(self) -> list[CalibCamera]:
-        """The cameras this sensor contributes to calib/ and camchain.yaml (override for stereo)."""
-        try:
-            model = self.camera_model()
-        except SensorError as err:
-            raise ValueError(str(err)) from None
-        return [
-            CalibCamera(
-                name=str(getattr(self, "name", "camera")),
-                model=model,
-                T_base_optical=self.base_T_optical(),
-                rostopic=f"{getattr(self, 'topic', '')}/image_raw",
-            )
-        ]
-
-    def base_T_optical(self) -> F64:
-        """(4, 4) ``T_base_link_optical`` of the (first) camera."""
-        pose = getattr(self, "pose", None)
-        T = pose.matrix() if pose is not None else np.eye(4)
-        return np.asarray(T @ T_LINK_OPTICAL, dtype=np.float64)
-
-
-@dataclass(frozen=True, eq=False)
-class CalibCamera:
-    """One camera entry of the calibration files.
-
-    Attributes:
-        name: file stem of ``calib/<name>.yaml``.
-        model: its intrinsics.
-        T_base_optical: (4, 4) pose of its optical frame in base_link.
-        rostopic: image topic written into the camchain.
-        Tx: ROS CameraInfo ``P[0, 3]`` (``-fx * baseline`` for a right stereo camera).
-    """
-
-    name: str
-    model: CameraModel
-    T_base_optical: F64
-    rostopic: str = ""
-    Tx: float = 0.0
-
-
-def _is_camera_config(cfg: Any) -> bool:
-    return isinstance(cfg, CameraIntrinsics)
-
-
-def ecd_root_camera(sensors: Sequence[Any]) -> str | None:
-    """Name of the camera whose files make up the OUTDIR root in the Event Camera Dataset
-    layout (``images.txt``, ``images/``, ``calib.txt``): the first event camera, else the
-    first frame camera (a stereo pair: its left eye); None without cameras."""
-    for types in (("event_camera",), ("camera", "stereo_camera")):
-        for s in sensors:
-            if getattr(s, "type", None) in types and isinstance(s, CameraIntrinsics):
-                return s.calibration_cameras()[0].name
-    return None
-
-
-def ecd_folder(sensors: Sequence[Any], camera: str) -> str:
-    """``''`` for the root camera, else ``'<camera>/'``: the folder holding that camera's
-    ``images.txt``, ``images/`` and ``calib.txt`` (and an event camera's events files)."""
-    return "" if ecd_root_camera(sensors) == camera else f"{camera}/"
-
-
-def _calib_txt(model: CameraModel) -> str:
-    """``fx fy cx cy k1 k2 p1 p2 k3`` (Event Camera Dataset; equidistant: ``k1..k4``)."""
-    D = (
-        list(model.D)
-        if model.distortion_model == "equidistant"
-        else (list(model.ros_D()) + [0.0] * 5)[:5]
-    )
-    return " ".join(repr(float(x)) for x in (model.fx, model.fy, model.cx, model.cy, *D)) + "\n"
-
-
-def write_calibration_files(ctx: SimContext, config: SensorConfig) -> None:
-    """Write ``calib/<cam>.yaml`` for ``config``'s cameras; the first camera-like sensor of
-    ``ctx.sensors`` also writes ``calib/camchain.yaml`` (all cameras, ``T_cam_imu`` when an
-    IMU is configured, ``T_cn_cnm1`` between consecutive cameras). Every camera (not depth)
-    writes its ``calib.txt`` (``fx fy cx cy k1 k2 p1 p2 k3``; equidistant: ``fx fy cx cy
-    k1..k4``) in its :func:`ecd_folder`."""
-    import yaml
-
-    if not isinstance(config, CameraIntrinsics):
-        return
-    for cam in config.calibration_cameras():
-        text = yaml.safe_dump(
-            cam.model.to_camera_info_yaml(Tx=cam.Tx), sort_keys=False, default_flow_style=None
-        )
-        ctx.path(f"calib/{cam.name}.yaml").write_text(text, encoding="utf-8")
-        if config.type != "depth_camera":
-            folder = ecd_folder(ctx.sensors, cam.name)
-            ctx.path(f"{folder}calib.txt").write_text(_calib_txt(cam.model), encoding="utf-8")
-    cams_cfgs = [s for s in ctx.sensors if _is_camera_config(s)]
-    if not cams_cfgs or cams_cfgs[0].name != config.name:
-        return
-    imu = next((s for s in ctx.sensors if s.type == "imu"), None)
-    T_base_imu = imu.pose.matrix() if imu is not None else None
-    chain: dict[str, Any] = {}
-    prev: F64 | None = None
-    all_cams = [
-        c for s in cams_cfgs if isinstance(s, CameraIntrinsics) for c in s.calibration_cameras()
-    ]
-    for i, cam in enumerate(all_cams):
-        T_cam_base = np.linalg.inv(cam.T_base_optical)
-        entry = cam.model.to_kalibr(
-            rostopic=cam.rostopic,
-            T_cam_imu=(T_cam_base @ T_base_imu) if T_base_imu is not None else None,
-            T_cn_cnm1=(T_cam_base @ prev) if prev is not None else None,
-        )
-        chain[f"cam{i}"] = entry
-        prev = cam.T_base_optical
-    ctx.path("calib/camchain.yaml").write_text(
-        yaml.safe_dump(chain, sort_keys=False, default_flow_style=None), encoding="utf-8"
-    )

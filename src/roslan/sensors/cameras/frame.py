@@ -1,4 +1,4 @@
-"""Frame, depth and stereo cameras rendered with the shared OpenGL rasterizer.
+"""Frame and stereo cameras rendered with the shared OpenGL rasterizer.
 
 Every frame: the closed-form trajectory gives the body pose at the stamp (or at
 ``exposure_samples`` instants spread over the exposure, averaged: motion blur);
@@ -20,13 +20,11 @@ Dataset files:
 
 * Event Camera Dataset layout: the OUTDIR root holds one camera's ``images.txt``
   (``t images/NNNNNNNN.png``), ``images/`` and ``calib.txt`` - the first event camera's
-  when there is one, else the first camera's (stereo: the left eye); every other camera
-  (each stereo eye: ``<name>_left``, ``<name>_right``) writes the same files in
-  ``<name>/``;
-* depth cameras: ``depth/<name>/NNNNNNNN.png`` (16-bit, millimetres, 0 = no
-  return) and ``depth_<name>.txt``;
-* ``calib/<name>.yaml`` (ROS camera_info), and from the first camera-like sensor
-  ``calib/camchain.yaml`` (Kalibr, ``T_cam_imu`` when an IMU is configured).
+  when there is one, else the first camera's (stereo: the left eye;
+  ``ctx.root_camera``); every other camera (each stereo eye: ``<name>_left``,
+  ``<name>_right``) writes the same files in ``<name>/``;
+* the run's calibration files (``calib/<name>.yaml``, ``calib/camchain.yaml``,
+  ``calib.txt``): :func:`roslan.rundir.calibration.write_calibration`.
 """
 
 from __future__ import annotations
@@ -42,10 +40,10 @@ from pydantic import Field, model_validator
 
 from roslan.config.base import FiniteFloat
 from roslan.errors import RenderError, SensorError
-from roslan.events.jit import kernel
 from roslan.io.images import write_png
 from roslan.io.messages import MessageStore
 from roslan.io.text import format_seconds
+from roslan.rundir.calibration import camera_folder
 from roslan.sensors.base import (
     Message,
     SensorConfig,
@@ -54,27 +52,16 @@ from roslan.sensors.base import (
     TopicSpec,
     sample_times_ns,
 )
-from roslan.sensors.camera_model import (
-    T_LINK_OPTICAL,
-    CalibCamera,
-    CameraIntrinsics,
-    CameraModel,
-    RenderPlan,
-    ecd_folder,
-    load_calibration,
-    write_calibration_files,
-)
+from roslan.sensors.cameras.calibration import CalibCamera, load_calibration
+from roslan.sensors.cameras.config import CameraIntrinsics, intrinsics_model
+from roslan.sensors.cameras.encoding import encode_image, srgb_lut
+from roslan.sensors.cameras.model import T_LINK_OPTICAL, CameraModel, RenderPlan
 
 __all__ = [
     "Camera",
     "CameraConfig",
-    "DepthCamera",
-    "DepthCameraConfig",
     "StereoCamera",
     "StereoCameraConfig",
-    "encode_image",
-    "encode_linear",
-    "srgb_lut",
 ]
 
 F32 = NDArray[np.float32]
@@ -86,8 +73,6 @@ CAMERA_INFO = "sensor_msgs/msg/CameraInfo"
 
 Positive = Annotated[FiniteFloat, Field(gt=0)]
 NonNegative = Annotated[FiniteFloat, Field(ge=0)]
-
-_LUT_SIZE = 16384  # linear quantization steps of the encoding LUT (< 1 code in the darks)
 
 
 # --------------------------------------------------------------------- configs
@@ -151,7 +136,7 @@ class StereoCameraConfig(_ImagingConfig):
                 return load_calibration(self.calibration, camera="cam1", name=name)
             except SensorError:
                 pass
-        return CameraModel.from_config(self, name=name, source=self._source())
+        return intrinsics_model(self, name=name, source=self._source())
 
     def calibration_cameras(self) -> list[CalibCamera]:
         try:
@@ -176,105 +161,8 @@ class StereoCameraConfig(_ImagingConfig):
         ]
 
 
-class DepthCameraConfig(SensorConfig, CameraIntrinsics):
-    """``type: depth_camera``: 32FC1 z-depth in metres, NaN where nothing is measured (REP 118)."""
-
-    type: Literal["depth_camera"] = "depth_camera"
-    min_range: NonNegative = 0.0
-    """Closer returns are NaN (m)."""
-    max_range: Positive | None = None
-    """Farther returns are NaN (m); unset: unlimited."""
-    noise_std: NonNegative = 0.0
-    """Gaussian depth noise, m."""
-    noise_quadratic: NonNegative = 0.0
-    """Extra noise standard deviation per m^2 of depth (structured-light/stereo-like)."""
-    write_images: bool = True
-    """Write ``depth/<name>/NNNNNNNN.png`` (16-bit mm) and ``depth_<name>.txt``."""
-
-    @model_validator(mode="after")
-    def _ranges(self) -> DepthCameraConfig:
-        if self.max_range is not None and self.max_range <= self.min_range:
-            msg = f"max_range = {self.max_range}: must be greater than min_range = {self.min_range}"
-            raise ValueError(msg)
-        return self
-
-
 def _renamed(m: CameraModel, name: str) -> CameraModel:
     return CameraModel(m.width, m.height, m.K, m.D, m.distortion_model, name, m.source)
-
-
-# --------------------------------------------------------------------- encoding
-def srgb_lut(gamma: str | float) -> U8:
-    """(_LUT_SIZE,) uint8 codes of linear values ``i / (_LUT_SIZE - 1)``."""
-    x = np.linspace(0.0, 1.0, _LUT_SIZE)
-    if gamma == "srgb":
-        v = np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1 / 2.4) - 0.055)
-    else:
-        v = np.power(x, 1.0 / float(gamma))
-    return np.clip(np.round(v * 255.0), 0, 255).astype(np.uint8)
-
-
-def encode_linear(img: F32, lut: U8) -> U8:
-    """Linear float image (any shape, values clipped to [0, 1]) -> uint8 codes via ``lut``.
-
-    The NumPy reference of :func:`encode_image` (same bytes)."""
-    idx = np.clip(img, 0.0, 1.0)
-    idx *= _LUT_SIZE - 1
-    idx += 0.5
-    # uint16 indices (_LUT_SIZE <= 65536) and np.take: 15 % faster than intp fancy indexing
-    out: U8 = np.take(lut, idx.astype(np.uint16))
-    return out
-
-
-@kernel
-def _encode_kernel(
-    src: F32, gain: np.float32, lut: U8, channels: int, reverse: bool, out: U8
-) -> None:
-    """``out = lut[idx(gain * src)]`` over flat (N * channels,) arrays, channel order
-    reversed per pixel if ``reverse``; idx: :func:`encode_linear`'s float32 clip, scale,
-    + 0.5 and truncation, operation for operation (NaN -> index 0, like NumPy's cast)."""
-    zero = np.float32(0.0)
-    one = np.float32(1.0)
-    half = np.float32(0.5)
-    scale = np.float32(_LUT_SIZE - 1)
-    if reverse:
-        for i in range(0, src.size, channels):
-            for j in range(channels):
-                v = src[i + channels - 1 - j] * gain
-                v = v if v > zero else zero  # (NaN too)
-                v = v if v < one else one
-                out[i + j] = lut[np.uint16(v * scale + half)]
-    else:
-        for i in range(src.size):
-            v = src[i] * gain
-            v = v if v > zero else zero
-            v = v if v < one else one
-            out[i] = lut[np.uint16(v * scale + half)]
-
-
-def encode_image(img: F32, lut: U8, *, gain: float = 1.0, reverse: bool = False) -> U8:
-    """Gain, clip to [0, 1] and ``lut`` codes in one pass (numba): (H, W[, C]) float32
-    linear -> uint8 of the same shape, channels reversed if ``reverse`` (rgb -> bgr).
-
-    Same bytes as ``encode_linear(img * float32(gain), lut)`` (tested)."""
-    src = np.ascontiguousarray(img, dtype=np.float32)
-    out = np.empty(src.shape, dtype=np.uint8)
-    channels = src.shape[-1] if src.ndim == 3 else 1
-    # (x * 1.0f == x exactly: the NumPy path's skipped multiply gives the same bytes)
-    _encode_kernel(src.reshape(-1), np.float32(gain), lut, channels, reverse, out.reshape(-1))
-    return out
-
-
-def _non_affine(inv: F32, tol: float = 1e-3) -> F32:
-    """1.0 where inverse depth ``inv`` (H, W; 0 = nothing hit) is not affine across a
-    pixel's 4-neighbourhood: a second difference above ``tol`` times the largest of the
-    five values (float32 rounding of a plane's 1/z is ~1e-7 of it), else 0.0."""
-    p = np.pad(inv, 1, mode="edge")
-    c = p[1:-1, 1:-1]
-    w, e_, n, s_ = p[1:-1, :-2], p[1:-1, 2:], p[:-2, 1:-1], p[2:, 1:-1]
-    d2 = np.maximum(np.abs(w + e_ - 2.0 * c), np.abs(n + s_ - 2.0 * c))
-    top = np.maximum(np.maximum(np.maximum(w, e_), np.maximum(n, s_)), c)
-    return (d2 > tol * top).astype(np.float32)
 
 
 _LUMA = np.array([0.2126, 0.7152, 0.0722], dtype=np.float32)  # Rec. 709, linear
@@ -298,8 +186,8 @@ class _Eye:
 
     def buffer(self, key: str, shape: tuple[int, ...]) -> F32:
         """A float32 work array of ``shape`` reused from frame to frame: fresh multi-MB
-        arrays every frame cost page faults (~3,900 per 640x480 frame, ~5 ms on the
-        bench VM, when glibc returns the freed memory to the system)."""
+        arrays every frame cost page faults (thousands per 640x480 frame when glibc
+        returns the freed memory to the system)."""
         a = self.scratch.get(key)
         if a is None or a.shape != shape:
             a = self.scratch[key] = np.empty(shape, dtype=np.float32)
@@ -378,7 +266,7 @@ class _CameraBase:
             )
             return
         name = f"{self.config.name}_{e.suffix}" if e.suffix else self.config.name
-        folder = ecd_folder(ctx.sensors, name)  # '' at the OUTDIR root, else '<name>/'
+        folder = camera_folder(ctx.root_camera, name)  # '' at the OUTDIR root, else '<name>/'
         e.files = f"{folder}images"
         e.index_fh = ctx.path(f"{folder}images.txt").open("w", encoding="utf-8", newline="\n")
 
@@ -398,7 +286,6 @@ class _CameraBase:
         for e in self._eyes:
             if e.index_fh is not None and not e.index_fh.closed:
                 e.index_fh.close()
-        write_calibration_files(ctx, self.config)
 
     def _messages(
         self, ctx: SimContext, t_ns: int, seq: int, e: _Eye, data: NDArray[Any], encoding: str
@@ -572,81 +459,3 @@ class StereoCamera(_ImagingCamera):
             return out
 
         yield from self._stream(ctx, frame)
-
-
-class DepthCamera(_CameraBase):
-    """``type: depth_camera``: 32FC1 metres, NaN where nothing is measured (REP 118)."""
-
-    config: DepthCameraConfig
-
-    def __init__(self, config: DepthCameraConfig) -> None:
-        self.config = config
-        c = config
-        self._setup_eyes(
-            [_Eye("", config.camera_model(), T_LINK_OPTICAL.copy(), c.topic, f"{c.frame}_optical")]
-        )
-
-    def render_depth(self, renderer: Any, e: _Eye, T_world_body: F64) -> F32:
-        """(H, W) float32 metric z-depth (inf: nothing hit) of eye ``e`` at one body pose (4, 4)."""
-        assert e.plan is not None
-        T = T_world_body @ self._T_body_sensor @ e.T_sensor_optical
-        z = renderer.render(
-            T,
-            e.plan.K,
-            e.plan.width,
-            e.plan.height,
-            color=False,
-            depth=True,
-            near=self.config.near_clip,
-        ).depth
-        if e.plan.identity:
-            return np.asarray(z, dtype=np.float32)
-        import cv2
-
-        # Inverse depth is affine in the image on a plane, so bilinear interpolation of 1/z
-        # is exact there. Where it is not affine (silhouettes against other surfaces or
-        # nothing, creases, strong curvature) a blend would be a depth no surface has (a
-        # "flying pixel"): output pixels with such a render pixel among their bilinear
-        # taps take the nearest render pixel's depth instead.
-        with np.errstate(divide="ignore"):
-            inv = np.reciprocal(z)
-        flag = cv2.remap(
-            _non_affine(inv),
-            e.plan.map1,
-            e.plan.map2,
-            cv2.INTER_LINEAR,
-            borderMode=cv2.BORDER_REPLICATE,
-        )
-        lin = cv2.remap(
-            inv, e.plan.map1, e.plan.map2, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE
-        )
-        near = cv2.remap(
-            inv, e.plan.mapx, e.plan.mapy, cv2.INTER_NEAREST, borderMode=cv2.BORDER_REPLICATE
-        )
-        edge = flag > 0.0
-        lin[edge] = near[edge]
-        with np.errstate(divide="ignore"):
-            out: F32 = np.reciprocal(lin)
-        return out
-
-    def messages(self, ctx: SimContext) -> Iterator[Message]:
-        c = self.config
-        rng = ctx.rng(f"depth_camera/{c.name}")
-        renderer = self._plans(ctx)
-        e = self._eyes[0]
-        if c.write_images:
-            self._open_index(ctx, e, "depth")
-        for i, t in enumerate(self._stamps(ctx).tolist()):
-            T_wb = _pose_matrices(ctx, np.array([t], dtype=np.int64))[0]
-            z = self.render_depth(renderer, e, T_wb)
-            if c.noise_std > 0 or c.noise_quadratic > 0:
-                sigma = c.noise_std + c.noise_quadratic * np.where(np.isfinite(z), z, 0.0) ** 2
-                z = (z + rng.normal(0.0, 1.0, size=z.shape) * sigma).astype(np.float32)
-            bad = ~np.isfinite(z) | (z < c.min_range)
-            if c.max_range is not None:
-                bad |= z > c.max_range
-            z[bad] = np.nan
-            if c.write_images:
-                mm = np.where(bad, 0.0, np.round(np.clip(z, 0.0, 65.535) * 1000.0))
-                self._write_png(ctx, e, i, t, np.nan_to_num(mm).astype(np.uint16))
-            yield from self._messages(ctx, t, i, e, z.astype("<f4"), "32FC1")

@@ -1,0 +1,169 @@
+"""Shared machinery of the ray-cast (beam) sensors: the range sensor model (limits, noise,
+dropout, intensity), the per-scan ``.npz`` dataset files and the point-cloud sensor base
+(rays: :mod:`roslan.sensors.beams.rays`; packing: :mod:`roslan.sensors.beams.pointcloud`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, NamedTuple
+
+import numpy as np
+from numpy.typing import NDArray
+
+from roslan.sensors.base import Message, SimContext, StaticTransform, TopicSpec, sample_times_ns
+from roslan.sensors.beams.pointcloud import POINTCLOUD2, pointcloud2
+
+if TYPE_CHECKING:
+    from roslan.render.raycast import RayCaster
+
+__all__ = ["Measurement", "PointCloudSensor", "ScanWriter", "measure"]
+
+F64 = NDArray[np.float64]
+F32 = NDArray[np.float32]
+
+
+class Measurement(NamedTuple):
+    """Ranges of N beams after the sensor model.
+
+    Attributes:
+        range: (N,) float64 measured range, m (noise added, within [min, max]); +inf for
+            no return (miss, beyond max range, dropout), -inf for a surface closer than
+            the minimum range (REP 117).
+        valid: (N,) bool, a finite return.
+        intensity: (N,) float32 ``scale * reflectivity * cos(incidence)``, 0 without return.
+    """
+
+    range: F64
+    valid: NDArray[np.bool_]
+    intensity: F32
+
+
+def measure(
+    caster: RayCaster,
+    origins: NDArray[np.floating[Any]],
+    directions: NDArray[np.floating[Any]],
+    *,
+    min_range: float,
+    max_range: float,
+    noise_sigma: float,
+    dropout: float,
+    rng: np.random.Generator,
+    intensity_scale: float = 1.0,
+) -> Measurement:
+    """Cast the beams and apply the range sensor model (see :class:`Measurement`).
+
+    The random draws (one normal and one uniform per beam) do not depend on what is
+    hit, so a seed gives the same noise stream whatever the scene.
+    """
+    n = origins.shape[0]
+    dist, echo = caster.cast_incidence(origins, directions, max_range)
+    noise = rng.standard_normal(n) if noise_sigma > 0 else None
+    keep = rng.random(n) >= dropout if dropout > 0 else None
+    true = dist.astype(np.float64)
+    hit = np.isfinite(true)
+    too_close = hit & (true < min_range)
+    valid = hit & ~too_close
+    if keep is not None:
+        valid &= keep
+        too_close &= keep
+    r = true
+    if noise is not None:
+        r = np.clip(r + noise_sigma * noise, min_range, max_range)
+    r[~valid] = np.inf
+    r[too_close] = -np.inf
+    inten = np.where(valid, np.float32(intensity_scale) * echo, np.float32(0.0)).astype(np.float32)
+    return Measurement(r, valid, inten)
+
+
+class ScanWriter:
+    """Dataset files of a point-cloud sensor, streamed one scan at a time.
+
+    ``lidar/<name>/NNNNNN.npz`` per scan with 1-D arrays ``x y z intensity`` (float32,
+    m, sensor frame at each point's firing instant), ``ring`` (uint16) and ``time``
+    (float32, s after the scan stamp), plus ``stamp`` (int64 trajectory ns) - and
+    ``lidar/<name>/timestamps.txt`` with lines ``t <name>/NNNNNN.npz`` (t in seconds since
+    the trajectory start, 9 decimals; the path relative to ``lidar/``). Organized clouds
+    are stored without their NaN (no return) entries.
+    """
+
+    def __init__(self, folder: Path, index: Path) -> None:
+        self.folder = folder
+        self.index = index
+        self._fh: Any = None
+        self.count = 0
+
+    def write(self, t_ns: int, points: NDArray[Any]) -> None:
+        if self._fh is None:
+            self.folder.mkdir(parents=True, exist_ok=True)
+            self._fh = self.index.open("w", encoding="utf-8")
+        name = f"{self.count:06d}.npz"
+        ok = ~np.isnan(points["x"])  # organized clouds carry NaN rows for no return
+        arrays = {k: np.ascontiguousarray(points[k][ok]) for k in points.dtype.names or ()}
+        tmp = self.folder / (name + ".part")
+        with tmp.open("wb") as fh:
+            np.savez_compressed(fh, stamp=np.asarray(t_ns, np.int64), **arrays)  # type: ignore[arg-type]
+        tmp.replace(self.folder / name)
+        sec, nsec = divmod(int(t_ns), 1_000_000_000)
+        self._fh.write(f"{sec}.{nsec:09d} {self.folder.name}/{name}\n")
+        self.count += 1
+
+    def close(self) -> None:
+        if self._fh is not None:
+            self._fh.close()
+            self._fh = None
+
+
+class PointCloudSensor:
+    """The stream shared by the point-cloud sensors (``lidar``, ``solid_state_lidar``):
+    one :meth:`scan` every ``1 / config.rate`` s from t = 0, each a PointCloud2 on
+    ``config.topic`` in ``config.frame`` stamped at the scan start, and its
+    :class:`ScanWriter` files in ``lidar/<name>/``. Subclasses provide ``config`` and
+    ``scan``, and :meth:`cloud_layout` for organized clouds."""
+
+    config: Any
+    _writer: ScanWriter | None = None
+
+    def scan(
+        self, trajectory: Any, caster: Any, t0_ns: int, rng: np.random.Generator
+    ) -> NDArray[Any]:  # pragma: no cover - every subclass has one
+        raise NotImplementedError
+
+    def cloud_layout(self) -> tuple[int, bool]:
+        """(PointCloud2 height, is_dense): unorganized by default."""
+        return 1, True
+
+    def topics(self) -> list[TopicSpec]:
+        return [TopicSpec(self.config.topic, POINTCLOUD2)]
+
+    def static_transforms(self) -> list[StaticTransform]:
+        return []  # base_link -> frame comes from the extrinsics (pipeline)
+
+    def messages(self, ctx: SimContext) -> Iterator[Message]:
+        cfg = self.config
+        caster = ctx.raycaster()
+        rng = ctx.rng(cfg.name)
+        index = ctx.path(f"lidar/{cfg.name}/timestamps.txt")
+        self._writer = ScanWriter(index.parent, index)
+        height, dense = self.cloud_layout()
+        # a scan fires over [t0, t0 + 1/rate): only whole scans that end within the
+        # trajectory (and so within the ground-truth record) are produced
+        last_start = ctx.trajectory.duration_ns - round(1e9 / cfg.rate)
+        for seq, t0 in enumerate(sample_times_ns(cfg.rate, last_start).tolist()):
+            pts = self.scan(ctx.trajectory, caster, t0, rng)
+            self._writer.write(t0, pts)
+            stamp = ctx.stamp(t0)
+
+            def build(
+                store: Any, pts: NDArray[Any] = pts, stamp: int = stamp, seq: int = seq
+            ) -> Any:
+                return pointcloud2(
+                    store, stamp, cfg.frame, pts, height=height, seq=seq, is_dense=dense
+                )
+
+            yield Message(t0, cfg.topic, POINTCLOUD2, build)
+
+    def close(self, ctx: SimContext) -> None:
+        if self._writer is not None:
+            self._writer.close()

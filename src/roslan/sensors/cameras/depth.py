@@ -1,0 +1,141 @@
+"""Depth camera: 32FC1 z-depth in metres rendered with the shared OpenGL rasterizer.
+
+Dataset files: ``depth/<name>/NNNNNNNN.png`` (16-bit, millimetres, 0 = no return) and
+``depth_<name>.txt``; ``calib/<name>.yaml`` (ROS camera_info).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from typing import Annotated, Any, Literal
+
+import numpy as np
+from numpy.typing import NDArray
+from pydantic import Field, model_validator
+
+from roslan.config.base import FiniteFloat
+from roslan.sensors.base import Message, SensorConfig, SimContext
+from roslan.sensors.cameras.config import CameraIntrinsics
+from roslan.sensors.cameras.frame import _CameraBase, _Eye, _pose_matrices
+from roslan.sensors.cameras.model import T_LINK_OPTICAL
+
+__all__ = ["DepthCamera", "DepthCameraConfig"]
+
+F32 = NDArray[np.float32]
+F64 = NDArray[np.float64]
+
+Positive = Annotated[FiniteFloat, Field(gt=0)]
+NonNegative = Annotated[FiniteFloat, Field(ge=0)]
+
+
+class DepthCameraConfig(SensorConfig, CameraIntrinsics):
+    """``type: depth_camera``: 32FC1 z-depth in metres, NaN where nothing is measured (REP 118)."""
+
+    type: Literal["depth_camera"] = "depth_camera"
+    min_range: NonNegative = 0.0
+    """Closer returns are NaN (m)."""
+    max_range: Positive | None = None
+    """Farther returns are NaN (m); unset: unlimited."""
+    noise_std: NonNegative = 0.0
+    """Gaussian depth noise, m."""
+    noise_quadratic: NonNegative = 0.0
+    """Extra noise standard deviation per m^2 of depth (structured-light/stereo-like)."""
+    write_images: bool = True
+    """Write ``depth/<name>/NNNNNNNN.png`` (16-bit mm) and ``depth_<name>.txt``."""
+
+    @model_validator(mode="after")
+    def _ranges(self) -> DepthCameraConfig:
+        if self.max_range is not None and self.max_range <= self.min_range:
+            msg = f"max_range = {self.max_range}: must be greater than min_range = {self.min_range}"
+            raise ValueError(msg)
+        return self
+
+
+def _non_affine(inv: F32, tol: float = 1e-3) -> F32:
+    """1.0 where inverse depth ``inv`` (H, W; 0 = nothing hit) is not affine across a
+    pixel's 4-neighbourhood: a second difference above ``tol`` times the largest of the
+    five values (float32 rounding of a plane's 1/z is ~1e-7 of it), else 0.0."""
+    p = np.pad(inv, 1, mode="edge")
+    c = p[1:-1, 1:-1]
+    w, e_, n, s_ = p[1:-1, :-2], p[1:-1, 2:], p[:-2, 1:-1], p[2:, 1:-1]
+    d2 = np.maximum(np.abs(w + e_ - 2.0 * c), np.abs(n + s_ - 2.0 * c))
+    top = np.maximum(np.maximum(np.maximum(w, e_), np.maximum(n, s_)), c)
+    return (d2 > tol * top).astype(np.float32)
+
+
+class DepthCamera(_CameraBase):
+    """``type: depth_camera``: 32FC1 metres, NaN where nothing is measured (REP 118)."""
+
+    config: DepthCameraConfig
+
+    def __init__(self, config: DepthCameraConfig) -> None:
+        self.config = config
+        c = config
+        self._setup_eyes(
+            [_Eye("", config.camera_model(), T_LINK_OPTICAL.copy(), c.topic, f"{c.frame}_optical")]
+        )
+
+    def render_depth(self, renderer: Any, e: _Eye, T_world_body: F64) -> F32:
+        """(H, W) float32 metric z-depth (inf: nothing hit) of eye ``e`` at one body pose (4, 4)."""
+        assert e.plan is not None
+        T = T_world_body @ self._T_body_sensor @ e.T_sensor_optical
+        z = renderer.render(
+            T,
+            e.plan.K,
+            e.plan.width,
+            e.plan.height,
+            color=False,
+            depth=True,
+            near=self.config.near_clip,
+        ).depth
+        if e.plan.identity:
+            return np.asarray(z, dtype=np.float32)
+        import cv2
+
+        # Inverse depth is affine in the image on a plane, so bilinear interpolation of 1/z
+        # is exact there. Where it is not affine (silhouettes against other surfaces or
+        # nothing, creases, strong curvature) a blend would be a depth no surface has (a
+        # "flying pixel"): output pixels with such a render pixel among their bilinear
+        # taps take the nearest render pixel's depth instead.
+        with np.errstate(divide="ignore"):
+            inv = np.reciprocal(z)
+        flag = cv2.remap(
+            _non_affine(inv),
+            e.plan.map1,
+            e.plan.map2,
+            cv2.INTER_LINEAR,
+            borderMode=cv2.BORDER_REPLICATE,
+        )
+        lin = cv2.remap(
+            inv, e.plan.map1, e.plan.map2, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE
+        )
+        near = cv2.remap(
+            inv, e.plan.mapx, e.plan.mapy, cv2.INTER_NEAREST, borderMode=cv2.BORDER_REPLICATE
+        )
+        edge = flag > 0.0
+        lin[edge] = near[edge]
+        with np.errstate(divide="ignore"):
+            out: F32 = np.reciprocal(lin)
+        return out
+
+    def messages(self, ctx: SimContext) -> Iterator[Message]:
+        c = self.config
+        rng = ctx.rng(f"depth_camera/{c.name}")
+        renderer = self._plans(ctx)
+        e = self._eyes[0]
+        if c.write_images:
+            self._open_index(ctx, e, "depth")
+        for i, t in enumerate(self._stamps(ctx).tolist()):
+            T_wb = _pose_matrices(ctx, np.array([t], dtype=np.int64))[0]
+            z = self.render_depth(renderer, e, T_wb)
+            if c.noise_std > 0 or c.noise_quadratic > 0:
+                sigma = c.noise_std + c.noise_quadratic * np.where(np.isfinite(z), z, 0.0) ** 2
+                z = (z + rng.normal(0.0, 1.0, size=z.shape) * sigma).astype(np.float32)
+            bad = ~np.isfinite(z) | (z < c.min_range)
+            if c.max_range is not None:
+                bad |= z > c.max_range
+            z[bad] = np.nan
+            if c.write_images:
+                mm = np.where(bad, 0.0, np.round(np.clip(z, 0.0, 65.535) * 1000.0))
+                self._write_png(ctx, e, i, t, np.nan_to_num(mm).astype(np.uint16))
+            yield from self._messages(ctx, t, i, e, z.astype("<f4"), "32FC1")
