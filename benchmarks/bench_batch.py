@@ -25,7 +25,7 @@ from pathlib import Path
 from typing import Any
 
 from roslan.batch import parse_sweep, run_tasks, sweep_tasks
-from roslan.dataset import build_dataset
+from roslan.batch.paper import build_dataset
 
 
 def _sweep(n: int, duration: float) -> Any:

@@ -13,8 +13,8 @@ import pytest
 import yaml
 
 from roslan.batch import make_tasks
+from roslan.batch.paper import dataset_plan, default_sensor_suite
 from roslan.config.sim import SimConfig
-from roslan.dataset import dataset_plan, default_sensor_suite
 from roslan.errors import ConfigError
 from roslan.scene import check_clearance, load_scene
 from roslan.trajectory.config import TrajectoryConfig

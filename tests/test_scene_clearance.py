@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 import yaml
 
+from roslan.batch.paper import default_sensor_suite
 from roslan.config.base import Pose
-from roslan.dataset import default_sensor_suite
 from roslan.scene import check_clearance, load_scene
 from roslan.sensors.registry import config_class
 from roslan.trajectory import Trajectory, TrajectoryConfig

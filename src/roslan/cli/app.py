@@ -19,7 +19,8 @@ __all__ = ["main"]
 # ``parser.set_defaults(func=callable(args) -> int)``.
 COMMAND_MODULES: tuple[str, ...] = (
     "roslan.cli.trajectory",
-    "roslan.cli.datasets",
+    "roslan.cli.dataset",
+    "roslan.cli.batch",
     "roslan.cli.simulate",
     "roslan.cli.plot",
     "roslan.cli.preview",

@@ -42,8 +42,13 @@ from typing import Any
 
 import numpy as np
 
-from roslan.batch import BatchReport, Runner, make_tasks, read_run_json, run_tasks
+from roslan.batch.report import BatchReport
+from roslan.batch.runner import Runner, run_tasks
+from roslan.batch.tasks import make_tasks
 from roslan.errors import ConfigError
+from roslan.io.files import atomic_write_text
+from roslan.plots.dataset import plot_trajectories
+from roslan.rundir.manifest import read_manifest, run_duration, run_messages
 
 __all__ = [
     "APPROACH_ANGLE",
@@ -53,9 +58,9 @@ __all__ = [
     "PAPER_TRAJECTORIES",
     "DatasetRun",
     "build_dataset",
+    "count_events",
     "dataset_plan",
     "default_sensor_suite",
-    "plot_trajectories",
     "write_index",
 ]
 
@@ -228,7 +233,7 @@ def dataset_plan(
             distance (speeds, angle and kappas kept); None: :data:`APPROACH_DISTANCE`.
         formats: bag formats (``ros1``, ``ros2``); None: the config default (both).
         check_clearance: turn a blocked heading until the path is clear in the scene as
-            the simulation will build it (with its seed; ~1-4 s per built-in scene load).
+            the simulation will build it (with its own seed).
     """
     if not scenes:
         msg = "--scenes: give at least one scene"
@@ -315,30 +320,9 @@ INDEX_COLUMNS = (
 )
 
 
-def _walk_events(node: Any) -> int | None:
-    """Sum of integer ``events`` / ``n_events`` entries anywhere in run.json."""
-    total: int | None = None
-    if isinstance(node, Mapping):
-        for key, value in node.items():
-            if key in ("events", "n_events", "event_count") and isinstance(value, int):
-                total = (total or 0) + value
-            elif isinstance(value, Mapping | list):
-                sub = _walk_events(value)
-                if sub is not None:
-                    total = (total or 0) + sub
-    elif isinstance(node, list):
-        for value in node:
-            sub = _walk_events(value)
-            if sub is not None:
-                total = (total or 0) + sub
-    return total
-
-
-def _count_events(folder: Path, info: Mapping[str, Any]) -> int:
-    """Events of the run: from run.json when it says, else from events.h5 / events.txt."""
-    n = _walk_events({k: v for k, v in info.items() if k != "config"})
-    if n is not None:
-        return n
+def count_events(folder: Path) -> int:
+    """Events a run wrote: rows of the first ``events.h5`` under ``folder``, else lines of
+    the first ``events.txt``, else 0 (run.json does not count events)."""
     h5 = sorted(folder.rglob("events.h5"))
     if h5:
         import h5py
@@ -357,24 +341,22 @@ def _count_events(folder: Path, info: Mapping[str, Any]) -> int:
 
 def write_index(outdir: Path, runs: Sequence[DatasetRun]) -> Path:
     """``outdir/index.csv``: one row per simulation (parameters + run.json figures)."""
-    from roslan.batch import _duration, _messages
-
     buf = io.StringIO()
     writer = csv.writer(buf, lineterminator="\n")
     writer.writerow(INDEX_COLUMNS)
     for run in runs:
         folder = outdir / run.folder
-        info = read_run_json(folder)
+        info = read_manifest(folder)
         if info is None:
             duration = _touchdown(run.config["trajectory"])
             events: str | int = ""
             messages: str | int | None = ""
             status = "missing"
         else:
-            d = _duration(info)
+            d = run_duration(info)
             duration = d if d is not None else _touchdown(run.config["trajectory"])
-            events = _count_events(folder, info)
-            messages = _messages(info)
+            events = count_events(folder)
+            messages = run_messages(info)
             status = "complete"
         writer.writerow(
             [
@@ -395,79 +377,8 @@ def write_index(outdir: Path, runs: Sequence[DatasetRun]) -> Path:
             ]
         )
     path = outdir / "index.csv"
-    tmp = path.with_name(".index.csv.tmp")
-    tmp.write_text(buf.getvalue(), encoding="utf-8")
-    tmp.replace(path)
+    atomic_write_text(path, buf.getvalue())
     return path
-
-
-def plot_trajectories(runs: Sequence[DatasetRun], path: Path) -> None:
-    """All landings of one scene in the goal frame F (paper's Fig. 3): a 3-D view with
-    velocity vectors, the top view and height against horizontal distance."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    from roslan.trajectory.config import TrajectoryConfig
-    from roslan.trajectory.generator import Trajectory
-
-    fig = plt.figure(figsize=(14, 4.8), dpi=110)
-    ax3 = fig.add_subplot(1, 3, 1, projection="3d")
-    axt = fig.add_subplot(1, 3, 2)
-    axs = fig.add_subplot(1, 3, 3)
-    cmap = plt.get_cmap("tab10")
-    colors = [cmap(i) for i in range(10)]
-    trajs = [
-        Trajectory(TrajectoryConfig.model_validate(r.config["trajectory"]), warn=False)
-        for r in runs
-    ]
-    # arrows: velocity scaled so the fastest start spans 15% of the largest start distance
-    extent = max((float(np.linalg.norm(tr.initial_gaps[:3])) for tr in trajs), default=1.0)
-    vmax = max((float(np.linalg.norm(tr.state([0.0]).rates[0, :3])) for tr in trajs), default=1.0)
-    scale = 0.15 * extent / vmax
-    for n, (run, traj) in enumerate(zip(runs, trajs, strict=True)):
-        st = traj.state(np.linspace(0.0, traj.T, 400))
-        p = st.gaps[:, :3]
-        # vectors at the table instants (every 0.1 s), at most ~12 per landing
-        ta = np.arange(0.0, traj.T, SAMPLE_DT)
-        ta = ta[:: max(1, len(ta) // 12)]
-        sa = traj.state(ta)
-        pa, va = sa.gaps[:, :3], sa.rates[:, :3] * scale
-        c = colors[n % len(colors)]
-        label = (
-            f"{run.number}: $\\kappa_x$={run.kappa_x:g}, $\\kappa_y$={run.kappa_y:g}, "
-            f"{run.speed:g} m/s"
-        )
-        # the vectors are tangent to the path: thin paths, bold arrows
-        ax3.plot(p[:, 0], p[:, 1], p[:, 2], color=c, lw=0.8, alpha=0.6, label=label)
-        ax3.quiver(
-            pa[:, 0], pa[:, 1], pa[:, 2], va[:, 0], va[:, 1], va[:, 2],
-            color=c, linewidth=1.6, arrow_length_ratio=0.35,
-        )  # fmt: skip
-        axt.plot(p[:, 0], p[:, 1], color=c, lw=0.8, alpha=0.6)
-        axt.quiver(
-            pa[:, 0], pa[:, 1], va[:, 0], va[:, 1], color=c, angles="xy", scale_units="xy",
-            scale=1.0, width=0.007, headwidth=3.5, headlength=4.0, headaxislength=3.5,
-        )  # fmt: skip
-        axs.plot(np.hypot(p[:, 0], p[:, 1]), p[:, 2], color=c, lw=1.5)
-    for ax in (axt, axs):
-        ax.plot([0], [0], "k*", ms=10)
-        ax.grid(alpha=0.3)
-    ax3.scatter([0], [0], [0], color="k", marker="*", s=60)
-    ax3.set(xlabel="x (m)", ylabel="y (m)", zlabel="z (m)", title="landings (goal frame)")
-    axt.set(xlabel="x (m)", ylabel="y (m)", title="top view, velocity vectors", aspect="equal")
-    axs.set(
-        xlabel="horizontal distance to goal (m)", ylabel="height above goal (m)", title="side view"
-    )
-    scene = runs[0].scene if runs else ""
-    fig.suptitle(f"{scene}: k = {PAPER_K}, approach angle pi/6 (tau-theory landings)")
-    fig.legend(loc="lower center", ncol=3, fontsize=8, frameon=False)
-    fig.tight_layout(rect=(0, 0.1, 1, 0.95))
-    tmp = path.with_name(f".{path.stem}.tmp.png")
-    fig.savefig(tmp)
-    plt.close(fig)
-    tmp.replace(path)
 
 
 def _readme(runs: Sequence[DatasetRun], scenes: Sequence[str], seed: int) -> str:
@@ -522,7 +433,7 @@ def build_dataset(
     progress: bool = True,
     runner: Runner | None = None,
 ) -> tuple[list[DatasetRun], BatchReport]:
-    """Plan, simulate (on Dask, see :func:`roslan.batch.run_tasks`) and index the dataset."""
+    """Plan, simulate (on Dask, see :func:`roslan.batch.runner.run_tasks`) and index the dataset."""
     out = Path(outdir).resolve()
     runs = dataset_plan(scenes, seed=seed, sensors=sensors, duration=duration, formats=formats)
     tasks = make_tasks(

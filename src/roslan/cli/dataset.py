@@ -1,4 +1,4 @@
-"""``roslan dataset`` (the paper's dataset) and ``roslan batch`` (parameter sweeps)."""
+"""``roslan dataset``: regenerate the paper's dataset (:mod:`roslan.batch.paper`)."""
 
 from __future__ import annotations
 
@@ -6,37 +6,11 @@ import argparse
 from pathlib import Path
 from typing import Any
 
+from roslan.cli.batch import add_cluster_args
 from roslan.cli.common import seed_arg
 from roslan.errors import ConfigError
 
 __all__ = ["register"]
-
-
-def _cluster_args(p: argparse.ArgumentParser) -> None:
-    group = p.add_mutually_exclusive_group()
-    group.add_argument(
-        "--workers",
-        type=int,
-        default=None,
-        metavar="N",
-        help="local Dask worker processes, one thread each, on loopback "
-        "(default: one per CPU core; 0 = run in this process, no Dask)",
-    )
-    group.add_argument(
-        "--scheduler",
-        metavar="ADDRESS",
-        help="address of an existing Dask scheduler (tcp://host:8786); "
-        "the output folder must be on a file system its workers share",
-    )
-    p.add_argument(
-        "--retries",
-        type=int,
-        default=2,
-        metavar="N",
-        help="extra attempts for a simulation that crashed (default 2); "
-        "config errors are deterministic and not retried",
-    )
-    p.add_argument("--quiet", action="store_true", help="no progress bar or summary table")
 
 
 def _load_sensors(path: str) -> list[dict[str, Any]]:
@@ -56,8 +30,8 @@ def _formats(value: str | None) -> list[str] | None:
 
 
 def _dataset(args: argparse.Namespace) -> int:
-    from roslan.batch import iter_errors, print_summary
-    from roslan.dataset import build_dataset
+    from roslan.batch.paper import build_dataset
+    from roslan.batch.report import iter_errors, print_summary
 
     sensors = _load_sensors(args.sensors) if args.sensors else None
     if args.dry_run:
@@ -86,9 +60,9 @@ def _dataset(args: argparse.Namespace) -> int:
 def _dataset_dry_run(args: argparse.Namespace, sensors: list[dict[str, Any]] | None) -> int:
     import math
 
-    from roslan.batch import make_tasks
+    from roslan.batch.paper import dataset_plan
+    from roslan.batch.tasks import make_tasks
     from roslan.cli.dryrun import PlanRow, print_plan
-    from roslan.dataset import dataset_plan
 
     runs = dataset_plan(
         args.scenes, seed=args.seed, sensors=sensors, duration=args.duration,
@@ -117,46 +91,8 @@ def _dataset_dry_run(args: argparse.Namespace, sensors: list[dict[str, Any]] | N
     return print_plan("roslan dataset plan", rows, Path(args.output), args.workers)
 
 
-def _short(value: Any) -> str:
-    """A sweep value for the plan table: floats to 4 significant digits."""
-    if isinstance(value, float):
-        return f"{value:.4g}"
-    text = str(value)
-    return text if len(text) <= 24 else text[:21] + "..."
-
-
-def _batch(args: argparse.Namespace) -> int:
-    from roslan.batch import iter_errors, load_sweep, print_summary, run_tasks, sweep_tasks
-
-    sweep = load_sweep(args.sweep)
-    tasks = sweep_tasks(sweep)
-    if args.dry_run:
-        from roslan.cli.dryrun import PlanRow, print_plan
-
-        rows = [
-            PlanRow(t.name, {k: _short(v) for k, v in t.overrides.items()}, t.config, t.error)
-            for t in tasks
-        ]
-        return print_plan("roslan batch plan", rows, Path(args.output), args.workers)
-    report = run_tasks(
-        tasks,
-        args.output,
-        workers=args.workers,
-        scheduler=args.scheduler,
-        retries=args.retries,
-        overwrite=args.overwrite,
-        progress=not args.quiet,
-        meta={"command": "roslan batch", "sweep": str(Path(args.sweep).resolve())},
-    )
-    if not args.quiet:
-        print_summary(report)
-    for line in iter_errors(report):
-        print(f"error: {line}")
-    return 0 if report.ok else 1
-
-
 def register(subparsers: Any) -> None:
-    from roslan.dataset import PAPER_SCENES
+    from roslan.batch.paper import PAPER_SCENES
 
     p = subparsers.add_parser(
         "dataset",
@@ -189,18 +125,5 @@ def register(subparsers: Any) -> None:
     )
     p.add_argument("--format", choices=("ros1", "ros2", "both"), help="bag formats (default both)")
     p.add_argument("--dry-run", action="store_true", help="print the plan, simulate nothing")
-    _cluster_args(p)
+    add_cluster_args(p)
     p.set_defaults(func=_dataset)
-
-    b = subparsers.add_parser(
-        "batch",
-        help="run a parameter sweep (grid / zipped lists / LHS samples) on Dask",
-        description="Expand SWEEP.yaml (a base config plus grid, zip and sample axes over dotted "
-        "config keys) into simulations and run them on a Dask cluster; resumable.",
-    )
-    b.add_argument("sweep", metavar="SWEEP.yaml")
-    b.add_argument("-o", "--output", required=True, metavar="DIR", help="batch folder")
-    b.add_argument("--overwrite", action="store_true", help="rerun completed simulations too")
-    b.add_argument("--dry-run", action="store_true", help="list the tasks and their validity")
-    _cluster_args(b)
-    b.set_defaults(func=_batch)
