@@ -48,6 +48,7 @@ from roslan.batch.tasks import make_tasks
 from roslan.errors import ConfigError
 from roslan.io.files import atomic_write_text
 from roslan.plots.dataset import plot_trajectories
+from roslan.rundir.events import count_events
 from roslan.rundir.manifest import read_manifest, run_duration, run_messages
 
 __all__ = [
@@ -58,7 +59,6 @@ __all__ = [
     "PAPER_TRAJECTORIES",
     "DatasetRun",
     "build_dataset",
-    "count_events",
     "dataset_plan",
     "default_sensor_suite",
     "write_index",
@@ -318,25 +318,6 @@ INDEX_COLUMNS = (
     "messages",
     "status",
 )
-
-
-def count_events(folder: Path) -> int:
-    """Events a run wrote: rows of the first ``events.h5`` under ``folder``, else lines of
-    the first ``events.txt``, else 0 (run.json does not count events)."""
-    h5 = sorted(folder.rglob("events.h5"))
-    if h5:
-        import h5py
-
-        with h5py.File(h5[0], "r") as f:
-            return int(f["events/t"].shape[0])
-    txt = sorted(folder.rglob("events.txt"))
-    if txt:
-        count = 0
-        with txt[0].open("rb") as fh:
-            for block in iter(lambda: fh.read(1 << 22), b""):
-                count += block.count(b"\n")
-        return count
-    return 0
 
 
 def write_index(outdir: Path, runs: Sequence[DatasetRun]) -> Path:

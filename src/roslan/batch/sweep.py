@@ -218,9 +218,9 @@ within the 255-byte file-name limit of common file systems."""
 
 
 def _err(source: str, where: str, value: Any, allowed: str) -> ConfigError:
-    from roslan.config.base import _short
+    from roslan.config.base import short_repr
 
-    shown = _short(value)
+    shown = short_repr(value)
     if len(shown) > 80:
         shown = shown[:77] + "..."
     return ConfigError(f"{source}: {where} = {shown}: {allowed}")

@@ -38,6 +38,7 @@ __all__ = [
     "format_validation_error",
     "load_yaml",
     "load_yaml_model",
+    "short_repr",
     "validate_model",
 ]
 
@@ -114,7 +115,7 @@ class StrictModel(BaseModel):
                     continue
                 why = _wrong_scalar(field.annotation, value)
                 if why:
-                    msg = f"{key} = {_short(value)}: {why}"
+                    msg = f"{key} = {short_repr(value)}: {why}"
                     raise ValueError(msg)
         return data
 
@@ -258,7 +259,7 @@ def format_validation_error(
         value = err.get("input")
         # A whole mapping (model-level check) is not worth echoing: its message names the keys.
         hide = err.get("type") == "missing" or isinstance(value, Mapping)
-        shown = "" if hide else f" = {_short(value)}"
+        shown = "" if hide else f" = {short_repr(value)}"
         where = f"{_loc(full)}{shown}: " if full else ""
         lines.append(f"{src}{where}{_clean_message(err, allowed)}")
     return "\n".join(lines)
@@ -271,8 +272,9 @@ _REPR.maxlist = _REPR.maxtuple = _REPR.maxdict = _REPR.maxset = 4
 _REPR.maxlevel = 2
 
 
-def _short(value: Any) -> str:
-    # bounded: never builds the repr of a whole (possibly huge) value
+def short_repr(value: Any) -> str:
+    """A bounded repr for error messages (never builds the repr of a whole, possibly huge,
+    value)."""
     text = _REPR.repr(value)
     return text if len(text) <= 80 else text[:77] + "..."
 

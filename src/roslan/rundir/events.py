@@ -18,7 +18,7 @@ from roslan.rundir.readers import (
     sensor_configs,
 )
 
-__all__ = ["EventSource", "open_events"]
+__all__ = ["EventSource", "count_events", "open_events"]
 
 
 class EventSource:
@@ -184,3 +184,22 @@ def _config_resolution(cfg: dict[str, Any]) -> tuple[int | None, int | None]:
     if isinstance(res, list | tuple) and len(res) == 2:
         return int(res[0]), int(res[1])
     return None, None
+
+
+def count_events(folder: Path) -> int:
+    """Events a run wrote: rows of the first ``events.h5`` under ``folder``, else lines of
+    the first ``events.txt``, else 0 (run.json does not count events)."""
+    h5 = sorted(folder.rglob("events.h5"))
+    if h5:
+        import h5py
+
+        with h5py.File(h5[0], "r") as f:
+            return int(f["events/t"].shape[0])
+    txt = sorted(folder.rglob("events.txt"))
+    if txt:
+        count = 0
+        with txt[0].open("rb") as fh:
+            for block in iter(lambda: fh.read(1 << 22), b""):
+                count += block.count(b"\n")
+        return count
+    return 0
