@@ -35,7 +35,7 @@ from roslan.events.files import (
     _format_events_txt_numpy,
     format_events_txt,
 )
-from roslan.events.model import NumpyEventGenerator
+from roslan.events.reference import NumpyEventGenerator
 from roslan.events.ros import pack_event_array
 from roslan.events.sampling import AdaptiveSampler
 from roslan.io.messages import Flavor

@@ -14,8 +14,10 @@ from pathlib import Path
 
 from roslan.config.base import Pose
 from roslan.scene import check_clearance, export_scene
-from roslan.scene.builtin import empty, refinery, warehouse
+from roslan.scene.builtin import empty
 from roslan.scene.export import _GLB_CACHE
+from roslan.scene.refinery import refinery
+from roslan.scene.warehouse import warehouse
 from roslan.trajectory import Trajectory, TrajectoryConfig
 
 

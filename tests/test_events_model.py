@@ -14,7 +14,7 @@ from roslan.events import (
     EventModelParams,
     log_intensity,
 )
-from roslan.events.model import NumpyEventGenerator
+from roslan.events.reference import NumpyEventGenerator
 from roslan.events.sampling import AdaptiveSampler, motion_field, pixel_rays
 
 

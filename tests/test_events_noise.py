@@ -7,7 +7,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from roslan.events.model import EventBatch, EventGenerator, EventModelParams, NumpyEventGenerator
+from roslan.events.model import EventBatch, EventGenerator, EventModelParams
+from roslan.events.reference import NumpyEventGenerator
 
 H, W = 80, 200  # 16000 pixels; 4 intensity bands of 50 columns
 LEVELS = np.array([0.0, 1.0 / 3.0, 2.0 / 3.0, 1.0])

@@ -154,7 +154,8 @@ def _is_random(name: str) -> bool:
 
 @pytest.mark.parametrize("name", ["warehouse", "refinery"])
 def test_builtins_deterministic_and_seed_varies_only_random_parts(name: str) -> None:
-    from roslan.scene.builtin import refinery, warehouse
+    from roslan.scene.refinery import refinery
+    from roslan.scene.warehouse import warehouse
 
     gen = {"warehouse": warehouse, "refinery": refinery}[name]
     a, b, c = gen(0), gen(0), gen(1)

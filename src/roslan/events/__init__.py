@@ -10,9 +10,9 @@ from roslan.events.model import (
     EventBatch,
     EventGenerator,
     EventModelParams,
-    NumpyEventGenerator,
     log_intensity,
 )
+from roslan.events.reference import NumpyEventGenerator
 from roslan.events.ros import EVENT_ARRAY, pack_event_array
 from roslan.events.sampling import (
     AdaptiveSampler,

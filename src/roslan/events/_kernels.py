@@ -1,7 +1,7 @@
 """numba kernels of the event pixel model and the ``events.txt`` formatter.
 
 Each kernel fuses, in one pass over its pixels or events, what the NumPy reference
-(:class:`roslan.events.model.NumpyEventGenerator`) does in a dozen array passes; the float64
+(:class:`roslan.events.reference.NumpyEventGenerator`) does in a dozen array passes; the float64
 operations are the same and in the same order (numba does not contract to FMA nor reorder
 without ``fastmath``), so the events are bit-identical. ``log``/``exp`` stay in NumPy (its
 SIMD loops may differ from libm in the last ulp): the kernels write their arguments, in

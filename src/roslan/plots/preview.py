@@ -198,21 +198,8 @@ def make_preview(
     if not outdir.is_dir():
         msg = f"{COMMAND}: {outdir} is not a directory (give a roslan simulate OUTDIR)"
         raise PlotError(msg)
-    for name, value, lo, hi in (
-        ("--fps", fps, 0.0, 240.0),
-        ("--speed", speed, 0.0, 1000.0),
-        ("--window-ms", window_ms, 0.0, 1000.0),
-    ):
-        if not (math.isfinite(value) and lo < value <= hi):
-            msg = f"{COMMAND}: {name} = {value}: must be in ({lo:g}, {hi:g}]"
-            raise PlotError(msg)
-    if gif is None:
-        gif = out is not None and Path(out).suffix.lower() == ".gif"
-    if out is None:
-        out = outdir / ("preview.gif" if gif else "preview.mp4")
-    out = Path(out)
-    if gif and out.suffix.lower() != ".gif":
-        out = out.with_suffix(".gif")
+    _check_rates(fps, speed, window_ms)
+    out, gif = _output_path(outdir, out, gif)
     if gif:
         fps = min(fps, GIF_MAX_FPS)
         panel_width //= 2
@@ -243,21 +230,7 @@ def make_preview(
         camera = _ImagePanel(media, pw, ph) if media.camera is not None else None
         out.parent.mkdir(parents=True, exist_ok=True)
         tmp = out.with_name(f".{out.stem}.part{out.suffix}")
-        kwargs: dict[str, Any] = {"macro_block_size": 16, "ffmpeg_log_level": "error"}
-        if gif:
-            kwargs |= {
-                "codec": "gif",
-                "pix_fmt_out": "pal8",
-                "macro_block_size": 1,
-                "output_params": [
-                    "-filter_complex",
-                    "split[a][b];[a]palettegen=max_colors=192[p];"
-                    "[b][p]paletteuse=dither=bayer:bayer_scale=4",
-                ],
-            }
-        else:
-            kwargs |= {"codec": "libx264", "pix_fmt_out": "yuv420p", "quality": 7}
-        writer = imageio_ffmpeg.write_frames(str(tmp), (W, H), fps=fps, **kwargs)
+        writer = imageio_ffmpeg.write_frames(str(tmp), (W, H), fps=fps, **_writer_options(gif))
         writer.send(None)
         try:
             canvas = np.empty((H, W, 3), np.uint8)
@@ -296,6 +269,50 @@ def make_preview(
     finally:
         media.close()
     return PreviewInfo(out, n, fps, (W, H))
+
+
+def _check_rates(fps: float, speed: float, window_ms: float) -> None:
+    """Refuse a frame rate, speed or event window out of range (or not finite)."""
+    for name, value, lo, hi in (
+        ("--fps", fps, 0.0, 240.0),
+        ("--speed", speed, 0.0, 1000.0),
+        ("--window-ms", window_ms, 0.0, 1000.0),
+    ):
+        if not (math.isfinite(value) and lo < value <= hi):
+            msg = f"{COMMAND}: {name} = {value}: must be in ({lo:g}, {hi:g}]"
+            raise PlotError(msg)
+
+
+def _output_path(outdir: Path, out: Path | None, gif: bool | None) -> tuple[Path, bool]:
+    """(video path, whether it is a GIF): ``gif`` defaults to ``out``'s suffix, ``out`` to
+    ``OUTDIR/preview.mp4`` / ``.gif``; a GIF always gets the ``.gif`` suffix."""
+    if gif is None:
+        gif = out is not None and Path(out).suffix.lower() == ".gif"
+    if out is None:
+        out = outdir / ("preview.gif" if gif else "preview.mp4")
+    out = Path(out)
+    if gif and out.suffix.lower() != ".gif":
+        out = out.with_suffix(".gif")
+    return out, gif
+
+
+def _writer_options(gif: bool) -> dict[str, Any]:
+    """imageio-ffmpeg options: a 192-colour palette GIF or an H.264 MP4."""
+    kwargs: dict[str, Any] = {"macro_block_size": 16, "ffmpeg_log_level": "error"}
+    if gif:
+        kwargs |= {
+            "codec": "gif",
+            "pix_fmt_out": "pal8",
+            "macro_block_size": 1,
+            "output_params": [
+                "-filter_complex",
+                "split[a][b];[a]palettegen=max_colors=192[p];"
+                "[b][p]paletteuse=dither=bayer:bayer_scale=4",
+            ],
+        }
+    else:
+        kwargs |= {"codec": "libx264", "pix_fmt_out": "yuv420p", "quality": 7}
+    return kwargs
 
 
 def _events_frame(media: RunMedia, t_ns: int, window_ns: int, pw: int, ph: int) -> U8:

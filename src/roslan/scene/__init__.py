@@ -7,12 +7,13 @@
 pipe perch at a goal.
 """
 
-from roslan.scene.builtin import REFINERY_GOAL, WAREHOUSE_GOAL
 from roslan.scene.clearance import check_clearance
 from roslan.scene.export import export_scene
 from roslan.scene.loader import BUILTIN_SCENES, load_scene
 from roslan.scene.model import Lights, Material, Scene, SceneObject
 from roslan.scene.perch import PERCH_TYPES, add_perch
+from roslan.scene.refinery import REFINERY_GOAL
+from roslan.scene.warehouse import WAREHOUSE_GOAL
 
 __all__ = [
     "BUILTIN_SCENES",

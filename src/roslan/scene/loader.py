@@ -25,7 +25,9 @@ MESH_SUFFIXES = (".obj", ".gltf", ".glb", ".stl", ".ply")
 
 
 def _builtins() -> dict[str, Callable[[int], Scene]]:
-    from roslan.scene.builtin import empty, refinery, warehouse
+    from roslan.scene.builtin import empty
+    from roslan.scene.refinery import refinery
+    from roslan.scene.warehouse import warehouse
 
     return {"warehouse": warehouse, "refinery": refinery, "empty": empty}
 
