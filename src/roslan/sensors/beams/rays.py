@@ -9,7 +9,7 @@ cubic Hermite interpolation of the position (exact values *and* velocities at bo
 knots) and of the rotation vector (exact relative rotation and angular velocities at
 both knots). Over 46 us that is
 within 1e-9 m / 1e-9 rad of the exact pose for the flapping landing trajectories
-(``tests/test_lidar_motion.py`` checks it against ``state`` at every instant);
+(``tests/sensors/test_lidar_motion.py`` checks it against ``state`` at every instant);
 ``firing_poses: exact`` evaluates ``state`` at every instant instead.
 """
 

@@ -289,7 +289,7 @@ def test_stopping_the_parent_stops_the_children(tmp_path: Path, sig: signal.Sign
     script = textwrap.dedent(
         f"""
         import sys
-        sys.path.insert(0, {str(HERE)!r})
+        sys.path[:0] = [{str(HERE)!r}, {str(HERE.parent / "helpers")!r}]
         from pathlib import Path
         import roslan.pipeline.plan as plan
         from roslan.pipeline import run_simulation

@@ -26,7 +26,7 @@ from roslan.config.base import validate_model
 from roslan.config.sim import SimConfig
 from roslan.scene.spec import SceneFile
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 README = ROOT / "README.md"
 SRC = ROOT / "src"
 
@@ -35,7 +35,7 @@ _NAMED = re.compile(r"^# ([\w.]+\.yaml)\b")
 
 NOT_RUN: dict[str, str] = {
     "make ": "creates a virtual environment and pip-installs (the suite runs inside one)",
-    "rosbag info": "needs a ROS 1 installation (tests/test_bags.py reads the bags instead)",
+    "rosbag info": "needs a ROS 1 installation (tests/io/test_bags.py reads the bags instead)",
     "roslan dataset -o paper_ds ": "12 full landings take minutes (its --dry-run runs here)",
     "roslan batch sweep.yaml -o sweep_out --workers": "64 landings (the --dry-run runs here)",
     "roslan batch sweep.yaml -o sweep_out --scheduler": "needs a running Dask scheduler",

@@ -1,6 +1,6 @@
 """A small sensor written the way the README's "Architecture" section says: one module
 (a config model and a class satisfying ``roslan.sensors.base.Sensor``) plus one
-``SensorSpec``. tests/test_sensor_plugin.py registers it and runs it through the pipeline.
+``SensorSpec``. tests/sensors/test_sensor_plugin.py registers it and runs it through the pipeline.
 
 A barometer: static pressure of the International Standard Atmosphere at the sensor's
 altitude (world z, taken as height above sea level), with white noise, published as

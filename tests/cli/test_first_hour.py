@@ -19,7 +19,7 @@ from roslan.config.sim import SimConfig
 from roslan.errors import ConfigError
 from roslan.sensors.registry import SENSOR_TYPES, config_class
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def _config_error(data: dict[str, Any]) -> str:

@@ -268,7 +268,7 @@ def test_interrupted_run_leaves_nothing(
 _SLOW_RUN = textwrap.dedent(
     f"""
     import sys, time
-    sys.path.insert(0, {str(Path(__file__).parent)!r})
+    sys.path.insert(0, {str(Path(__file__).parents[1] / "helpers")!r})
     from pathlib import Path
     from pipeline_helpers import short_config
     from roslan.sensors.imu import Imu
