@@ -42,7 +42,7 @@ from roslan.io.messages import Flavor
 from roslan.pipeline.context import Context
 from roslan.scene import load_scene
 from roslan.sensors.cameras import EventCamera, EventCameraConfig
-from roslan.trajectory import Trajectory, TrajectoryConfig
+from roslan.trajectory import TauTrajectory, TrajectoryConfig
 
 
 def main() -> None:
@@ -58,7 +58,7 @@ def main() -> None:
     load0 = os.getloadavg()[0]
 
     scene = load_scene(args.scene)
-    traj = Trajectory(
+    traj = TauTrajectory(
         TrajectoryConfig(goal={"position": scene.goal_position, "rpy": scene.goal_rpy}), warn=False
     )
     cfg = EventCameraConfig.model_validate(

@@ -29,7 +29,7 @@ from roslan.io.messages import Flavor, MessageStore
 from roslan.render.raycast import get_raycaster
 from roslan.scene import load_scene
 from roslan.sensors.beams import Lidar, LidarConfig, measure, pointcloud2, rays_in_world
-from roslan.trajectory import Trajectory, TrajectoryConfig
+from roslan.trajectory import TauTrajectory, TrajectoryConfig
 
 
 def _bare(emb: Any, o: np.ndarray, d: np.ndarray, tfar: float, q: slice) -> Any:
@@ -53,7 +53,7 @@ def main() -> None:
     caster = get_raycaster(scene)
     t_bvh = time.perf_counter() - t
     goal = Pose(position=scene.goal_position, rpy=scene.goal_rpy)
-    traj = Trajectory(TrajectoryConfig(goal=goal), warn=False)
+    traj = TauTrajectory(TrajectoryConfig(goal=goal), warn=False)
     lid = Lidar(validate_model(LidarConfig, {"type": "lidar", "name": "velodyne"}))
     s = lid.spec
     store = MessageStore(Flavor.ROS2)

@@ -18,7 +18,7 @@ from roslan.scene.builtin import empty
 from roslan.scene.export import _GLB_CACHE
 from roslan.scene.refinery import refinery
 from roslan.scene.warehouse import warehouse
-from roslan.trajectory import Trajectory, TrajectoryConfig
+from roslan.trajectory import TauTrajectory, TrajectoryConfig
 
 
 def main() -> None:
@@ -36,7 +36,7 @@ def main() -> None:
             scene = gen(0)
             times.append(time.perf_counter() - t0)
         goal = Pose(position=scene.goal_position, rpy=scene.goal_rpy)
-        traj = Trajectory(TrajectoryConfig(goal=goal))
+        traj = TauTrajectory(TrajectoryConfig(goal=goal))
         t0 = time.perf_counter()
         assert check_clearance(scene, traj) is None
         t_clear = time.perf_counter() - t0

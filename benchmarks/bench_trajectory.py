@@ -17,7 +17,7 @@ import warnings
 
 import numpy as np
 
-from roslan.trajectory import Trajectory, TrajectoryConfig, TrajectoryWarning
+from roslan.trajectory import TauTrajectory, Trajectory, TrajectoryConfig, TrajectoryWarning
 
 
 def bench(name: str, traj: Trajectory, n: int, repeats: int = 7) -> None:
@@ -40,7 +40,7 @@ def bench(name: str, traj: Trajectory, n: int, repeats: int = 7) -> None:
 def main() -> None:
     n = int(sys.argv[1]) if len(sys.argv) > 1 else 1_000_000
     warnings.simplefilter("ignore", TrajectoryWarning)
-    bench("default", Trajectory(TrajectoryConfig()), n)
+    bench("default", TauTrajectory(TrajectoryConfig()), n)
     cfg = TrajectoryConfig.model_validate(
         {
             "kappa": {"x": 0.4, "y": 0.6, "roll": 0.7, "pitch": 0.8, "yaw": 0.9},
@@ -48,7 +48,7 @@ def main() -> None:
             "flapping": {"frequency": 8.0, "heave": 0.05, "pitch": 0.1},
         }
     )
-    bench("tilted goal + flapping", Trajectory(cfg), n)
+    bench("tilted goal + flapping", TauTrajectory(cfg), n)
 
 
 if __name__ == "__main__":

@@ -21,12 +21,12 @@ from roslan.events.sampling import AdaptiveSampler
 from roslan.pipeline.context import Context
 from roslan.scene import load_scene
 from roslan.sensors.cameras import EventCamera, EventCameraConfig
-from roslan.trajectory import Trajectory, TrajectoryConfig
+from roslan.trajectory import TauTrajectory, TrajectoryConfig
 
 
 def render_clip(scene_name: str, start: float, seconds: float) -> tuple[EventCameraConfig, list]:
     scene = load_scene(scene_name)
-    traj = Trajectory(
+    traj = TauTrajectory(
         TrajectoryConfig(goal={"position": scene.goal_position, "rpy": scene.goal_rpy}), warn=False
     )
     cfg = EventCameraConfig.model_validate(

@@ -17,8 +17,9 @@ from roslan.batch.paper import dataset_plan, default_sensor_suite
 from roslan.config.sim import SimConfig
 from roslan.errors import ConfigError
 from roslan.scene import check_clearance, load_scene
+from roslan.trajectory.base import Trajectory
 from roslan.trajectory.config import TrajectoryConfig
-from roslan.trajectory.generator import Trajectory
+from roslan.trajectory.generator import TauTrajectory
 from roslan.vehicle import base_link_trajectory
 
 
@@ -29,7 +30,7 @@ def plan() -> list:  # type: ignore[type-arg]
 
 
 def _traj(run) -> Trajectory:  # type: ignore[no-untyped-def]
-    return Trajectory(TrajectoryConfig.model_validate(run.config["trajectory"]), warn=False)
+    return TauTrajectory(TrajectoryConfig.model_validate(run.config["trajectory"]), warn=False)
 
 
 def test_six_landings_per_scene_with_the_papers_parameters(plan) -> None:  # type: ignore[no-untyped-def]
@@ -78,7 +79,7 @@ def test_planned_paths_clear_the_scene_built_with_their_seed(plan, scene: str, n
     # as roslan simulate checks it: the vehicle's body and every sensor of the run
     sc = load_scene(scene, seed=run.seed)
     cfg = SimConfig.model_validate(run.config)
-    traj = Trajectory(base_link_trajectory(cfg.trajectory, cfg.vehicle, sc), warn=False)
+    traj = TauTrajectory(base_link_trajectory(cfg.trajectory, cfg.vehicle, sc), warn=False)
     assert check_clearance(sc, traj, vehicle=cfg.vehicle, sensors=cfg.sensors) is None
 
 

@@ -189,12 +189,12 @@ def test_a_sensor_without_scene_stops_before_any_work(
 
 def test_preflight_accepts_scene_free_sensors() -> None:
     from roslan.pipeline import preflight
-    from roslan.trajectory.generator import Trajectory
+    from roslan.trajectory.generator import TauTrajectory
 
     cfg = SimConfig.model_validate(
         {"trajectory": SHORT_TRAJECTORY, "sensors": [{"type": "imu", "name": "imu", "rate": 50}]}
     )
-    preflight(cfg, Trajectory(cfg.trajectory))  # no error
+    preflight(cfg, TauTrajectory(cfg.trajectory))  # no error
     needs = {k for k in SENSOR_TYPES if config_class(k).needs_scene}
     assert needs == set(SENSOR_TYPES) - {"imu"}
 

@@ -13,7 +13,7 @@ import numpy as np
 
 from roslan.render.raycast import get_raycaster
 from roslan.scene.model import Material, Scene, SceneObject
-from roslan.trajectory.generator import State
+from roslan.trajectory.base import State
 
 START_NS = 1_700_000_000_000_000_000
 

@@ -22,7 +22,7 @@ from roslan.io.packing import FixedLayout
 from roslan.io.ros1_msgdefs import ros1_full_text
 from roslan.pipeline import run_simulation
 from roslan.sensors.ground_truth import TAU_LAYOUT, _Layouts
-from roslan.trajectory.generator import COMPONENTS
+from roslan.trajectory.base import COMPONENTS
 
 
 def _deserialize(store: MessageStore, data: bytes, msgtype: str) -> object:

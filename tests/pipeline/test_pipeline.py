@@ -88,11 +88,11 @@ def test_output_folder_contract(out: Path) -> None:
 
 def test_ground_truth_content(out: Path) -> None:
     cfg = short_config()
-    from roslan.trajectory import Trajectory
+    from roslan.trajectory import TauTrajectory
     from roslan.vehicle import base_link_trajectory
 
     # base_link's goal lies above the configured one, by the default feet (8 cm)
-    traj = Trajectory(base_link_trajectory(cfg.trajectory, cfg.vehicle))
+    traj = TauTrajectory(base_link_trajectory(cfg.trajectory, cfg.vehicle))
     assert traj.p_world_goal == pytest.approx([0.0, 0.0, 0.08])
     with AnyReader([out / "landing_ros2"]) as reader:
         msgs: dict[str, list] = {}
@@ -378,9 +378,9 @@ def test_misbehaving_sensor_is_reported(
 
 
 def test_context_rng_streams() -> None:
-    from roslan.trajectory import Trajectory, TrajectoryConfig
+    from roslan.trajectory import TauTrajectory, TrajectoryConfig
 
-    traj = Trajectory(TrajectoryConfig.model_validate(SHORT_TRAJECTORY))
+    traj = TauTrajectory(TrajectoryConfig.model_validate(SHORT_TRAJECTORY))
     a = Context(traj, Path("/nonexistent"), seed=1)
     b = Context(traj, Path("/nonexistent"), seed=1)
     assert a.rng("imu").random() == b.rng("imu").random()

@@ -18,7 +18,7 @@ from roslan.cli import main
 from roslan.config.base import Pose
 from roslan.config.sim import SimConfig
 from roslan.scene import check_clearance, load_scene
-from roslan.trajectory import Trajectory, TrajectoryConfig
+from roslan.trajectory import TauTrajectory, TrajectoryConfig
 from roslan.trajectory.frames import quat_xyzw_to_matrix
 from roslan.vehicle import VehicleConfig, base_link_trajectory
 
@@ -238,7 +238,7 @@ def test_sensor_below_the_contact_is_refused(
     assert "--allow-collision" in err[0]
     # the instant is when the mount crosses z = 0, computed independently
     cfg = SimConfig.model_validate(job)
-    traj = Trajectory(base_link_trajectory(cfg.trajectory, cfg.vehicle))
+    traj = TauTrajectory(base_link_trajectory(cfg.trajectory, cfg.vehicle))
     t = np.linspace(0.0, traj.T, 100001)
     st = traj.state(t)
     z = st.position[:, 2] + st.R_world_body[:, 2, :] @ np.array([0.0, 0.0, -0.12])
@@ -274,7 +274,7 @@ def test_camera_near_plane_is_checked(near_clip: float) -> None:
         }
     )
     scene = load_scene("empty")
-    traj = Trajectory(base_link_trajectory(cfg.trajectory, cfg.vehicle, scene))
+    traj = TauTrajectory(base_link_trajectory(cfg.trajectory, cfg.vehicle, scene))
     msg = check_clearance(scene, traj, vehicle=cfg.vehicle, sensors=cfg.sensors)
     if near_clip < 0.08:
         assert msg is None
@@ -294,13 +294,13 @@ def test_goal_moves_by_the_contact_point() -> None:
         (VehicleConfig(feet=[[0.1, 0.0, -0.2], [-0.1, 0.0, -0.1]]), (0.0, 0.0, -0.2)),
     ):
         moved = base_link_trajectory(cfg, vehicle)
-        traj = Trajectory(moved)
+        traj = TauTrajectory(moved)
         st = traj.state([traj.T])
         assert st.position[0] + st.R_world_body[0] @ np.array(contact) == pytest.approx(
             goal["position"], abs=1e-9
         )
         assert moved.goal.rpy == cfg.goal.rpy
-        assert traj.T == Trajectory(cfg).T  # only the goal moves, not the timing
+        assert traj.T == TauTrajectory(cfg).T  # only the goal moves, not the timing
 
 
 def test_perching_uses_the_grasp_point(tmp_path: Path) -> None:
@@ -308,12 +308,12 @@ def test_perching_uses_the_grasp_point(tmp_path: Path) -> None:
     goal = Pose(position=scene.goal_position, rpy=scene.goal_rpy)
     cfg = TrajectoryConfig.model_validate({"goal": goal.model_dump(), "hold": 0.3})
     v = VehicleConfig(grasp=(0.0, 0.0, -0.06))  # claws 2 cm higher than the feet
-    traj = Trajectory(base_link_trajectory(cfg, v, scene))
+    traj = TauTrajectory(base_link_trajectory(cfg, v, scene))
     top = np.asarray(scene.goal_position)
     p = traj.state([traj.duration]).position[0]
     assert p == pytest.approx(top + np.array([0.0, 0.0, 0.06]), abs=1e-9)
     assert check_clearance(scene, traj, vehicle=v) is None
-    default = Trajectory(base_link_trajectory(cfg, VehicleConfig(), scene))
+    default = TauTrajectory(base_link_trajectory(cfg, VehicleConfig(), scene))
     assert check_clearance(scene, default) is None
     # `roslan trajectory` flies the same goal (it reads the scene only for this choice)
     job = tmp_path / "perch.yaml"
@@ -333,7 +333,7 @@ def test_perching_uses_the_grasp_point(tmp_path: Path) -> None:
     wh = load_scene("warehouse")
     goal = Pose(position=wh.goal_position, rpy=wh.goal_rpy)
     cfg = TrajectoryConfig.model_validate({"goal": goal.model_dump()})
-    traj = Trajectory(base_link_trajectory(cfg, v, wh))
+    traj = TauTrajectory(base_link_trajectory(cfg, v, wh))
     assert traj.state([traj.T]).position[0][2] == pytest.approx(wh.goal_position[2] + 0.08)
 
 

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from roslan.trajectory import Trajectory, TrajectoryConfig
+from roslan.trajectory import TauTrajectory, Trajectory, TrajectoryConfig
 
 W, H = 64, 48  # event camera / camera resolution of the synthetic run
 IMU_RATE = 200.0
@@ -21,7 +21,7 @@ def _traj() -> Trajectory:
     cfg = TrajectoryConfig.model_validate(
         {"initial": {"position": [-3.0, 1.0, 2.0], "rpy": [0.05, 0.1, 0.3], "descent_rate": 2.0}}
     )
-    return Trajectory(cfg, warn=False)
+    return TauTrajectory(cfg, warn=False)
 
 
 def _ground_truth_events(duration: float) -> tuple[np.ndarray, ...]:

@@ -13,7 +13,7 @@ from roslan.batch.paper import default_sensor_suite
 from roslan.config.base import Pose
 from roslan.scene import check_clearance, load_scene
 from roslan.sensors.registry import config_class
-from roslan.trajectory import Trajectory, TrajectoryConfig
+from roslan.trajectory import TauTrajectory, Trajectory, TrajectoryConfig
 from roslan.vehicle import VehicleConfig, base_link_trajectory
 
 VEHICLE = VehicleConfig()
@@ -22,7 +22,7 @@ SUITE = [config_class(s["type"]).model_validate(s) for s in default_sensor_suite
 
 def _landing(cfg: TrajectoryConfig, scene) -> Trajectory:  # type: ignore[no-untyped-def]
     """base_link's trajectory: the default vehicle's contact point on the goal."""
-    return Trajectory(base_link_trajectory(cfg, VEHICLE, scene))
+    return TauTrajectory(base_link_trajectory(cfg, VEHICLE, scene))
 
 
 def _goal(name: str) -> dict:
@@ -103,7 +103,7 @@ def test_collision_reported_with_time_and_object(tmp_path: Path) -> None:
             "kappa": {"x": 1.0, "y": 1.0},
         }
     )
-    traj = Trajectory(cfg)
+    traj = TauTrajectory(cfg)
     # the wall stands at x = -4 (face at -4.2): find when the path crosses it, independently
     t = np.linspace(0.0, traj.T, 200001)
     x = traj.state(t).position[:, 0]
@@ -132,6 +132,6 @@ def test_goal_below_ground_is_a_collision(tmp_path: Path) -> None:
             "goal": {"position": [0.0, 0.0, -1.0]},
         }
     )
-    msg = check_clearance(load_scene("empty"), Trajectory(cfg))
+    msg = check_clearance(load_scene("empty"), TauTrajectory(cfg))
     assert msg is not None
     assert "'ground'" in msg

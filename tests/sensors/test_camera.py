@@ -34,7 +34,7 @@ from roslan.sensors.cameras import (
     load_calibration,
     srgb_lut,
 )
-from roslan.trajectory import Trajectory, TrajectoryConfig
+from roslan.trajectory import TauTrajectory, TrajectoryConfig
 
 CAM = {"rate": 10.0, "resolution": [64, 48], "fx": 40.0, "pose": {"rpy": [0.0, 0.5, 0.0]}}
 
@@ -60,7 +60,7 @@ def _read(bag: Path, topic: str) -> list[Any]:
 
 
 def _n_frames(rate: float) -> int:
-    traj = Trajectory(TrajectoryConfig.model_validate(SHORT_TRAJECTORY))
+    traj = TauTrajectory(TrajectoryConfig.model_validate(SHORT_TRAJECTORY))
     return len(sample_times_ns(rate, traj.duration_ns))
 
 

@@ -22,7 +22,7 @@ from roslan.io.messages import Flavor, MessageStore
 from roslan.io.text import format_columns
 from roslan.scene.mesh import box, place, plane, pose_matrix
 from roslan.scene.model import Material, Scene
-from roslan.trajectory import Trajectory, TrajectoryConfig
+from roslan.trajectory import TauTrajectory, TrajectoryConfig
 
 
 def _edge_scene() -> Scene:
@@ -271,7 +271,7 @@ def _run(tmp: Path, seed: int, **over: Any) -> tuple[Any, list[Any]]:
     from roslan.rundir.calibration import write_calibration
     from roslan.sensors.cameras import EventCamera, EventCameraConfig
 
-    traj = Trajectory(
+    traj = TauTrajectory(
         TrajectoryConfig(
             initial={"position": (-1.2, 0.3, 0.6), "rpy": (0, 0, 0), "descent_rate": 1.5}
         ),

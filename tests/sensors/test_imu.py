@@ -17,7 +17,7 @@ from roslan.io.messages import Flavor, MessageStore
 from roslan.pipeline.context import Context
 from roslan.sensors.base import sample_times_ns
 from roslan.sensors.imu import Imu, ImuConfig
-from roslan.trajectory import Trajectory, TrajectoryConfig
+from roslan.trajectory import TauTrajectory, Trajectory, TrajectoryConfig
 from roslan.trajectory.frames import rotation_log, rpy_to_matrix
 
 QUIET = {
@@ -29,7 +29,7 @@ QUIET = {
 
 
 def _traj(**kw: object) -> Trajectory:
-    return Trajectory(TrajectoryConfig.model_validate({**SHORT_TRAJECTORY, **kw}))
+    return TauTrajectory(TrajectoryConfig.model_validate({**SHORT_TRAJECTORY, **kw}))
 
 
 def _run(

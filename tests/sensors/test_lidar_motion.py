@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 from range_helpers import FakeContext, LinearTrajectory, run_sensor, scene, vertical_wall_x
 from roslan.config.base import Pose, validate_model
 from roslan.sensors.beams import Lidar, LidarConfig, rays_in_world
-from roslan.trajectory import Trajectory, TrajectoryConfig
+from roslan.trajectory import TauTrajectory, TrajectoryConfig
 
 WALL_X = 12.0
 
@@ -82,7 +82,7 @@ def test_interpolated_poses_match_exact_state_on_a_flapping_landing() -> None:
     cfg = TrajectoryConfig(
         flapping={"frequency": 12.0, "heave": 0.05, "pitch": 0.2}, kappa={"yaw": 0.3}
     )
-    traj = Trajectory(cfg, warn=False)
+    traj = TauTrajectory(cfg, warn=False)
     T_bs = Pose(position=(0.1, 0.05, 0.2), rpy=(0.1, -0.3, 0.5)).matrix()
     lid = Lidar(validate_model(LidarConfig, {"type": "lidar", "name": "v"}))
     s = lid.spec
@@ -109,7 +109,7 @@ def test_points_from_a_landing_lie_on_the_empty_scene_ground(tmp_path: Path) -> 
         initial={"position": [-3.0, 1.0, 2.5], "rpy": [0.2, 0.3, 0.5], "descent_rate": 2.0},
         flapping={"frequency": 8.0, "heave": 0.05, "pitch": 0.2},
     )
-    traj = Trajectory(cfg, warn=False)
+    traj = TauTrajectory(cfg, warn=False)
     pose = Pose(position=(0.1, 0.0, -0.05), rpy=(0.0, 0.4, 0.0))
     data = {"type": "lidar", "name": "v", "noise_sigma": 0.0, "pose": pose.model_dump()}
     lid = Lidar(validate_model(LidarConfig, data))

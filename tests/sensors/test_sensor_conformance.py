@@ -20,7 +20,7 @@ from roslan.pipeline.context import Context
 from roslan.rundir.extrinsics import static_transforms
 from roslan.sensors.base import Sensor
 from roslan.sensors.registry import SENSOR_TYPES, config_class, sensor_class
-from roslan.trajectory import Trajectory, TrajectoryConfig
+from roslan.trajectory import TauTrajectory, TrajectoryConfig
 from roslan.vehicle import VehicleConfig, base_link_trajectory
 
 # T = z0 / (k v0) = 0.1 s plus 0.05 s at rest: a few samples of every sensor at 20 Hz, and a
@@ -63,7 +63,7 @@ def _run_sensor(
     cfg_cls, cls = _load(type_name)
     cfg = cfg_cls.model_validate(_minimal(type_name))
     # as the pipeline flies it: the default vehicle's feet on the goal
-    traj = Trajectory(
+    traj = TauTrajectory(
         base_link_trajectory(TrajectoryConfig.model_validate(TRAJ), VehicleConfig(), _scene())
     )
     ctx = Context(
@@ -126,7 +126,7 @@ def test_stream_conformance_and_determinism(
     cfg = sensor.config
     declared = {t.topic: t.msgtype for t in sensor.topics()}
     assert msgs, "no messages over a 0.15 s landing at 20 Hz"
-    duration_ns = Trajectory(TrajectoryConfig.model_validate(TRAJ)).duration_ns
+    duration_ns = TauTrajectory(TrajectoryConfig.model_validate(TRAJ)).duration_ns
     t = np.array([m.t_ns for m in msgs])
     assert (np.diff(t) >= 0).all(), "stamps must be non-decreasing"
     assert t[0] >= 0

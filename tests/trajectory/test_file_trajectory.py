@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from roslan.errors import TrajectoryError
-from roslan.trajectory import Trajectory, TrajectoryConfig
+from roslan.trajectory import TauTrajectory, Trajectory, TrajectoryConfig
 from roslan.trajectory.spline import FileTrajectory
 
 G = np.array([0.0, 0.0, -9.81])
@@ -21,7 +21,7 @@ def _write_tum(path: Path, t: np.ndarray, p: np.ndarray, q: np.ndarray) -> None:
 
 @pytest.fixture
 def tau_and_file(tmp_path: Path) -> tuple[Trajectory, FileTrajectory]:
-    tau = Trajectory(TrajectoryConfig(), warn=False)
+    tau = TauTrajectory(TrajectoryConfig(), warn=False)
     t = np.arange(0.0, tau.T, 1.0 / 200.0)
     st = tau.state(t)
     path = tmp_path / "flight.txt"
@@ -52,7 +52,7 @@ def test_round_trip_positions_and_specific_force(
 
 
 def test_smoothing_keeps_residual_reported(tmp_path: Path) -> None:
-    tau = Trajectory(TrajectoryConfig(), warn=False)
+    tau = TauTrajectory(TrajectoryConfig(), warn=False)
     t = np.arange(0.0, tau.T, 0.01)
     st = tau.state(t)
     rng = np.random.default_rng(0)
@@ -182,7 +182,7 @@ def test_cli_from_file_and_simulate_with_file(tmp_path: Path) -> None:
     import subprocess
     import sys
 
-    tau = Trajectory(TrajectoryConfig(), warn=False)
+    tau = TauTrajectory(TrajectoryConfig(), warn=False)
     t = np.arange(0.0, tau.T, 0.02)
     st = tau.state(t)
     _write_tum(tmp_path / "flight.txt", t, st.position, st.quat_xyzw)

@@ -11,7 +11,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
-from roslan.trajectory import Trajectory, TrajectoryConfig, TrajectoryWarning
+from roslan.trajectory import TauTrajectory, Trajectory, TrajectoryConfig, TrajectoryWarning
 from roslan.trajectory.frames import (
     OPTICAL_FROM_BODY,
     euler_rates_to_body_acceleration,
@@ -116,7 +116,7 @@ def _traj(**kw: object) -> Trajectory:
     }
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", TrajectoryWarning)
-        return Trajectory(TrajectoryConfig.model_validate({**base, **kw}))
+        return TauTrajectory(TrajectoryConfig.model_validate({**base, **kw}))
 
 
 def test_body_rates_match_log_map_of_finite_rotation() -> None:

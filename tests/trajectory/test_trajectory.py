@@ -11,14 +11,20 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.integrate import solve_ivp
 
-from roslan.trajectory import Terminal, Trajectory, TrajectoryConfig, TrajectoryWarning
+from roslan.trajectory import (
+    TauTrajectory,
+    Terminal,
+    Trajectory,
+    TrajectoryConfig,
+    TrajectoryWarning,
+)
 from roslan.trajectory.tau import S_FLOOR
 
 
 def make(**kw: object) -> Trajectory:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", TrajectoryWarning)
-        return Trajectory(TrajectoryConfig.model_validate(kw))
+        return TauTrajectory(TrajectoryConfig.model_validate(kw))
 
 
 BASE = {
@@ -190,7 +196,7 @@ def test_terminal_classification_and_warnings(
     cfg = TrajectoryConfig.model_validate({**BASE, "k": k, "kappa": {"x": kx}})
     with warnings.catch_warnings(record=True) as rec:
         warnings.simplefilter("always")
-        tr = Trajectory(cfg)
+        tr = TauTrajectory(cfg)
     assert tr.terminal["z"] is expected_z
     assert tr.terminal["x"] is expected_x
     texts = [str(w.message) for w in rec if issubclass(w.category, TrajectoryWarning)]

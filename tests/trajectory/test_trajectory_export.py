@@ -15,7 +15,7 @@ import roslan.cli.plot
 from roslan.errors import OutputError
 from roslan.io.files import atomic_write
 from roslan.io.text import format_seconds, write_columns
-from roslan.trajectory import Trajectory, TrajectoryConfig
+from roslan.trajectory import TauTrajectory, Trajectory, TrajectoryConfig
 from roslan.trajectory.export import write_trajectory_files
 from roslan.trajectory.frames import quat_xyzw_to_matrix
 from roslan.vehicle import VehicleConfig, base_link_trajectory
@@ -137,7 +137,7 @@ def test_write_trajectory_files(tmp_path: Path) -> None:
     cfg = TrajectoryConfig.model_validate(
         {"goal": {"position": [10.0, 5.0, 0.0], "rpy": [0.0, 0.0, 1.57]}, "hold": 0.25}
     )
-    traj = Trajectory(cfg)
+    traj = TauTrajectory(cfg)
     write_trajectory_files(traj, tmp_path, plot=True)
     _check_outputs(tmp_path, traj)
     png = (tmp_path / "trajectory.png").read_bytes()
@@ -162,7 +162,7 @@ def test_cli_trajectory(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> N
         "trajectory.png",
     ]
     # as roslan simulate flies it: base_link above the goal by the default vehicle's feet
-    traj = Trajectory(
+    traj = TauTrajectory(
         base_link_trajectory(
             TrajectoryConfig.model_validate({**_yaml(CONFIG)["trajectory"]}), VehicleConfig()
         )

@@ -171,9 +171,9 @@ def _trajectory_block(
 
 def _touchdown(block: Mapping[str, Any]) -> float:
     from roslan.trajectory.config import TrajectoryConfig
-    from roslan.trajectory.generator import Trajectory
+    from roslan.trajectory.generator import TauTrajectory
 
-    return float(Trajectory(TrajectoryConfig.model_validate(block), warn=False).T)
+    return float(TauTrajectory(TrajectoryConfig.model_validate(block), warn=False).T)
 
 
 def _load(name: str, seed: int) -> Any:
@@ -206,11 +206,11 @@ def _clear(scene: Any, block: Mapping[str, Any], sensors: Sequence[Mapping[str, 
     except ImportError:
         return True
     from roslan.config.sim import SimConfig
-    from roslan.trajectory.generator import Trajectory
+    from roslan.trajectory.generator import TauTrajectory
     from roslan.vehicle import base_link_trajectory
 
     cfg = SimConfig.model_validate({"trajectory": dict(block), "sensors": list(sensors)})
-    traj = Trajectory(base_link_trajectory(cfg.trajectory, cfg.vehicle, scene), warn=False)
+    traj = TauTrajectory(base_link_trajectory(cfg.trajectory, cfg.vehicle, scene), warn=False)
     return check_clearance(scene, traj, vehicle=cfg.vehicle, sensors=cfg.sensors) is None
 
 

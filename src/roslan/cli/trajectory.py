@@ -17,9 +17,10 @@ from pydantic import ValidationError
 from roslan.config.base import format_validation_error, load_yaml
 from roslan.errors import ConfigError, OutputError
 from roslan.io.files import current_umask
+from roslan.trajectory.base import Trajectory
 from roslan.trajectory.config import TrajectoryConfig
 from roslan.trajectory.export import write_trajectory_files
-from roslan.trajectory.generator import Trajectory, TrajectoryWarning
+from roslan.trajectory.generator import TauTrajectory, TrajectoryWarning
 
 __all__ = ["register", "write_into"]
 
@@ -127,8 +128,9 @@ def _run(args: argparse.Namespace) -> int:
     files = "trajectory.csv, groundtruth.txt, summary.json"
     if not args.no_plot:
         files += ", trajectory.png"
-    head = f"touchdown T = {traj.T:.6f} s, tau(0) = {traj.tau0:.6f} s"
-    if trajectory.file is not None:
+    if isinstance(traj, TauTrajectory):
+        head = f"touchdown T = {traj.T:.6f} s, tau(0) = {traj.tau0:.6f} s"
+    else:
         head = f"duration {traj.T:.6f} s (spline through {trajectory.file})"
     print(f"{head}, {len(traj.table_times())} samples -> {args.output}/ ({files})")
     return 0

@@ -19,7 +19,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from roslan.events.jit import kernel
-from roslan.trajectory.generator import Trajectory
+from roslan.trajectory.base import Trajectory
 
 __all__ = ["AdaptiveSampler", "camera_twist", "max_flow_speed", "motion_field", "pixel_rays"]
 

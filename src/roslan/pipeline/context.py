@@ -17,7 +17,7 @@ from roslan.sensors.base import SensorConfig
 if TYPE_CHECKING:
     from roslan.render.base import BeamCaster, FrameRenderer
     from roslan.scene.model import Scene
-    from roslan.trajectory.generator import Trajectory
+    from roslan.trajectory.base import Trajectory
 
 __all__ = ["Context", "stream_key"]
 

@@ -88,10 +88,10 @@ def _scene_key(scene: Any) -> str | None:
 
 def estimate_run(config: SimConfig, formats: tuple[str, ...] | None = None) -> RunEstimate:
     """Estimated disk use and wall time of ``run_simulation(config)``."""
-    from roslan.trajectory import Trajectory
+    from roslan.trajectory import TauTrajectory
 
     fmts = tuple(formats or config.output.formats)
-    duration = float(Trajectory(config.trajectory, warn=False).duration)
+    duration = float(TauTrajectory(config.trajectory, warn=False).duration)
     codec = {"ros1": config.output.compression, "ros2": config.output.ros2_compression}
     key = _scene_key(config.scene)
     ev_rate = EVENTS_PER_PIXEL_S.get(key, EVENTS_DEFAULT) if key != "other" else EVENTS_DEFAULT

@@ -28,7 +28,7 @@ from roslan.rundir.folder import check_outdir
 from roslan.sensors.base import Sensor
 from roslan.sensors.ground_truth import GroundTruth
 from roslan.sensors.registry import sensor_class
-from roslan.trajectory.generator import Trajectory
+from roslan.trajectory.base import Trajectory
 from roslan.trajectory.spline import make_trajectory
 
 __all__ = ["BAG_FORMATS", "RunPlan", "make_plan", "preflight"]

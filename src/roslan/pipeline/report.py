@@ -19,7 +19,7 @@ from pathlib import Path
 from typing import Any
 
 from roslan.errors import OutputError
-from roslan.trajectory.generator import Trajectory
+from roslan.trajectory.base import Trajectory
 
 __all__ = ["BackgroundPlot", "Progress", "playback_text", "print_profile"]
 

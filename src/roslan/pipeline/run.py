@@ -59,7 +59,8 @@ from roslan.rundir.manifest import (
     write_json,
 )
 from roslan.rundir.readme import outdir_readme
-from roslan.trajectory.generator import Trajectory
+from roslan.trajectory.base import Trajectory
+from roslan.trajectory.generator import TauTrajectory
 from roslan.vehicle import base_link_trajectory
 
 if TYPE_CHECKING:
@@ -215,7 +216,7 @@ class _Run:
         # trajectory ends above it (roslan.vehicle); only the goal moves, not the timing
         self.traj_config = base_link_trajectory(config.trajectory, config.vehicle, scene)
         if self.traj_config is not config.trajectory:
-            self.traj = Trajectory(self.traj_config, warn=False)
+            self.traj = TauTrajectory(self.traj_config, warn=False)
         if scene is None or self.opts.allow_collision:
             return
         from roslan.scene.clearance import check_clearance

@@ -42,7 +42,7 @@ def plot_trajectories(runs: Sequence[Landing], path: Path) -> None:
     import matplotlib.pyplot as plt
 
     from roslan.trajectory.config import TrajectoryConfig
-    from roslan.trajectory.generator import Trajectory
+    from roslan.trajectory.generator import TauTrajectory
 
     fig = plt.figure(figsize=(14, 4.8), dpi=110)
     ax3 = fig.add_subplot(1, 3, 1, projection="3d")
@@ -51,7 +51,7 @@ def plot_trajectories(runs: Sequence[Landing], path: Path) -> None:
     cmap = plt.get_cmap("tab10")
     colors = [cmap(i) for i in range(10)]
     trajs = [
-        Trajectory(TrajectoryConfig.model_validate(r.config["trajectory"]), warn=False)
+        TauTrajectory(TrajectoryConfig.model_validate(r.config["trajectory"]), warn=False)
         for r in runs
     ]
     # arrows: velocity scaled so the fastest start spans 15% of the largest start distance

@@ -73,14 +73,14 @@ def imu_truth(outdir: Path, data: ImuData) -> ImuTruth:
         from roslan.config.base import Pose
         from roslan.errors import RoslanError
         from roslan.sensors.imu import imu_measurements
-        from roslan.trajectory import Trajectory, TrajectoryConfig
+        from roslan.trajectory import TauTrajectory, TrajectoryConfig
 
         imus = [
             s for s in cfg.get("sensors") or [] if isinstance(s, dict) and s.get("type") == "imu"
         ]
         icfg = _imu_name(outdir, data.path, imus) or {}
         try:
-            traj = Trajectory(TrajectoryConfig.model_validate(cfg["trajectory"]), warn=False)
+            traj = TauTrajectory(TrajectoryConfig.model_validate(cfg["trajectory"]), warn=False)
             pose = Pose.model_validate(icfg.get("pose") or {})
         except (ValidationError, RoslanError, ValueError) as err:
             msg = f"{outdir / 'run.json'}: cannot rebuild the trajectory / IMU pose: {err}"

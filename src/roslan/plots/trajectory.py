@@ -64,10 +64,10 @@ def _closed_form(outdir: Path, n: int) -> tuple[TrajectoryTable, float, float, f
     from pydantic import ValidationError
 
     from roslan.errors import RoslanError
-    from roslan.trajectory import Trajectory, TrajectoryConfig
+    from roslan.trajectory import TauTrajectory, TrajectoryConfig
 
     try:
-        traj = Trajectory(TrajectoryConfig.model_validate(cfg["trajectory"]), warn=False)
+        traj = TauTrajectory(TrajectoryConfig.model_validate(cfg["trajectory"]), warn=False)
     except (ValidationError, RoslanError, ValueError):
         return None
     t = np.linspace(0.0, traj.duration, n)

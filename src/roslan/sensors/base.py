@@ -39,7 +39,7 @@ if TYPE_CHECKING:
     from roslan.io.messages import MessageStore
     from roslan.render.base import BeamCaster, FrameRenderer
     from roslan.scene.model import Scene
-    from roslan.trajectory.generator import Trajectory
+    from roslan.trajectory.base import Trajectory
 
 __all__ = [
     "Message",

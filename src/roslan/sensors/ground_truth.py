@@ -38,8 +38,8 @@ from numpy.typing import NDArray
 from roslan.io.messages import MessageStore
 from roslan.io.packing import FixedLayout, Leaf, PackedBatch
 from roslan.sensors.base import Message, SimContext, StaticTransform, TopicSpec, sample_times_ns
+from roslan.trajectory.base import COMPONENTS, GAPS
 from roslan.trajectory.frames import matrix_to_quat_xyzw
-from roslan.trajectory.generator import COMPONENTS, GAPS
 
 __all__ = [
     "BASE_FRAME",

@@ -1,21 +1,28 @@
-"""Tau-theory landing trajectories: closed-form gaps in the goal frame F, mapped to the world."""
+"""Landing trajectories: the :class:`Trajectory` protocol and its two sources, the
+closed-form tau landing (:class:`TauTrajectory`) and a pose file fitted with splines
+(:class:`FileTrajectory`); :func:`make_trajectory` picks one from a ``trajectory:`` block."""
 
 from __future__ import annotations
 
+from roslan.trajectory.base import COMPONENTS, GAPS, State, Trajectory
 from roslan.trajectory.config import Approach, Flapping, Initial, Kappa, TrajectoryConfig
-from roslan.trajectory.generator import COMPONENTS, GAPS, State, Trajectory, TrajectoryWarning
+from roslan.trajectory.generator import TauTrajectory, TrajectoryWarning
+from roslan.trajectory.spline import FileTrajectory, make_trajectory
 from roslan.trajectory.tau import Terminal
 
 __all__ = [
     "COMPONENTS",
     "GAPS",
     "Approach",
+    "FileTrajectory",
     "Flapping",
     "Initial",
     "Kappa",
     "State",
+    "TauTrajectory",
     "Terminal",
     "Trajectory",
     "TrajectoryConfig",
     "TrajectoryWarning",
+    "make_trajectory",
 ]

@@ -22,7 +22,8 @@ from numpy.typing import NDArray
 
 from roslan.io.files import atomic_write, atomic_write_text
 from roslan.io.text import write_columns
-from roslan.trajectory.generator import COMPONENTS, GAPS, State, Trajectory
+from roslan.trajectory.base import COMPONENTS, GAPS, State, Trajectory
+from roslan.trajectory.generator import TauTrajectory
 
 __all__ = [
     "CSV_HEADER",
@@ -103,10 +104,10 @@ def plot_trajectory(traj: Trajectory, table: State, path: Path) -> None:
     ax3.set_xlabel("x [m]")
     ax3.set_ylabel("y [m]")
     ax3.set_zlabel("z [m]")
-    if getattr(traj.config, "file", None) is not None:
-        ax3.set_title(f"path relative to the last pose (file, {traj.T:.3f} s)")
-    else:
+    if isinstance(traj, TauTrajectory):
         ax3.set_title(f"path in goal frame F (k = {traj.k:g}, T = {traj.T:.3f} s)")
+    else:
+        ax3.set_title(f"path relative to the last pose (file, {traj.T:.3f} s)")
     ax3.legend(loc="upper left", fontsize=8)
     units = {"x": "m", "y": "m", "z": "m", "roll": "rad", "pitch": "rad", "yaw": "rad"}
     for i, name in enumerate(GAPS):

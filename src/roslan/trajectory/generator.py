@@ -4,94 +4,29 @@ from __future__ import annotations
 
 import math
 import warnings
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from roslan.trajectory.base import GAPS, State, Trajectory, check_duration
 from roslan.trajectory.config import TrajectoryConfig
 from roslan.trajectory.frames import euler_zyx_kinematics, rpy_to_matrix, rpy_to_quat_xyzw
 from roslan.trajectory.tau import Terminal, classify, exponent, powers
 
-__all__ = ["COMPONENTS", "GAPS", "State", "Trajectory", "TrajectoryWarning"]
+__all__ = ["TauTrajectory", "TrajectoryWarning"]
 
 F64 = NDArray[np.float64]
 
-GAPS = ("x", "y", "z", "roll", "pitch", "yaw")
-"""Order of the six gaps (frame F) in every (N, 6) array."""
-
-COMPONENTS = (
-    *GAPS,
-    *(f"v{g}" for g in GAPS),
-    *(f"a{g}" for g in GAPS),
-)
-"""The 18 components in trajectory.csv order: gaps, rates, accelerations."""
-
-
 CHUNK = 16384
-"""Instants evaluated per block inside :meth:`Trajectory.state` (keeps temporaries in cache)."""
+"""Instants evaluated per block inside :meth:`TauTrajectory.state` (keeps temporaries in cache)."""
 
 
 class TrajectoryWarning(UserWarning):
     """Valid parameters whose landing is physically hard (unbounded deceleration...)."""
 
 
-@dataclass(frozen=True, slots=True)
-class State:
-    """Trajectory state at N instants. Arrays are float64.
-
-    Attributes:
-        t: (N,) trajectory time, s.
-        gaps, rates, accels: (N, 6) the 18 components in frame F, order :data:`GAPS`
-            (m, rad; m/s, rad/s; m/s^2, rad/s^2).
-        position, velocity, acceleration: (N, 3) of base_link in the world frame.
-        R_world_body: (N, 3, 3) orientation of base_link in the world.
-        quat_xyzw: (N, 4) the same orientation as a unit quaternion (w >= 0).
-        omega_body, alpha_body: (N, 3) angular velocity (rad/s) and acceleration (rad/s^2)
-            of base_link, in base_link.
-    """
-
-    t: F64
-    gaps: F64
-    rates: F64
-    accels: F64
-    position: F64
-    velocity: F64
-    acceleration: F64
-    R_world_body: F64
-    quat_xyzw: F64
-    omega_body: F64
-    alpha_body: F64
-
-    def __len__(self) -> int:
-        return int(self.t.shape[0])
-
-    def components(self) -> F64:
-        """(N, 18) array in :data:`COMPONENTS` order."""
-        return np.concatenate([self.gaps, self.rates, self.accels], axis=1)
-
-
-def _check_duration(duration: float, sample_dt: float, T: float) -> None:
-    """Refuse a landing too long to simulate (README "Limits")."""
-    from roslan.errors import TrajectoryError
-    from roslan.limits import MAX_DURATION_S, MAX_TRAJECTORY_SAMPLES
-
-    if not math.isfinite(duration) or duration > MAX_DURATION_S:
-        msg = (
-            f"trajectory: touchdown time z0 / (k * descent rate) = {T:.4g} s plus hold gives "
-            f"{duration:.4g} s; at most {MAX_DURATION_S:g} s (raise k or the descent rate)"
-        )
-        raise TrajectoryError(msg)
-    if duration / sample_dt > MAX_TRAJECTORY_SAMPLES:
-        msg = (
-            f"trajectory.sample_dt = {sample_dt:g}: {duration:.4g} s / sample_dt is more than "
-            f"{MAX_TRAJECTORY_SAMPLES} samples; use a larger sample_dt"
-        )
-        raise TrajectoryError(msg)
-
-
-class Trajectory:
+class TauTrajectory(Trajectory):
     """A validated tau-theory landing, evaluated in closed form.
 
     ``Trajectory(config).state(t)`` gives the full :class:`State` at any instants
@@ -135,7 +70,7 @@ class Trajectory:
         self.hold = float(c.hold)
         self.duration = self.T + self.hold
         """Touchdown time plus hold, s."""
-        _check_duration(self.duration, float(c.sample_dt), self.T)
+        check_duration(self.duration, float(c.sample_dt), self.T)
         self.R_world_goal: F64 = rpy_to_matrix(np.asarray(c.goal.rpy))
         self.p_world_goal: F64 = np.asarray(c.goal.position, dtype=np.float64)
         self._q_world_goal: F64 = rpy_to_quat_xyzw(np.asarray(c.goal.rpy))
@@ -333,16 +268,3 @@ class Trajectory:
             omega_body=omega,
             alpha_body=alpha,
         )
-
-    def state_ns(self, t_ns: ArrayLike) -> State:
-        """Full state at integer-nanosecond trajectory times."""
-        return self.state(np.asarray(t_ns, dtype=np.int64).astype(np.float64) * 1e-9)
-
-    @property
-    def duration_ns(self) -> int:
-        """Touchdown time plus hold, in integer nanoseconds (rounded)."""
-        return round(self.duration * 1e9)
-
-    @property
-    def touchdown_ns(self) -> int:
-        return round(self.T * 1e9)

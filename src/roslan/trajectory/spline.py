@@ -19,9 +19,10 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from roslan.errors import TrajectoryError
+from roslan.trajectory.base import State, Trajectory, check_duration
 from roslan.trajectory.config import TrajectoryConfig
 from roslan.trajectory.frames import matrix_to_rpy
-from roslan.trajectory.generator import State, Trajectory, _check_duration
+from roslan.trajectory.generator import TauTrajectory
 
 __all__ = ["FileTrajectory", "make_trajectory", "read_pose_file"]
 
@@ -96,7 +97,7 @@ def read_pose_file(path: Path, max_gap: float) -> tuple[F64, F64, F64]:
 
 
 class FileTrajectory(Trajectory):
-    """Spline fit of a pose file; same interface as the tau :class:`Trajectory`.
+    """Spline fit of a pose file: the second implementation of :class:`Trajectory`.
 
     The goal frame F of the tau landing is here the world axes translated to the last
     pose's position: ``gaps[:, :3]`` = position - last position, ``gaps[:, 3:]`` = ZYX
@@ -124,14 +125,9 @@ class FileTrajectory(Trajectory):
         self.T = float(t[-1])
         self.hold = float(config.hold)
         self.duration = self.T + self.hold
-        _check_duration(self.duration, float(config.sample_dt), self.T)
-        self.k = float("nan")
-        self.tau0 = float("nan")
+        check_duration(self.duration, float(config.sample_dt), self.T)
         self.p_world_goal: F64 = p[-1].copy()
         self.R_world_goal: F64 = np.eye(3)
-        self.descent_rate = float("nan")
-        self.terminal = {}
-        self._flap = None
 
     def warnings(self) -> list[str]:
         return []
@@ -240,4 +236,4 @@ def make_trajectory(
     """The trajectory a ``trajectory:`` block asks for: a pose file's spline or a tau landing."""
     if config.file is not None:
         return FileTrajectory(config, base_dir=base_dir)
-    return Trajectory(config, warn=warn)
+    return TauTrajectory(config, warn=warn)

@@ -23,7 +23,7 @@ from numpy.typing import NDArray
 from roslan.trajectory.frames import rotation_log
 
 if TYPE_CHECKING:
-    from roslan.trajectory.generator import Trajectory
+    from roslan.trajectory.base import Trajectory
 
 __all__ = ["rays_in_world"]
 

@@ -1,0 +1,143 @@
+"""The interface every trajectory implements: one :class:`Trajectory` protocol, two sources.
+
+:class:`~roslan.trajectory.generator.TauTrajectory` is the closed-form tau-theory landing
+(the default and the reference); :class:`~roslan.trajectory.spline.FileTrajectory` flies a
+recorded or planned pose file through smooth splines. Sensors, the pipeline, the clearance
+check and the plots only use this protocol: the full :class:`State` (pose, twist,
+accelerations, and the 18 gap components in the goal frame F) at any instants.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, Protocol
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from roslan.trajectory.config import TrajectoryConfig
+
+__all__ = ["COMPONENTS", "GAPS", "State", "Trajectory", "check_duration"]
+
+F64 = NDArray[np.float64]
+
+GAPS = ("x", "y", "z", "roll", "pitch", "yaw")
+"""Order of the six gaps (frame F) in every (N, 6) array."""
+
+COMPONENTS = (
+    *GAPS,
+    *(f"v{g}" for g in GAPS),
+    *(f"a{g}" for g in GAPS),
+)
+"""The 18 components in trajectory.csv order: gaps, rates, accelerations."""
+
+
+@dataclass(frozen=True, slots=True)
+class State:
+    """Trajectory state at N instants. Arrays are float64.
+
+    Attributes:
+        t: (N,) trajectory time, s.
+        gaps, rates, accels: (N, 6) the 18 components in frame F, order :data:`GAPS`
+            (m, rad; m/s, rad/s; m/s^2, rad/s^2).
+        position, velocity, acceleration: (N, 3) of base_link in the world frame.
+        R_world_body: (N, 3, 3) orientation of base_link in the world.
+        quat_xyzw: (N, 4) the same orientation as a unit quaternion (w >= 0).
+        omega_body, alpha_body: (N, 3) angular velocity (rad/s) and acceleration (rad/s^2)
+            of base_link, in base_link.
+    """
+
+    t: F64
+    gaps: F64
+    rates: F64
+    accels: F64
+    position: F64
+    velocity: F64
+    acceleration: F64
+    R_world_body: F64
+    quat_xyzw: F64
+    omega_body: F64
+    alpha_body: F64
+
+    def __len__(self) -> int:
+        return int(self.t.shape[0])
+
+    def components(self) -> F64:
+        """(N, 18) array in :data:`COMPONENTS` order."""
+        return np.concatenate([self.gaps, self.rates, self.accels], axis=1)
+
+
+def check_duration(duration: float, sample_dt: float, T: float) -> None:
+    """Refuse a landing too long to simulate (README "Limits")."""
+    from roslan.errors import TrajectoryError
+    from roslan.limits import MAX_DURATION_S, MAX_TRAJECTORY_SAMPLES
+
+    if not math.isfinite(duration) or duration > MAX_DURATION_S:
+        msg = (
+            f"trajectory: touchdown time z0 / (k * descent rate) = {T:.4g} s plus hold gives "
+            f"{duration:.4g} s; at most {MAX_DURATION_S:g} s (raise k or the descent rate)"
+        )
+        raise TrajectoryError(msg)
+    if duration / sample_dt > MAX_TRAJECTORY_SAMPLES:
+        msg = (
+            f"trajectory.sample_dt = {sample_dt:g}: {duration:.4g} s / sample_dt is more than "
+            f"{MAX_TRAJECTORY_SAMPLES} samples; use a larger sample_dt"
+        )
+        raise TrajectoryError(msg)
+
+
+class Trajectory(Protocol):
+    """A path of base_link in the world, sampled at any instants.
+
+    Motion ends at ``T`` (touchdown, or the last pose of a file); the robot then rests for
+    ``hold`` seconds, so samples are defined on ``[0, duration]`` (clamped outside).
+    Implementations may subclass this protocol to inherit the nanosecond helpers.
+    """
+
+    config: TrajectoryConfig
+    T: float
+    """End of the motion (touchdown), s."""
+    hold: float
+    """Rest after ``T``, s."""
+    duration: float
+    """``T + hold``, s."""
+    p_world_goal: F64
+    """(3,) origin of the goal frame F in the world."""
+    R_world_goal: F64
+    """(3, 3) orientation of F in the world."""
+
+    def state(self, t: ArrayLike) -> State:
+        """The full state at trajectory times ``t`` (s)."""
+        ...
+
+    def gaps_at(self, t: ArrayLike) -> tuple[F64, F64, F64, F64]:
+        """The 18 components in F: (t, gaps, rates, accels), each (N,) / (N, 6)."""
+        ...
+
+    def table_times(self) -> F64:
+        """Instants of the exported table (trajectory.csv), s."""
+        ...
+
+    def summary(self) -> dict[str, Any]:
+        """JSON-ready description (summary.json): ``T``, ``duration``, peaks, and what
+        defines the trajectory (tau parameters, or the file and its fit residual)."""
+        ...
+
+    def warnings(self) -> list[str]:
+        """Human-readable notes on hard terminal behaviour (empty when none)."""
+        ...
+
+    def state_ns(self, t_ns: ArrayLike) -> State:
+        """Full state at integer-nanosecond trajectory times."""
+        return self.state(np.asarray(t_ns, dtype=np.int64).astype(np.float64) * 1e-9)
+
+    @property
+    def duration_ns(self) -> int:
+        """``duration`` in integer nanoseconds (rounded)."""
+        return round(self.duration * 1e9)
+
+    @property
+    def touchdown_ns(self) -> int:
+        """``T`` in integer nanoseconds (rounded)."""
+        return round(self.T * 1e9)
