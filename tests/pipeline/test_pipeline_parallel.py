@@ -14,10 +14,11 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import psutil  # type: ignore[import-untyped]
 import pytest
 
-from pipeline_helpers import short_config, tree_bytes
+from pipeline_helpers import SHORT_TRAJECTORY, short_config, tree_bytes
 from roslan.cli import main
 from roslan.config.base import load_yaml_model
 from roslan.config.sim import SimConfig
@@ -351,3 +352,39 @@ def test_byte_queue_is_bounded() -> None:
     q.fail(BrokenPipeError("reader gone"))
     with pytest.raises(BrokenPipeError):
         q.put(b"v")
+
+
+def test_file_trajectory_in_worker_processes(tmp_path: Path) -> None:
+    """A pose file (given relative to the config's folder) drives rendering sensors in
+    worker processes exactly as in one process: the workers rebuild the same spline."""
+    from roslan.trajectory import TauTrajectory
+    from roslan.vehicle import base_link_trajectory
+
+    # the poses of base_link, which lands above the goal on the vehicle's feet
+    base = short_config(trajectory=SHORT_TRAJECTORY)
+    tau = TauTrajectory(base_link_trajectory(base.trajectory, base.vehicle), warn=False)
+    t = np.arange(0.0, tau.T, 0.01)
+    st = tau.state(t)
+    (tmp_path / "job").mkdir()
+    np.savetxt(
+        tmp_path / "job" / "flight.txt", np.column_stack([t, st.position, st.quat_xyzw]), "%.12f"
+    )
+    config = short_config(
+        scene="empty", sensors=TINY_SENSORS, trajectory={"file": "flight.txt", "hold": 0.2}
+    )
+    outs = {}
+    for w in (0, 2):
+        outs[w] = tmp_path / f"w{w}"
+        run_simulation(
+            config, outs[w], quiet=True, overview=False, workers=w,
+            config_path=tmp_path / "job" / "job.yaml",
+        )  # fmt: skip
+    ref, got = tree_bytes(outs[0]), tree_bytes(outs[2])
+    assert got.keys() == ref.keys()
+    assert [k for k in ref if got[k] != ref[k]] == []
+    assert json.loads((outs[2] / "timing.json").read_text())["workers"] == 2
+    summary = json.loads((outs[0] / "summary.json").read_text())
+    assert summary["source"] == "file"
+    assert (outs[0] / "events.txt").stat().st_size > 0
+    assert len((outs[0] / "cam" / "images.txt").read_text().splitlines()) > 0
+    assert _children() == []

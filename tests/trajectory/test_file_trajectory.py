@@ -218,3 +218,110 @@ def test_cli_from_file_and_simulate_with_file(tmp_path: Path) -> None:
     assert "flight.txt:2:" in bad.stderr
     assert "Traceback" not in bad.stderr
     assert not (tmp_path / "sim2").exists()
+
+
+def test_trajectory_csv_flies_back_in_its_goal_frame(tmp_path: Path) -> None:
+    """roslan's own trajectory.csv (gaps in F) is an input too: with the goal its
+    summary.json records, the world path comes back within 1 mm and 1 mrad."""
+    import json
+
+    from roslan.trajectory.export import write_trajectory_files
+    from roslan.trajectory.frames import rotation_log
+
+    goal = {"position": [1.5, -2.0, 0.4], "rpy": [0.0, 0.05, 0.7]}
+    tau = TauTrajectory(
+        TrajectoryConfig.model_validate({"goal": goal, "sample_dt": 0.005}), warn=False
+    )
+    write_trajectory_files(tau, tmp_path, plot=False)
+    recorded = json.loads((tmp_path / "summary.json").read_text())["goal"]
+    assert recorded == goal
+    cfg = TrajectoryConfig.model_validate({"file": "trajectory.csv", "goal": recorded})
+    ft = FileTrajectory(cfg, base_dir=tmp_path)
+    t = np.linspace(0.05, 0.95 * ft.T, 2001)
+    a, b = tau.state(t), ft.state(t)
+    assert np.abs(a.position - b.position).max() < 1e-3
+    R_err = np.einsum("nji,njk->nik", a.R_world_body, b.R_world_body)
+    assert np.linalg.norm(rotation_log(R_err), axis=-1).max() < 1e-3
+    # without the goal the same file is a different path: the frame matters
+    plain = FileTrajectory(
+        TrajectoryConfig.model_validate({"file": "trajectory.csv"}), base_dir=tmp_path
+    )
+    assert np.abs(plain.state(t).position - a.position).max() > 1.0
+
+
+def test_goal_places_a_tum_file_in_the_world(
+    tau_and_file: tuple[Trajectory, FileTrajectory], tmp_path: Path
+) -> None:
+    from roslan.trajectory.frames import rpy_to_matrix
+
+    _, ft = tau_and_file
+    goal = {"position": [3.0, 0.0, 1.0], "rpy": [0.0, 0.0, np.pi / 2]}
+    cfg = TrajectoryConfig.model_validate({"file": "flight.txt", "goal": goal})
+    moved = FileTrajectory(cfg, base_dir=tmp_path)
+    t = np.linspace(0.0, ft.T, 101)
+    R = rpy_to_matrix(np.array(goal["rpy"]))
+    expected = ft.state(t).position @ R.T + np.array(goal["position"])
+    np.testing.assert_allclose(moved.state(t).position, expected, atol=1e-9)
+    np.testing.assert_allclose(
+        moved.state(t).R_world_body, np.einsum("ij,njk->nik", R, ft.state(t).R_world_body),
+        atol=1e-9,
+    )  # fmt: skip
+
+
+def _allan(x: np.ndarray, m: int) -> float:
+    """Non-overlapping Allan deviation of samples ``x`` (N,) over clusters of ``m``."""
+    n = x.shape[0] // m
+    means = x[: n * m].reshape(n, m).mean(axis=1)
+    return float(np.sqrt(0.5 * np.mean(np.diff(means) ** 2)))
+
+
+def test_imu_noise_is_the_same_on_a_file_trajectory(tmp_path: Path) -> None:
+    """Allan-style check: the IMU's noise (measurement minus the noise-free reading) on a
+    file trajectory has the white-noise and random-walk Allan deviations of its densities,
+    and is the very sequence the tau landing gets (same seed, same instants)."""
+    import math
+
+    from roslan.io.messages import Flavor, MessageStore
+    from roslan.pipeline.context import Context
+    from roslan.sensors.imu import Imu, ImuConfig
+
+    tau = TauTrajectory(TrajectoryConfig.model_validate({"hold": 30.0}), warn=False)
+    t = np.arange(0.0, tau.T, 1.0 / 200.0)
+    st = tau.state(t)
+    _write_tum(tmp_path / "flight.txt", t, st.position, st.quat_xyzw)
+    ft = FileTrajectory(
+        TrajectoryConfig.model_validate({"file": "flight.txt", "hold": 30.0}), base_dir=tmp_path
+    )
+    rate, white, walk = 400.0, 0.02, 0.1
+    noisy = {
+        "type": "imu", "name": "imu", "rate": rate, "topic": "/imu",
+        "accelerometer_noise_density": white, "accelerometer_random_walk": walk,
+        "gyroscope_noise_density": 0.0, "gyroscope_random_walk": 0.0,
+    }  # fmt: skip
+    clean = {**noisy, "accelerometer_noise_density": 0.0, "accelerometer_random_walk": 0.0}
+
+    def acc(traj: Trajectory, cfg: dict, folder: str) -> np.ndarray:
+        imu_cfg = ImuConfig.model_validate(cfg)
+        (tmp_path / folder).mkdir()
+        ctx = Context(traj, tmp_path / folder, seed=5, start_time_ns=10**18, sensors=[imu_cfg])
+        imu, store = Imu(imu_cfg), MessageStore(Flavor.ROS2)
+        msgs = list(imu.messages(ctx))
+        imu.close(ctx)
+        dec = [store.typestore.deserialize_cdr(m.build(store), m.msgtype) for m in msgs]
+        return np.array([[d.linear_acceleration.x, d.linear_acceleration.y,
+                          d.linear_acceleration.z] for d in dec])  # fmt: skip
+
+    noise_file = acc(ft, noisy, "fn") - acc(ft, clean, "fc")
+    noise_tau = acc(tau, noisy, "tn") - acc(tau, clean, "tc")
+    n = min(noise_file.shape[0], noise_tau.shape[0])
+    np.testing.assert_allclose(noise_file[:n], noise_tau[:n], atol=1e-9)
+    x = noise_file[:, 0]
+    # white noise dominates short clusters: sigma(tau) = N / sqrt(tau)
+    for m in (1, 4):
+        expected = white / math.sqrt(m / rate)
+        assert abs(_allan(x, m) / expected - 1) < 0.1
+    # the random walk dominates long ones: sigma(tau) = K sqrt(tau / 3)
+    m = 400  # 1 s clusters, about 30 of them
+    tau_s = m / rate
+    expected = math.hypot(white / math.sqrt(tau_s), walk * math.sqrt(tau_s / 3))
+    assert 0.6 < _allan(x, m) / expected < 1.5

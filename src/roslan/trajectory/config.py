@@ -84,8 +84,10 @@ class TrajectoryConfig(StrictModel):
     hold: Annotated[FiniteFloat, Field(ge=0, le=MAX_DURATION_S)] = 0.0
     flapping: Flapping = Flapping()
     file: str | None = None
-    """A pose file (TUM ``t x y z qx qy qz qw``, world frame) to fly instead of a tau landing;
-    relative to the config file's folder."""
+    """A pose file to fly instead of a tau landing (TUM ``t x y z qx qy qz qw``, or roslan's
+    trajectory.csv), relative to the config file's folder. Its poses are in the frame
+    ``goal`` (default: the world; for a trajectory.csv, the goal it was written for, which
+    its summary.json records)."""
     smoothing: NonNegativeFloat = 0.0
     """File trajectories: 0 interpolates the poses (quintic spline); > 0 is the smoothing
     spline's penalty (``scipy.interpolate.make_smoothing_spline`` ``lam``) per axis."""
@@ -129,7 +131,7 @@ class TrajectoryConfig(StrictModel):
     def _check(self) -> TrajectoryConfig:
         if self.file is not None:
             tau = sorted(
-                {"k", "kappa", "initial", "approach", "goal", "flapping"} & self.model_fields_set
+                {"k", "kappa", "initial", "approach", "flapping"} & self.model_fields_set
             )
             fields = type(self).model_fields
             # a saved, resolved config repeats the defaults: only other values clash
@@ -141,7 +143,7 @@ class TrajectoryConfig(StrictModel):
             if tau_given:
                 msg = (
                     f"'file' flies the poses of the file; {', '.join(tau_given)} belong to a tau "
-                    "landing: remove them (with 'file': smoothing, max_gap, hold, sample_dt)"
+                    "landing: remove them (with 'file': goal, smoothing, max_gap, hold, sample_dt)"
                 )
                 raise ValueError(msg)
             return self

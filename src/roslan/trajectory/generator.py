@@ -128,6 +128,7 @@ class TauTrajectory(Trajectory):
             "T": self.T,
             "touchdown_time": self.T,
             "duration": self.duration,
+            "goal": self.config.goal.model_dump(mode="json"),
             "tau0": self.tau0,
             "k": self.k,
             "kappa": kappa,

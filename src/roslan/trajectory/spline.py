@@ -1,8 +1,9 @@
 """A recorded or planned flight read from a pose file, fitted with smooth splines.
 
 Input: TUM text ``t x y z qx qy qz qw`` (``#`` comments; this project's groundtruth.txt,
-whose ``t`` is in nanoseconds when it is an integer column larger than 1e12, is TUM) with
-poses of base_link in the world frame. Trajectory time 0 is the first sample's time.
+whose ``t`` is in nanoseconds when it is an integer column larger than 1e12, is TUM), or
+this project's trajectory.csv (gaps ``x y z roll pitch yaw`` in the goal frame F), with
+poses of base_link in the frame ``trajectory.goal`` (default: the world). Trajectory time 0 is the first sample's time.
 Position: a quintic interpolating spline (C^4), or with ``smoothing > 0`` a smoothing
 spline per axis; orientation: :class:`scipy.spatial.transform.RotationSpline` (C^2), which
 gives body rates and angular acceleration. After the last sample the robot rests at the
@@ -21,7 +22,7 @@ from numpy.typing import ArrayLike, NDArray
 from roslan.errors import TrajectoryError
 from roslan.trajectory.base import State, Trajectory, check_duration
 from roslan.trajectory.config import TrajectoryConfig
-from roslan.trajectory.frames import matrix_to_rpy
+from roslan.trajectory.frames import matrix_to_rpy, rpy_to_matrix
 from roslan.trajectory.generator import TauTrajectory
 
 __all__ = ["FileTrajectory", "make_trajectory", "read_pose_file"]
@@ -34,23 +35,40 @@ MAX_FILE_BYTES = 512 * 1024 * 1024
 ORDER = 5
 
 
+TABLE_COLUMNS = ("t", "x", "y", "z", "roll", "pitch", "yaw")
+"""First columns of roslan's trajectory.csv (its header line); the rates and accelerations
+that follow are not read (the spline recomputes them)."""
+
+
 def read_pose_file(path: Path, max_gap: float) -> tuple[F64, F64, F64]:
-    """Read and check a TUM pose file: (t (s), positions (N, 3), quaternions xyzw (N, 4))."""
+    """Read and check a pose file: (t (s), positions (N, 3), quaternions xyzw (N, 4)).
+
+    Two formats: TUM ``t x y z qx qy qz qw`` (space or comma separated, optional header
+    line starting with ``t``; this project's groundtruth.txt), and roslan's
+    trajectory.csv (header ``t,x,y,z,roll,pitch,yaw,...``, 19 columns; poses as ZYX
+    roll, pitch, yaw). Positions and orientations are those of the file's frame.
+    """
     from roslan.io.safe_read import read_bytes
+    from roslan.trajectory.frames import rpy_to_quat_xyzw
 
     raw = read_bytes(path, MAX_FILE_BYTES, TrajectoryError)
     rows: list[list[float]] = []
     lines: list[int] = []
     ns_stamps = False
+    table = False
+    width, what = 8, "t x y z qx qy qz qw"
     for lineno, line in enumerate(raw.decode("utf-8", errors="replace").splitlines(), 1):
         s = line.strip()
         if not s or s.startswith("#"):
             continue
         parts = s.replace(",", " ").split()
         if not rows and parts and parts[0].lower() == "t":
+            table = tuple(p.lower() for p in parts[: len(TABLE_COLUMNS)]) == TABLE_COLUMNS
+            if table:
+                width, what = 19, "roslan trajectory.csv: t, 6 gaps, 6 rates, 6 accelerations"
             continue  # a header line
-        if len(parts) != 8:
-            msg = f"{path}:{lineno}: {len(parts)} columns; expected 8 (t x y z qx qy qz qw)"
+        if len(parts) != width:
+            msg = f"{path}:{lineno}: {len(parts)} columns; expected {width} ({what})"
             raise TrajectoryError(msg)
         try:
             vals = [float(p) for p in parts]
@@ -86,6 +104,8 @@ def read_pose_file(path: Path, max_gap: float) -> tuple[F64, F64, F64]:
             f"at most trajectory.max_gap = {max_gap:g} s"
         )
         raise TrajectoryError(msg)
+    if table:
+        return t - t[0], a[:, 1:4].copy(), rpy_to_quat_xyzw(a[:, 4:7]).reshape(-1, 4)
     q = a[:, 4:8]
     norm = np.linalg.norm(q, axis=1)
     off = np.flatnonzero(np.abs(norm - 1.0) > QUAT_TOL)
@@ -115,6 +135,10 @@ class FileTrajectory(Trajectory):
             path = base_dir / path
         self.path = path
         t, p, q = read_pose_file(path, float(config.max_gap))
+        if config.goal != type(config.goal)():  # the file's poses are in the frame `goal`
+            R_goal = rpy_to_matrix(np.asarray(config.goal.rpy, dtype=np.float64))
+            p = p @ R_goal.T + np.asarray(config.goal.position, dtype=np.float64)
+            q = (Rotation.from_matrix(R_goal) * Rotation.from_quat(q)).as_quat()
         self.samples_t, self.samples_p, self.samples_q = t, p, q
         lam = float(config.smoothing)
         if lam > 0:
@@ -166,6 +190,7 @@ class FileTrajectory(Trajectory):
         return {
             "source": "file",
             "file": str(self.path),
+            "goal": self.config.goal.model_dump(mode="json"),
             "samples": int(self.samples_t.shape[0]),
             "smoothing": float(self.config.smoothing),
             "T": self.T,
