@@ -497,3 +497,24 @@ def test_sky_where_nothing_is_hit(samples: int) -> None:
         assert np.all(res.color[edge] >= np.array(sky) - tol)
     finally:
         r.release()
+
+
+@pytest.mark.parametrize("depth", [False, True])
+def test_edge_filter_border_rows_and_colour_only_renders(board: Scene, depth: bool) -> None:
+    """The edge filter sees 1/z whether or not depth is read back (colour-only renders of
+    RGB cameras included), and the image border of a plane is not mistaken for a crease:
+    1 sample + filter equals 4x MSAA on every pixel, borders included."""
+    r = gl.get_renderer(board)
+    K = np.array([[60.0, 0, 39.5], [0, 60.0, 29.5], [0, 0, 1]])
+    T = look_down(0.1, 0.05, 2.0, tilt=0.15)
+    one = r.render(T, K, 80, 60, depth=depth, samples=1).color
+    four = r.render(T, K, 80, 60, depth=False, samples=4).color
+    assert one is not None
+    assert four is not None
+    np.testing.assert_allclose(one[[0, -1]], four[[0, -1]], atol=2e-3)
+    np.testing.assert_allclose(one[:, [0, -1]], four[:, [0, -1]], atol=2e-3)
+    # and a crease (the board's edge against the ground) is still filtered in both modes
+    T_edge = look_down(0.9, 0.05, 1.5, tilt=0.3)
+    a = r.render(T_edge, K, 80, 60, depth=False, samples=1).color
+    b = r.render(T_edge, K, 80, 60, depth=True, samples=1).color
+    np.testing.assert_array_equal(a, b)

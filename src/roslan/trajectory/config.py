@@ -130,9 +130,7 @@ class TrajectoryConfig(StrictModel):
     @model_validator(mode="after")
     def _check(self) -> TrajectoryConfig:
         if self.file is not None:
-            tau = sorted(
-                {"k", "kappa", "initial", "approach", "flapping"} & self.model_fields_set
-            )
+            tau = sorted({"k", "kappa", "initial", "approach", "flapping"} & self.model_fields_set)
             fields = type(self).model_fields
             # a saved, resolved config repeats the defaults: only other values clash
             tau_given = [

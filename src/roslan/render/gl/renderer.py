@@ -411,8 +411,8 @@ class Renderer:
         ctx.front_face = "cw"
         culling = False
         prog["u_mvp"].write(view.mvp)
-        if depth:
-            prog["u_zrow"].value = view.zrow
+        # 1/z feeds the edge filter (last colour channel) whether or not depth is read back
+        prog["u_zrow"].value = view.zrow
         prog["u_cam_pos"].value = tuple(float(x) for x in view.cam_pos)
         self.shadow.tex.use(1)
         bound = -1

@@ -210,8 +210,12 @@ void main() {
     // Over a plane 1/z is affine in the image, so its second differences vanish: they
     // are non-zero only at silhouettes and creases, the edges that rasterization
     // aliases (texture detail lies on planes and is mip-mapped already).
+    // On the image border the clamped neighbour equals this pixel, which would make a
+    // plane's one-sided slope look like a crease: that axis's difference is not used there.
     float zm = tm[ZCH];
-    float d2 = max(abs(tn[ZCH] + ts[ZCH] - 2.0 * zm), abs(te[ZCH] + tw[ZCH] - 2.0 * zm));
+    float d2y = (p.y > 0 && p.y < hi.y) ? abs(tn[ZCH] + ts[ZCH] - 2.0 * zm) : 0.0;
+    float d2x = (p.x > 0 && p.x < hi.x) ? abs(te[ZCH] + tw[ZCH] - 2.0 * zm) : 0.0;
+    float d2 = max(d2y, d2x);
     float zmax = max(max(max(tw[ZCH], zm), max(ts[ZCH], tn[ZCH])), te[ZCH]);
     // ~perceptual luma, like FXAA's (LUM: luminance; RGB: green, its 72 % share)
     float w = sqrt(tw[LCH]), m = sqrt(tm[LCH]), s = sqrt(ts[LCH]);

@@ -55,11 +55,17 @@ class DepthCameraConfig(SensorConfig, CameraIntrinsics):
 def _non_affine(inv: F32, tol: float = 1e-3) -> F32:
     """1.0 where inverse depth ``inv`` (H, W; 0 = nothing hit) is not affine across a
     pixel's 4-neighbourhood: a second difference above ``tol`` times the largest of the
-    five values (float32 rounding of a plane's 1/z is ~1e-7 of it), else 0.0."""
+    five values (float32 rounding of a plane's 1/z is ~1e-7 of it), else 0.0. On the image
+    border only the difference along the border is used."""
     p = np.pad(inv, 1, mode="edge")
     c = p[1:-1, 1:-1]
     w, e_, n, s_ = p[1:-1, :-2], p[1:-1, 2:], p[:-2, 1:-1], p[2:, 1:-1]
-    d2 = np.maximum(np.abs(w + e_ - 2.0 * c), np.abs(n + s_ - 2.0 * c))
+    d2x = np.abs(w + e_ - 2.0 * c)
+    d2y = np.abs(n + s_ - 2.0 * c)
+    # on the border the repeated edge value would turn a plane's slope into a crease
+    d2x[:, [0, -1]] = 0.0
+    d2y[[0, -1], :] = 0.0
+    d2 = np.maximum(d2x, d2y)
     top = np.maximum(np.maximum(np.maximum(w, e_), np.maximum(n, s_)), c)
     return (d2 > tol * top).astype(np.float32)
 
