@@ -3,7 +3,8 @@
 Input: TUM text ``t x y z qx qy qz qw`` (``#`` comments; this project's groundtruth.txt,
 whose ``t`` is in nanoseconds when it is an integer column larger than 1e12, is TUM), or
 this project's trajectory.csv (gaps ``x y z roll pitch yaw`` in the goal frame F), with
-poses of base_link in the frame ``trajectory.goal`` (default: the world). Trajectory time 0 is the first sample's time.
+poses of base_link in the frame ``trajectory.goal`` (default: the world). Trajectory
+time 0 is the first sample's time.
 Position: a quintic interpolating spline (C^4), or with ``smoothing > 0`` a smoothing
 spline per axis; orientation: :class:`scipy.spatial.transform.RotationSpline` (C^2), which
 gives body rates and angular acceleration. After the last sample the robot rests at the
