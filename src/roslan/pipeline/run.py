@@ -59,6 +59,7 @@ from roslan.rundir.manifest import (
     write_json,
 )
 from roslan.rundir.readme import outdir_readme
+from roslan.sensors.registry import sensor_spec
 from roslan.trajectory.base import Trajectory
 from roslan.trajectory.generator import TauTrajectory
 from roslan.vehicle import base_link_trajectory
@@ -67,9 +68,6 @@ if TYPE_CHECKING:
     from roslan.scene.model import Scene
 
 __all__ = ["RunOptions", "run_simulation"]
-
-RAY_TYPES = frozenset({"lidar", "solid_state_lidar", "laser", "sonar", "altimeter"})
-"""Sensor types that ray cast the scene (its BVH is built before the simulation starts)."""
 
 
 @dataclass(frozen=True)
@@ -238,7 +236,9 @@ class _Run:
         self.ticks["setup"] = time.perf_counter()
         remote = self.remote
         if self.scene is not None and any(
-            sc.type in RAY_TYPES for i, sc in enumerate(config.sensors) if i not in remote
+            sensor_spec(sc.type).backend == "embree"
+            for i, sc in enumerate(config.sensors)
+            if i not in remote
         ):
             from roslan.render.raycast import get_raycaster
 

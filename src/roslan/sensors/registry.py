@@ -11,7 +11,7 @@ import builtins
 import importlib
 from dataclasses import dataclass
 from functools import cache
-from typing import Any
+from typing import Any, Literal
 
 from roslan.sensors.base import SensorConfig
 
@@ -37,6 +37,9 @@ class SensorSpec:
         render_cost: rough relative cost of rendering / ray casting it, used to balance
             sensors over worker processes; 0: it does not render (runs in the main process).
         outputs: the dataset files it writes into OUTDIR.
+        backend: what it measures the scene with: ``opengl`` (rasterized images),
+            ``embree`` (ray casting; the scene's BVH is built before the run starts) or
+            ``none`` (no scene needed).
     """
 
     type: str
@@ -45,6 +48,7 @@ class SensorSpec:
     sensor: str
     render_cost: float
     outputs: str
+    backend: Literal["opengl", "embree", "none"] = "none"
 
     def config_class(self) -> builtins.type[SensorConfig]:
         module = importlib.import_module(self.module)
@@ -65,6 +69,7 @@ _SPECS = (
         "Lidar",
         1.0,
         "lidar/<name>/NNNNNN.npz, lidar/<name>/timestamps.txt",
+        backend="embree",
     ),
     SensorSpec(
         "solid_state_lidar",
@@ -73,10 +78,23 @@ _SPECS = (
         "SolidStateLidar",
         1.0,
         "lidar/<name>/NNNNNN.npz, lidar/<name>/timestamps.txt",
+        backend="embree",
     ),
-    SensorSpec("laser", f"{_B}.laser", "LaserConfig", "Laser", 0.0, "laser_<name>.txt"),
-    SensorSpec("sonar", f"{_B}.range", "SonarConfig", "Sonar", 0.0, "range_<name>.txt"),
-    SensorSpec("altimeter", f"{_B}.range", "AltimeterConfig", "Altimeter", 0.0, "range_<name>.txt"),
+    SensorSpec(
+        "laser", f"{_B}.laser", "LaserConfig", "Laser", 0.0, "laser_<name>.txt", backend="embree"
+    ),
+    SensorSpec(
+        "sonar", f"{_B}.range", "SonarConfig", "Sonar", 0.0, "range_<name>.txt", backend="embree"
+    ),
+    SensorSpec(
+        "altimeter",
+        f"{_B}.range",
+        "AltimeterConfig",
+        "Altimeter",
+        0.0,
+        "range_<name>.txt",
+        backend="embree",
+    ),
     SensorSpec(
         "imu",
         "roslan.sensors.imu",
@@ -92,6 +110,7 @@ _SPECS = (
         "Camera",
         2.0,
         "images.txt + images/ (or <name>/...), calib.txt, calib/<name>.yaml",
+        backend="opengl",
     ),
     SensorSpec(
         "depth_camera",
@@ -100,6 +119,7 @@ _SPECS = (
         "DepthCamera",
         2.0,
         "depth/<name>/NNNNNNNN.png, depth_<name>.txt, calib/<name>.yaml",
+        backend="opengl",
     ),
     SensorSpec(
         "stereo_camera",
@@ -109,6 +129,7 @@ _SPECS = (
         3.0,
         "per eye: images.txt + images/ (or <name>_left/..., <name>_right/...), calib.txt, "
         "calib/<name>_left.yaml, calib/<name>_right.yaml",
+        backend="opengl",
     ),
     SensorSpec(
         "event_camera",
@@ -117,6 +138,7 @@ _SPECS = (
         "EventCamera",
         4.0,
         "events.txt, events.h5, images/ (or <name>/...), calib.txt, calib/<name>.yaml",
+        backend="opengl",
     ),
 )
 
