@@ -126,6 +126,7 @@ class FakeContext:
         self.seed = seed
         self.sensors: list[Any] = []
         self.root_camera: str | None = None
+        self.root_imu: str | None = None
         self.outdir = outdir
 
     def stamp(self, t_ns: int) -> int:

@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from roslan.errors import ConfigError
-from roslan.rundir.calibration import root_camera
+from roslan.rundir.calibration import root_camera, root_imu
 from roslan.sensors.base import SensorConfig
 
 if TYPE_CHECKING:
@@ -60,6 +60,7 @@ class Context:
         self.start_time_ns = int(start_time_ns)
         self.sensors: Sequence[SensorConfig] = tuple(sensors)
         self.root_camera = root_camera(self.sensors)
+        self.root_imu = root_imu(self.sensors)
         self.scene_spec = scene_spec
         self.base_dir = base_dir
         self._scene = scene

@@ -26,6 +26,7 @@ __all__ = [
     "camera_folder",
     "root_camera",
     "root_camera_name",
+    "root_imu",
     "write_calibration",
 ]
 
@@ -48,6 +49,13 @@ def root_camera_name(sensors: Iterable[tuple[str, str]]) -> str | None:
 def root_camera(sensors: Sequence[Any]) -> str | None:
     """:func:`root_camera_name` of sensor configs ``sensors``."""
     return root_camera_name((str(s.type), str(s.name)) for s in sensors)
+
+
+def root_imu(sensors: Sequence[Any]) -> str | None:
+    """Name of the IMU whose readings are the OUTDIR root's ``imu.txt`` (and
+    ``calib/imu.yaml``): the first IMU in config order; every other IMU writes
+    ``imu_<name>.txt``. None without IMUs."""
+    return next((str(s.name) for s in sensors if s.type == "imu"), None)
 
 
 def _is_camera(cfg: Any) -> bool:

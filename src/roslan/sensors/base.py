@@ -157,6 +157,9 @@ class SimContext(Protocol):
     """The camera whose dataset files go to the OUTDIR root (Event Camera Dataset layout;
     :func:`roslan.rundir.calibration.root_camera`); every other camera writes into
     ``<camera>/``."""
+    root_imu: str | None
+    """The IMU whose readings are the OUTDIR root's ``imu.txt``
+    (:func:`roslan.rundir.calibration.root_imu`); other IMUs write ``imu_<name>.txt``."""
 
     def stamp(self, t_ns: int) -> int:
         """Absolute header stamp (ns) of trajectory time ``t_ns``."""

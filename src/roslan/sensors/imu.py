@@ -126,8 +126,7 @@ class Imu:
         return []  # base_link -> frame comes from the extrinsics (pipeline)
 
     def _file_stem(self, ctx: SimContext) -> str:
-        imus = [s.name for s in ctx.sensors if s.type == "imu"]
-        return "imu" if not imus or imus[0] == self.config.name else f"imu_{self.config.name}"
+        return "imu" if ctx.root_imu in (None, self.config.name) else f"imu_{self.config.name}"
 
     @property
     def sigmas(self) -> tuple[float, float]:
