@@ -50,6 +50,7 @@ if TYPE_CHECKING:
     from types import ModuleType
 
 __all__ = [
+    "EMPTY_EVENTS",
     "EVENT_PRESETS",
     "EventBatch",
     "EventGenerator",
@@ -60,7 +61,7 @@ __all__ = [
 F64 = NDArray[np.float64]
 I64 = NDArray[np.int64]
 
-_EMPTY: tuple[I64, I64, NDArray[np.int8]] = (
+EMPTY_EVENTS: tuple[I64, I64, NDArray[np.int8]] = (
     np.zeros(0, np.int64),
     np.zeros(0, np.int64),
     np.zeros(0, np.int8),
@@ -476,7 +477,7 @@ class EventGenerator:
         p = self.params
         draws = self._shot_draws(dt_ns)
         if draws is None:
-            return _EMPTY
+            return EMPTY_EVENTS
         idx, traw, u, v = draws
         t = t0 + 1 + traw  # in (t0, t1]
         on = u < 0.5

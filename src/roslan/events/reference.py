@@ -12,7 +12,7 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
-from roslan.events.model import _EMPTY, F64, I64, EventBatch, EventGenerator, log_intensity
+from roslan.events.model import EMPTY_EVENTS, F64, I64, EventBatch, EventGenerator, log_intensity
 
 __all__ = ["NumpyEventGenerator"]
 
@@ -104,7 +104,7 @@ class NumpyEventGenerator(EventGenerator):
         # only pixels whose first level is reached do any further work (usually few)
         pix = np.flatnonzero((ref + self.c_pos <= S1) | (ref - self.c_neg >= S1))
         if pix.size == 0:
-            return _EMPTY
+            return EMPTY_EVENTS
         r, s1 = ref[pix], S1[pix]
         up_p = s1 > r
         Cp = np.where(up_p, self.c_pos[pix], self.c_neg[pix])

@@ -27,7 +27,14 @@ from roslan.scene import textures as tx
 from roslan.scene.mesh import LocalMesh, box, place, plane, pose_matrix, transformed
 from roslan.scene.model import DAYLIGHT_SKY, Lights, Material, Scene, SceneObject
 
-__all__ = ["APPROACH_ZONE", "empty"]
+__all__ = [
+    "APPROACH_ZONE",
+    "SceneBuilder",
+    "at",
+    "box_at",
+    "empty",
+    "material",
+]
 
 F64 = NDArray[np.float64]
 
@@ -36,7 +43,7 @@ APPROACH_ZONE = ((-12.5, 2.0), (-9.0, 9.0))
 
 
 # --------------------------------------------------------------------------- helpers
-class _Builder:
+class SceneBuilder:
     """Collects objects; checks footprints against the approach zone."""
 
     def __init__(self, goal: tuple[Sequence[float], Sequence[float]]) -> None:
@@ -128,18 +135,18 @@ class _Builder:
         )
 
 
-def _at(
+def at(
     mesh: LocalMesh, position: Sequence[float], rpy: Sequence[float] = (0.0, 0.0, 0.0)
 ) -> LocalMesh:
     return transformed(mesh, pose_matrix(position, rpy))
 
 
-def _box_at(size: Sequence[float], x: float, y: float, z0: float) -> LocalMesh:
+def box_at(size: Sequence[float], x: float, y: float, z0: float) -> LocalMesh:
     """Box standing on z0 with its footprint centred at (x, y)."""
     return box(size, (x, y, z0 + size[2] / 2.0))
 
 
-def _mat(
+def material(
     name: str, color: Sequence[float], tex: NDArray[np.uint8] | None, scale: float, refl: float
 ) -> Material:
     if tex is not None:
@@ -151,7 +158,7 @@ def _mat(
 # --------------------------------------------------------------------------- empty
 def empty(seed: int = 0) -> Scene:
     """A 200 x 200 m textured ground: the plane z = 0 (1 m checker squares with grain)."""
-    ground = _mat("checker", (1, 1, 1), tx.checker(seed, 512, 8), 1.0 / 8.0, 0.5)
+    ground = material("checker", (1, 1, 1), tx.checker(seed, 512, 8), 1.0 / 8.0, 0.5)
     obj = place("ground", plane((200.0, 200.0)), ground, source="builtin:ground")
     return Scene(
         name="empty",

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from roslan.scene import textures as tx
-from roslan.scene.builtin import _at, _box_at, _Builder, _mat
+from roslan.scene.builtin import SceneBuilder, at, box_at, material
 from roslan.scene.mesh import (
     LocalMesh,
     box,
@@ -50,12 +50,12 @@ class _Materials:
 
 
 def _materials(seed: int) -> _Materials:
-    ground = _mat("gravel", (1, 1, 1), tx.gravel(seed, 512), 0.2, 0.25)
-    white = _mat(
+    ground = material("gravel", (1, 1, 1), tx.gravel(seed, 512), 0.2, 0.25)
+    white = material(
         "tank_white", (1, 1, 1), tx.painted_metal(seed, (0.85, 0.85, 0.82), 256, ribs=16), 0.25, 0.7
     )
-    grey = _mat("column_grey", (1, 1, 1), tx.painted_metal(seed, (0.55, 0.57, 0.6)), 1.0, 0.55)
-    steel = _mat("steel_yellow", (1, 1, 1), tx.painted_metal(seed, (0.9, 0.7, 0.12)), 2.0, 0.6)
+    grey = material("column_grey", (1, 1, 1), tx.painted_metal(seed, (0.55, 0.57, 0.6)), 1.0, 0.55)
+    steel = material("steel_yellow", (1, 1, 1), tx.painted_metal(seed, (0.9, 0.7, 0.12)), 2.0, 0.6)
     pipe_colors = [
         (0.6, 0.6, 0.62),
         (0.75, 0.2, 0.12),
@@ -64,11 +64,11 @@ def _materials(seed: int) -> _Materials:
         (0.25, 0.35, 0.6),
     ]
     pipe_mats = [
-        _mat(f"pipe_{i}", (1, 1, 1), tx.painted_metal(seed, c), 2.0, 0.6)
+        material(f"pipe_{i}", (1, 1, 1), tx.painted_metal(seed, c), 2.0, 0.6)
         for i, c in enumerate(pipe_colors)
     ]
-    concrete = _mat("concrete", (1, 1, 1), tx.concrete(seed, 256, 0.62), 0.5, 0.35)
-    red_white = _mat(
+    concrete = material("concrete", (1, 1, 1), tx.concrete(seed, 256, 0.62), 0.5, 0.35)
+    red_white = material(
         "flare_paint", (1, 1, 1), tx.hazard(256, ((0.85, 0.12, 0.1), (0.92, 0.92, 0.9))), 0.25, 0.6
     )
     return _Materials(ground, white, grey, steel, pipe_mats, concrete, red_white)
@@ -91,16 +91,16 @@ def _column(
     """(shell, steelwork) of a distillation column standing on z = 0 at the origin."""
     shell = merge(
         [
-            _at(cylinder(radius + 0.2, 2.0, 32), (0.0, 0.0, 1.0)),  # skirt
-            _at(cylinder(radius, height - 2.0, 32), (0.0, 0.0, 2.0 + (height - 2.0) / 2)),
-            _at(sphere(radius, 32), (0.0, 0.0, height)),
+            at(cylinder(radius + 0.2, 2.0, 32), (0.0, 0.0, 1.0)),  # skirt
+            at(cylinder(radius, height - 2.0, 32), (0.0, 0.0, 2.0 + (height - 2.0) / 2)),
+            at(sphere(radius, 32), (0.0, 0.0, height)),
         ]
     )
-    steel = [_at(_ladder(height), (radius + 0.25, 0.0, 0.0))]
+    steel = [at(_ladder(height), (radius + 0.25, 0.0, 0.0))]
     for z in platforms:
-        steel.append(_at(ring(radius, radius + 1.2, 0.08, 32), (0.0, 0.0, z)))
+        steel.append(at(ring(radius, radius + 1.2, 0.08, 32), (0.0, 0.0, z)))
         steel.append(
-            _at(ring(radius + 1.15, radius + 1.2, 0.05, 32), (0.0, 0.0, z + 1.05))
+            at(ring(radius + 1.15, radius + 1.2, 0.05, 32), (0.0, 0.0, z + 1.05))
         )  # handrail
         for a in np.linspace(0.0, 2 * math.pi, 10, endpoint=False):
             r = radius + 1.17
@@ -108,7 +108,7 @@ def _column(
     return shell, merge(steel)
 
 
-def _tanks(b: _Builder, m: _Materials) -> None:
+def _tanks(b: SceneBuilder, m: _Materials) -> None:
     """Four storage tanks (64 segments) with spiral-ish stairs and concrete bunds."""
     tanks = [
         ((40.0, 30.0), 10.0, 12.0),
@@ -119,8 +119,8 @@ def _tanks(b: _Builder, m: _Materials) -> None:
     for i, ((x, y), r, h) in enumerate(tanks):
         shell = merge(
             [
-                _at(cylinder(r, h, 64), (0.0, 0.0, h / 2)),
-                _at(cylinder(r * 0.9, 0.8, 64), (0.0, 0.0, h + 0.4)),
+                at(cylinder(r, h, 64), (0.0, 0.0, h / 2)),
+                at(cylinder(r * 0.9, 0.8, 64), (0.0, 0.0, h + 0.4)),
             ]
         )
         b.add(f"tank_{i:02d}", shell, m.white, (x, y, 0.0))
@@ -129,26 +129,26 @@ def _tanks(b: _Builder, m: _Materials) -> None:
             a = j * 0.035
             z = (j + 1) * 0.25
             steps.append(
-                _at(
+                at(
                     box((0.3, 0.9, 0.05), (0.0, 0.0, 0.0)),
                     ((r + 0.5) * math.cos(a), (r + 0.5) * math.sin(a), z),
                     (0.0, 0.0, a),
                 )
             )
-        steps.append(_at(ring(r, r + 1.0, 0.08, 64), (0.0, 0.0, h - 0.1)))  # roof walkway
+        steps.append(at(ring(r, r + 1.0, 0.08, 64), (0.0, 0.0, h - 0.1)))  # roof walkway
         b.add(f"tank_{i:02d}_stairs", merge(steps), m.steel, (x, y, 0.0))
         b.add(
             f"tank_{i:02d}_bund",
             merge(
-                [_box_at((2 * r + 8, 0.3, 1.0), 0.0, s * (r + 4), 0.0) for s in (-1, 1)]
-                + [_box_at((0.3, 2 * r + 8, 1.0), s * (r + 4), 0.0, 0.0) for s in (-1, 1)]
+                [box_at((2 * r + 8, 0.3, 1.0), 0.0, s * (r + 4), 0.0) for s in (-1, 1)]
+                + [box_at((0.3, 2 * r + 8, 1.0), s * (r + 4), 0.0, 0.0) for s in (-1, 1)]
             ),
             m.concrete,
             (x, y, 0.0),
         )
 
 
-def _columns(b: _Builder, m: _Materials) -> None:
+def _columns(b: SceneBuilder, m: _Materials) -> None:
     """Three distillation columns with platforms and caged ladders."""
     cols = [((22.0, -6.0), 1.6, 32.0), ((26.0, 4.0), 1.2, 26.0), ((18.0, 12.0), 2.0, 22.0)]
     for i, ((x, y), r, h) in enumerate(cols):
@@ -157,13 +157,13 @@ def _columns(b: _Builder, m: _Materials) -> None:
         b.add(f"column_{i:02d}_platforms", steelwork, m.steel, (x, y, 0.0))
 
 
-def _pipe_rack(b: _Builder, m: _Materials) -> Callable[[float], float]:
+def _pipe_rack(b: SceneBuilder, m: _Materials) -> Callable[[float], float]:
     """The pipe rack (bents every 6 m, pipes at two levels) along F's y axis, 20 m behind
     the goal (across every approach). Returns the world x of its centre line at a world y."""
     bents = []
     for y in np.arange(-42.0, 42.1, 6.0):
         for x in (-1.5, 1.5):
-            bents.append(_box_at((0.3, 0.3, 7.3), x, y, 0.0))
+            bents.append(box_at((0.3, 0.3, 7.3), x, y, 0.0))
         bents.append(box((3.4, 0.3, 0.3), (0.0, y, 5.0)))
         bents.append(box((3.4, 0.3, 0.3), (0.0, y, 7.15)))
     bents += [box((0.2, 84.3, 0.2), (x, 0.0, 7.4)) for x in (-1.5, 1.5)]
@@ -186,7 +186,7 @@ def _pipe_rack(b: _Builder, m: _Materials) -> Callable[[float], float]:
     return rack_x
 
 
-def _pipe_runs(b: _Builder, m: _Materials, rack_x: Callable[[float], float]) -> None:
+def _pipe_runs(b: SceneBuilder, m: _Materials, rack_x: Callable[[float], float]) -> None:
     """Pipe runs from the rack to columns and tanks, with elbows (spheres) and supports."""
     runs = [
         [(rack_x(24.0), 24.0, 6.0), (18.0, 24.0, 6.0), (18.0, 14.5, 6.0), (18.0, 14.5, 3.0)],
@@ -198,7 +198,7 @@ def _pipe_runs(b: _Builder, m: _Materials, rack_x: Callable[[float], float]) -> 
     for i, pts in enumerate(runs):
         rr = 0.15 + 0.05 * (i % 3)
         parts = [cylinder_between(p, q, rr, 24) for p, q in itertools.pairwise(pts)]
-        parts += [_at(sphere(rr * 1.15, 16), p) for p in pts[1:-1]]
+        parts += [at(sphere(rr * 1.15, 16), p) for p in pts[1:-1]]
         supports = []
         for p, q in itertools.pairwise(pts):
             if abs(p[2] - q[2]) < 1e-9 and p[2] > 1.0:
@@ -206,20 +206,20 @@ def _pipe_runs(b: _Builder, m: _Materials, rack_x: Callable[[float], float]) -> 
                 n_sup = int(np.linalg.norm(seg) // 8)
                 for j in range(1, n_sup + 1):
                     c = np.add(p, seg * j / (n_sup + 1))
-                    supports.append(_box_at((0.2, 0.2, c[2] - rr), c[0], c[1], 0.0))
+                    supports.append(box_at((0.2, 0.2, c[2] - rr), c[0], c[1], 0.0))
         b.add(f"pipe_run_{i:02d}", merge(parts), m.pipes[i % 5])
         if supports:
             b.add(f"pipe_run_{i:02d}_supports", merge(supports), m.steel)
 
 
-def _flare_and_buildings(b: _Builder, m: _Materials) -> None:
+def _flare_and_buildings(b: SceneBuilder, m: _Materials) -> None:
     """A guyed flare stack, the control building and two horizontal bullet tanks."""
     fx, fy, fh = -45.0, -5.0, 45.0
     flare = merge(
         [
-            _at(cylinder(0.6, fh, 32), (0.0, 0.0, fh / 2)),
-            _at(cylinder(0.9, 2.0, 32), (0.0, 0.0, fh + 1.0)),
-            _at(cylinder(1.2, 1.0, 32), (0.0, 0.0, 0.5)),
+            at(cylinder(0.6, fh, 32), (0.0, 0.0, fh / 2)),
+            at(cylinder(0.9, 2.0, 32), (0.0, 0.0, fh + 1.0)),
+            at(cylinder(1.2, 1.0, 32), (0.0, 0.0, 0.5)),
         ]
     )
     b.add("flare_stack", flare, m.red_white, (fx, fy, 0.0))
@@ -234,19 +234,19 @@ def _flare_and_buildings(b: _Builder, m: _Materials) -> None:
     b.add("flare_guy_wires", merge(guys), m.pipes[0], (fx, fy, 0.0))
     b.add(
         "control_building",
-        merge([_box_at((12.0, 8.0, 4.0), 0.0, 0.0, 0.0), _box_at((12.6, 8.6, 0.3), 0.0, 0.0, 4.0)]),
+        merge([box_at((12.0, 8.0, 4.0), 0.0, 0.0, 0.0), box_at((12.6, 8.6, 0.3), 0.0, 0.0, 4.0)]),
         m.concrete,
         (-5.0, -35.0, 0.0),
     )
     for i, (x, y) in enumerate(((8.0, -30.0), (8.0, -25.0))):
         bullet = merge(
-            [_at(capsule(1.5, 12.0, 32), (0.0, 0.0, 2.0), (0.0, math.pi / 2, 0.0))]
-            + [_box_at((0.8, 2.4, 1.0), sx, 0.0, 0.0) for sx in (-3.0, 3.0)]
+            [at(capsule(1.5, 12.0, 32), (0.0, 0.0, 2.0), (0.0, math.pi / 2, 0.0))]
+            + [box_at((0.8, 2.4, 1.0), sx, 0.0, 0.0) for sx in (-3.0, 3.0)]
         )
         b.add(f"bullet_tank_{i}", bullet, m.white, (x, y, 0.0))
 
 
-def _clutter(b: _Builder, rng: np.random.Generator, m: _Materials) -> None:
+def _clutter(b: SceneBuilder, rng: np.random.Generator, m: _Materials) -> None:
     """Random clutter: drums, valves and crates around the plant."""
     zones = [
         ((-35.0, -25.0), (-20.0, 20.0)),
@@ -259,18 +259,18 @@ def _clutter(b: _Builder, rng: np.random.Generator, m: _Materials) -> None:
             continue
         x, y, yaw = spot
         if i % 3 == 0:
-            mesh = merge([_at(cylinder(0.29, 0.88, 24), (dx, 0.0, 0.44)) for dx in (-0.3, 0.3)])
+            mesh = merge([at(cylinder(0.29, 0.88, 24), (dx, 0.0, 0.44)) for dx in (-0.3, 0.3)])
         elif i % 3 == 1:
             mesh = merge(
                 [
-                    _at(cylinder(0.15, 1.2, 24), (0.0, 0.0, 0.6)),
-                    _at(sphere(0.3, 16), (0.0, 0.0, 1.2)),
-                    _at(cylinder(0.4, 0.05, 24), (0.0, 0.0, 1.55)),
+                    at(cylinder(0.15, 1.2, 24), (0.0, 0.0, 0.6)),
+                    at(sphere(0.3, 16), (0.0, 0.0, 1.2)),
+                    at(cylinder(0.4, 0.05, 24), (0.0, 0.0, 1.55)),
                 ]
             )
         else:
             s = rng.uniform(0.6, 1.2)
-            mesh = _box_at((s, s, s * 0.8), 0.0, 0.0, 0.0)
+            mesh = box_at((s, s, s * 0.8), 0.0, 0.0, 0.0)
         b.add(f"clutter_{i:02d}", mesh, m.pipes[int(rng.integers(0, 5))], (x, y, 0.0), yaw)
 
 
@@ -279,7 +279,7 @@ def refinery(seed: int = 0) -> Scene:
     columns with platforms and caged ladders, a pipe rack with pipe runs, a guyed flare
     stack, a control building and a perching pipe whose top is :data:`REFINERY_GOAL`."""
     rng = tx.rng_for(seed, "refinery")
-    b = _Builder(REFINERY_GOAL)
+    b = SceneBuilder(REFINERY_GOAL)
     m = _materials(seed)
     b.add("ground", box((240.0, 240.0, 0.2), (0.0, 0.0, -0.1)), m.ground, check=False)
     _tanks(b, m)

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from roslan.scene import textures as tx
-from roslan.scene.builtin import _at, _box_at, _Builder, _mat
+from roslan.scene.builtin import SceneBuilder, at, box_at, material
 from roslan.scene.mesh import LocalMesh, box, cylinder, cylinder_between, merge
 from roslan.scene.model import DAYLIGHT_SKY, Lights, Material, Scene
 
@@ -43,20 +43,24 @@ class _Materials:
 
 
 def _materials(seed: int) -> _Materials:
-    concrete = _mat("concrete", (1, 1, 1), tx.concrete(seed, 512), 0.25, 0.35)
-    cladding = _mat(
+    concrete = material("concrete", (1, 1, 1), tx.concrete(seed, 512), 0.25, 0.35)
+    cladding = material(
         "cladding", (1, 1, 1), tx.painted_metal(seed, (0.62, 0.66, 0.7), 256, ribs=8), 0.5, 0.5
     )
-    roof = _mat(
+    roof = material(
         "roof", (1, 1, 1), tx.painted_metal(seed, (0.5, 0.52, 0.55), 256, ribs=8), 0.25, 0.4
     )
-    steel = _mat("steel_blue", (1, 1, 1), tx.painted_metal(seed, (0.15, 0.28, 0.6)), 2.0, 0.55)
-    orange = _mat("steel_orange", (1, 1, 1), tx.painted_metal(seed, (0.9, 0.42, 0.08)), 2.0, 0.6)
-    yellow = _mat("paint_yellow", (1, 1, 1), tx.painted_metal(seed, (0.95, 0.78, 0.1)), 2.0, 0.8)
-    cardboard = _mat("cardboard", (1, 1, 1), tx.cardboard(seed), 2.0, 0.45)
-    wood = _mat("wood", (1, 1, 1), tx.wood(seed), 1.0, 0.4)
-    hazard = _mat("hazard", (1, 1, 1), tx.hazard(), 2.0, 0.7)
-    marker = _mat("landing_marker", (1, 1, 1), tx.landing_marker(512), 1.0 / 1.6, 0.9)
+    steel = material("steel_blue", (1, 1, 1), tx.painted_metal(seed, (0.15, 0.28, 0.6)), 2.0, 0.55)
+    orange = material(
+        "steel_orange", (1, 1, 1), tx.painted_metal(seed, (0.9, 0.42, 0.08)), 2.0, 0.6
+    )
+    yellow = material(
+        "paint_yellow", (1, 1, 1), tx.painted_metal(seed, (0.95, 0.78, 0.1)), 2.0, 0.8
+    )
+    cardboard = material("cardboard", (1, 1, 1), tx.cardboard(seed), 2.0, 0.45)
+    wood = material("wood", (1, 1, 1), tx.wood(seed), 1.0, 0.4)
+    hazard = material("hazard", (1, 1, 1), tx.hazard(), 2.0, 0.7)
+    marker = material("landing_marker", (1, 1, 1), tx.landing_marker(512), 1.0 / 1.6, 0.9)
     return _Materials(
         concrete, cladding, roof, steel, orange, yellow, cardboard, wood, hazard, marker
     )
@@ -79,28 +83,28 @@ def _forklift() -> tuple[LocalMesh, LocalMesh]:
     """(body, wheels+forks) of a ~2.9 m forklift standing on z = 0, forks along +x."""
     body = merge(
         [
-            _box_at((1.9, 1.1, 1.0), -0.2, 0.0, 0.25),
-            _box_at((0.5, 1.1, 0.6), -1.0, 0.0, 1.25),  # counterweight
-            _box_at((0.06, 0.06, 1.0), 0.5, 0.5, 1.25),  # cab pillars
-            _box_at((0.06, 0.06, 1.0), 0.5, -0.5, 1.25),
-            _box_at((0.06, 0.06, 1.0), -0.7, 0.5, 1.25),
-            _box_at((0.06, 0.06, 1.0), -0.7, -0.5, 1.25),
-            _box_at((1.3, 1.1, 0.06), -0.1, 0.0, 2.25),  # overhead guard
-            _box_at((0.4, 0.5, 0.5), -0.3, 0.0, 1.25),  # seat
+            box_at((1.9, 1.1, 1.0), -0.2, 0.0, 0.25),
+            box_at((0.5, 1.1, 0.6), -1.0, 0.0, 1.25),  # counterweight
+            box_at((0.06, 0.06, 1.0), 0.5, 0.5, 1.25),  # cab pillars
+            box_at((0.06, 0.06, 1.0), 0.5, -0.5, 1.25),
+            box_at((0.06, 0.06, 1.0), -0.7, 0.5, 1.25),
+            box_at((0.06, 0.06, 1.0), -0.7, -0.5, 1.25),
+            box_at((1.3, 1.1, 0.06), -0.1, 0.0, 2.25),  # overhead guard
+            box_at((0.4, 0.5, 0.5), -0.3, 0.0, 1.25),  # seat
         ]
     )
     wheel = cylinder(0.28, 0.22, 24)
     parts = [
-        _at(wheel, (x, y, 0.28), (math.pi / 2, 0.0, 0.0))
+        at(wheel, (x, y, 0.28), (math.pi / 2, 0.0, 0.0))
         for x in (0.45, -0.85)
         for y in (-0.45, 0.45)
     ]
-    parts += [_box_at((0.1, 0.1, 2.4), 0.85, y, 0.1) for y in (-0.35, 0.35)]  # mast
-    parts += [_box_at((1.1, 0.12, 0.05), 1.45, y, 0.1) for y in (-0.3, 0.3)]  # forks
+    parts += [box_at((0.1, 0.1, 2.4), 0.85, y, 0.1) for y in (-0.35, 0.35)]  # mast
+    parts += [box_at((1.1, 0.12, 0.05), 1.45, y, 0.1) for y in (-0.3, 0.3)]  # forks
     return body, merge(parts)
 
 
-def _hall(b: _Builder, m: _Materials) -> None:
+def _hall(b: SceneBuilder, m: _Materials) -> None:
     """Floor, walls, roof with skylights, roof trusses, lamps and steel columns."""
     L, W, H = HALL_SIZE
     b.add("floor", box((L, W, 0.2), (0.0, 0.0, -0.1)), m.concrete, check=False)
@@ -139,13 +143,13 @@ def _hall(b: _Builder, m: _Materials) -> None:
         for x in np.arange(-24.0, 24.1, 12.0)
         for y in (-10.0, 0.0, 10.0)
     ]
-    b.add("lamps", merge(lamps), _mat("lamp", (0.98, 0.98, 0.95), None, 1.0, 0.9), check=False)
+    b.add("lamps", merge(lamps), material("lamp", (0.98, 0.98, 0.95), None, 1.0, 0.9), check=False)
     # steel columns, hazard-striped feet
     cols, feet = [], []
     for x in (-24.0, -12.0, 12.0, 24.0):
         for y in (-14.5, 14.5):
-            cols.append(_box_at((0.4, 0.4, H - 1.2), x, y, 1.2))
-            feet.append(_box_at((0.42, 0.42, 1.2), x, y, 0.0))
+            cols.append(box_at((0.4, 0.4, H - 1.2), x, y, 1.2))
+            feet.append(box_at((0.42, 0.42, 1.2), x, y, 0.0))
     b.add("columns", merge(cols), m.steel)
     b.add("column_guards", merge(feet), m.hazard)
 
@@ -157,7 +161,7 @@ def _rack_structure() -> tuple[LocalMesh, LocalMesh]:
     for i in range(5):
         x = -5.4 + 2.7 * i
         for y in (-0.5, 0.5):
-            frame.append(_box_at((0.1, 0.08, 6.0), x, y, 0.0))
+            frame.append(box_at((0.1, 0.08, 6.0), x, y, 0.0))
         for z in (1.0, 3.0, 5.0):  # bracing
             frame.append(box((0.05, 1.0, 0.05), (x, 0.0, z)))
     beams = []
@@ -177,7 +181,7 @@ def _rack_load(rng: np.random.Generator) -> tuple[list[LocalMesh], list[LocalMes
                 continue  # empty slot
             for px in (-0.65, 0.65):
                 cx = -5.4 + 2.7 * bay + 1.35 + px
-                pallets.append(_at(_pallet(), (cx, 0.0, z), (0.0, 0.0, math.pi / 2)))
+                pallets.append(at(_pallet(), (cx, 0.0, z), (0.0, 0.0, math.pi / 2)))
                 top = z + 0.144
                 clear = (levels[lv + 1] - 0.15 - top) if lv + 1 < len(levels) else 1.2
                 for _ in range(int(rng.integers(1, 4))):
@@ -185,13 +189,13 @@ def _rack_load(rng: np.random.Generator) -> tuple[list[LocalMesh], list[LocalMes
                     sz = min(rng.uniform(0.25, 0.6), clear / 2)
                     ox = rng.uniform(-0.4 + sx / 2, 0.4 - sx / 2)
                     oy = rng.uniform(-0.55 + sy / 2, 0.55 - sy / 2)
-                    goods.append(_box_at((sx, sy, sz), cx + ox, oy, top))
+                    goods.append(box_at((sx, sy, sz), cx + ox, oy, top))
                     if rng.random() < 0.5 and top + 2 * sz < top + clear:
-                        goods.append(_box_at((sx * 0.9, sy * 0.9, sz), cx + ox, oy, top + sz))
+                        goods.append(box_at((sx * 0.9, sy * 0.9, sz), cx + ox, oy, top + sz))
     return goods, pallets
 
 
-def _racks(b: _Builder, rng: np.random.Generator, m: _Materials) -> None:
+def _racks(b: SceneBuilder, rng: np.random.Generator, m: _Materials) -> None:
     """7 pallet racks (4 beam levels) with random boxes and pallets on them."""
     racks = [
         ((-18.0, 17.5), 0.0),
@@ -213,7 +217,7 @@ def _racks(b: _Builder, rng: np.random.Generator, m: _Materials) -> None:
             b.add(f"rack_{k:02d}_pallets", merge(pallets), m.wood, (rx, ry, 0.0), yaw)
 
 
-def _markings(b: _Builder, m: _Materials) -> None:
+def _markings(b: SceneBuilder, m: _Materials) -> None:
     """Floor markings: aisle lines, the landing marker and a walkway frame around it."""
     lines = [box((40.0, 0.12, 0.004), (0.0, y, 0.002)) for y in (-15.5, 15.5)]
     lines += [box((0.12, 28.0, 0.004), (x, 0.0, 0.002)) for x in (-27.0, 16.5)]
@@ -233,7 +237,7 @@ def _markings(b: _Builder, m: _Materials) -> None:
     b.add("landing_area_lines", merge(pad), m.yellow, (gx, gy, 0.0), gyaw, check=False)
 
 
-def _clutter(b: _Builder, rng: np.random.Generator, seed: int, m: _Materials) -> None:
+def _clutter(b: SceneBuilder, rng: np.random.Generator, seed: int, m: _Materials) -> None:
     """Random loose pallet stacks, crates, barrels and a forklift (west and east parts)."""
     zones = [
         ((-28.0, -14.0), (-14.0, 14.0)),
@@ -246,7 +250,7 @@ def _clutter(b: _Builder, rng: np.random.Generator, seed: int, m: _Materials) ->
             continue
         x, y, yaw = spot
         n = int(rng.integers(1, 6))
-        stack = merge([_at(_pallet(), (0.0, 0.0, 0.144 * j)) for j in range(n)])
+        stack = merge([at(_pallet(), (0.0, 0.0, 0.144 * j)) for j in range(n)])
         b.add(f"pallet_stack_{i:02d}", stack, m.wood, (x, y, 0.0), yaw)
     for i in range(10):
         spot = b.free_spot(rng, *zones[i % 3], (0.6, 0.6))
@@ -256,7 +260,7 @@ def _clutter(b: _Builder, rng: np.random.Generator, seed: int, m: _Materials) ->
         if i % 2:
             bar = merge(
                 [
-                    _at(cylinder(0.29, 0.88, 24), (dx, dy, 0.44))
+                    at(cylinder(0.29, 0.88, 24), (dx, dy, 0.44))
                     for dx in (-0.3, 0.3)
                     for dy in (-0.3, 0.3)
                 ]
@@ -265,7 +269,7 @@ def _clutter(b: _Builder, rng: np.random.Generator, seed: int, m: _Materials) ->
             b.add(
                 f"clutter_barrels_{i:02d}",
                 bar,
-                _mat(f"barrel{i}", (1, 1, 1), tx.painted_metal(seed, color), 2.0, 0.5),
+                material(f"barrel{i}", (1, 1, 1), tx.painted_metal(seed, color), 2.0, 0.5),
                 (x, y, 0.0),
                 yaw,
             )
@@ -273,8 +277,8 @@ def _clutter(b: _Builder, rng: np.random.Generator, seed: int, m: _Materials) ->
             sx, sy, sz = rng.uniform(0.6, 1.2, 3)
             crate = merge(
                 [
-                    _box_at((sx, sy, sz), 0.0, 0.0, 0.0),
-                    _box_at((sx * 0.8, sy * 0.8, sz * 0.7), 0.0, 0.0, sz),
+                    box_at((sx, sy, sz), 0.0, 0.0, 0.0),
+                    box_at((sx * 0.8, sy * 0.8, sz * 0.7), 0.0, 0.0, sz),
                 ]
             )
             b.add(f"clutter_crates_{i:02d}", crate, m.cardboard, (x, y, 0.0), yaw)
@@ -286,7 +290,7 @@ def _clutter(b: _Builder, rng: np.random.Generator, seed: int, m: _Materials) ->
         b.add(
             "forklift_wheels_mast",
             wheels,
-            _mat("rubber", (0.08, 0.08, 0.08), None, 1.0, 0.1),
+            material("rubber", (0.08, 0.08, 0.08), None, 1.0, 0.1),
             (x, y, 0.0),
             yaw,
         )
@@ -298,7 +302,7 @@ def warehouse(seed: int = 0) -> Scene:
     pallets, barrels, a forklift and a helipad-style landing marker at
     :data:`WAREHOUSE_GOAL`."""
     rng = tx.rng_for(seed, "warehouse")
-    b = _Builder(WAREHOUSE_GOAL)
+    b = SceneBuilder(WAREHOUSE_GOAL)
     m = _materials(seed)
     _hall(b, m)
     _racks(b, rng, m)

@@ -17,7 +17,7 @@ from roslan.config.base import FiniteFloat
 from roslan.render import FrameRenderer
 from roslan.sensors.base import Message, SensorConfig, SimContext
 from roslan.sensors.cameras.config import CameraIntrinsics
-from roslan.sensors.cameras.frame import _CameraBase, _Eye, _pose_matrices
+from roslan.sensors.cameras.frame import CameraBase, Eye, pose_matrices
 from roslan.sensors.cameras.model import T_LINK_OPTICAL
 
 __all__ = ["DepthCamera", "DepthCameraConfig"]
@@ -70,7 +70,7 @@ def _non_affine(inv: F32, tol: float = 1e-3) -> F32:
     return (d2 > tol * top).astype(np.float32)
 
 
-class DepthCamera(_CameraBase):
+class DepthCamera(CameraBase):
     """``type: depth_camera``: 32FC1 metres, NaN where nothing is measured (REP 118)."""
 
     config: DepthCameraConfig
@@ -79,10 +79,10 @@ class DepthCamera(_CameraBase):
         self.config = config
         c = config
         self._setup_eyes(
-            [_Eye("", config.camera_model(), T_LINK_OPTICAL.copy(), c.topic, f"{c.frame}_optical")]
+            [Eye("", config.camera_model(), T_LINK_OPTICAL.copy(), c.topic, f"{c.frame}_optical")]
         )
 
-    def render_depth(self, renderer: FrameRenderer, e: _Eye, T_world_body: F64) -> F32:
+    def render_depth(self, renderer: FrameRenderer, e: Eye, T_world_body: F64) -> F32:
         """(H, W) float32 metric z-depth (inf: nothing hit) of eye ``e`` at one body pose (4, 4)."""
         assert e.plan is not None
         T = T_world_body @ self._T_body_sensor @ e.T_sensor_optical
@@ -134,7 +134,7 @@ class DepthCamera(_CameraBase):
         if c.write_images:
             self._open_index(ctx, e, "depth")
         for i, t in enumerate(self._stamps(ctx).tolist()):
-            T_wb = _pose_matrices(ctx, np.array([t], dtype=np.int64))[0]
+            T_wb = pose_matrices(ctx, np.array([t], dtype=np.int64))[0]
             z = self.render_depth(renderer, e, T_wb)
             if c.noise_std > 0 or c.noise_quadratic > 0:
                 sigma = c.noise_std + c.noise_quadratic * np.where(np.isfinite(z), z, 0.0) ** 2

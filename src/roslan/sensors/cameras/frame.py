@@ -60,9 +60,12 @@ from roslan.sensors.cameras.model import T_LINK_OPTICAL, CameraModel, RenderPlan
 
 __all__ = [
     "Camera",
+    "CameraBase",
     "CameraConfig",
+    "Eye",
     "StereoCamera",
     "StereoCameraConfig",
+    "pose_matrices",
 ]
 
 F32 = NDArray[np.float32]
@@ -171,7 +174,7 @@ _LUMA = np.asarray(REC709_LUMA, dtype=np.float32)  # Rec. 709, linear
 
 # --------------------------------------------------------------------- helpers
 @dataclass
-class _Eye:
+class Eye:
     """One physical camera of a sensor: intrinsics, extrinsics, render plan, outputs."""
 
     suffix: str  # '' or 'left' / 'right'
@@ -195,7 +198,7 @@ class _Eye:
         return a
 
 
-def _pose_matrices(ctx: SimContext, t_ns: NDArray[np.int64]) -> F64:
+def pose_matrices(ctx: SimContext, t_ns: NDArray[np.int64]) -> F64:
     """(N, 4, 4) ``T_world_body`` at trajectory times ``t_ns``."""
     st = ctx.trajectory.state(t_ns.astype(np.float64) * 1e-9)
     T = np.zeros((len(t_ns), 4, 4))
@@ -205,13 +208,13 @@ def _pose_matrices(ctx: SimContext, t_ns: NDArray[np.int64]) -> F64:
     return T
 
 
-class _CameraBase:
+class CameraBase:
     """Shared machinery of the three camera sensors."""
 
     config: Any
-    _eyes: list[_Eye]
+    _eyes: list[Eye]
 
-    def _setup_eyes(self, eyes: list[_Eye]) -> None:
+    def _setup_eyes(self, eyes: list[Eye]) -> None:
         self._eyes = eyes
         self._T_body_sensor = self.config.pose.matrix()
 
@@ -259,7 +262,7 @@ class _CameraBase:
         keep = (stamps + int(offs.min()) >= 0) & (stamps + int(offs.max()) <= end)
         return stamps[keep]
 
-    def _open_index(self, ctx: SimContext, e: _Eye, kind: str) -> None:
+    def _open_index(self, ctx: SimContext, e: Eye, kind: str) -> None:
         if kind == "depth":
             e.files = f"depth/{self.config.name}"
             e.index_fh = ctx.path(f"depth_{self.config.name}.txt").open(
@@ -271,9 +274,7 @@ class _CameraBase:
         e.files = f"{folder}images"
         e.index_fh = ctx.path(f"{folder}images.txt").open("w", encoding="utf-8", newline="\n")
 
-    def _write_png(
-        self, ctx: SimContext, e: _Eye, index: int, t_ns: int, img: NDArray[Any]
-    ) -> None:
+    def _write_png(self, ctx: SimContext, e: Eye, index: int, t_ns: int, img: NDArray[Any]) -> None:
         rel = f"{e.files}/{index:08d}.png"
         # images.txt lists paths relative to its own folder; depth_<name>.txt to OUTDIR
         listed = rel if e.files.startswith("depth/") else f"images/{index:08d}.png"
@@ -289,7 +290,7 @@ class _CameraBase:
                 e.index_fh.close()
 
     def _messages(
-        self, ctx: SimContext, t_ns: int, seq: int, e: _Eye, data: NDArray[Any], encoding: str
+        self, ctx: SimContext, t_ns: int, seq: int, e: Eye, data: NDArray[Any], encoding: str
     ) -> list[Message]:
         stamp = ctx.stamp(t_ns)
         frame = e.frame
@@ -306,7 +307,7 @@ class _CameraBase:
         ]
 
 
-class _ImagingCamera(_CameraBase):
+class _ImagingCamera(CameraBase):
     """Colour/mono camera pipeline (frame and stereo cameras)."""
 
     config: _ImagingConfig
@@ -323,7 +324,7 @@ class _ImagingCamera(_CameraBase):
         offs = ((np.arange(n) + 0.5) / n - 0.5) * exp_ns
         return (t_ns + np.round(offs)).astype(np.int64)
 
-    def render_linear(self, renderer: FrameRenderer, e: _Eye, T_world_body: F64) -> F32:
+    def render_linear(self, renderer: FrameRenderer, e: Eye, T_world_body: F64) -> F32:
         """Linear radiance of eye ``e`` averaged over the body poses (N, 4, 4): (H, W, 3),
         or (H, W) Rec. 709 luminance for ``mono8`` (the renderer's one-channel path).
 
@@ -388,7 +389,7 @@ class _ImagingCamera(_CameraBase):
             for e in self._eyes:
                 self._open_index(ctx, e, "image")
         for i, t in enumerate(stamps.tolist()):
-            T_wb = _pose_matrices(ctx, self._sub_times(t))
+            T_wb = pose_matrices(ctx, self._sub_times(t))
             yield from per_frame(i, t, renderer, T_wb)
 
 
@@ -399,7 +400,7 @@ class Camera(_ImagingCamera):
         self.config = config
         model = config.camera_model()
         c = config
-        self._setup_eyes([_Eye("", model, T_LINK_OPTICAL.copy(), c.topic, f"{c.frame}_optical")])
+        self._setup_eyes([Eye("", model, T_LINK_OPTICAL.copy(), c.topic, f"{c.frame}_optical")])
         self._init_imaging()
 
     def messages(self, ctx: SimContext) -> Iterator[Message]:
@@ -427,14 +428,14 @@ class StereoCamera(_ImagingCamera):
         T_lr[0, 3] = c.baseline
         self._setup_eyes(
             [
-                _Eye(
+                Eye(
                     "left",
                     cams[0].model,
                     T_LINK_OPTICAL.copy(),
                     f"{c.topic}/left",
                     f"{c.frame}_left_optical",
                 ),
-                _Eye(
+                Eye(
                     "right",
                     cams[1].model,
                     T_LINK_OPTICAL @ T_lr,
