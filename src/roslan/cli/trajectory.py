@@ -3,10 +3,7 @@
 from __future__ import annotations
 
 import argparse
-import contextlib
-import os
 import shutil
-import tempfile
 import warnings
 from collections.abc import Mapping
 from pathlib import Path
@@ -16,7 +13,7 @@ from pydantic import ValidationError
 
 from roslan.config.base import format_validation_error, load_yaml
 from roslan.errors import ConfigError, OutputError
-from roslan.io.files import current_umask
+from roslan.rundir.folder import finalize, make_temp
 from roslan.trajectory.base import Trajectory
 from roslan.trajectory.config import TrajectoryConfig
 from roslan.trajectory.export import write_trajectory_files
@@ -42,19 +39,12 @@ def write_into(traj: Trajectory, outdir: Path, *, overwrite: bool, plot: bool = 
             raise OutputError(msg)
         write_trajectory_files(traj, out, plot=plot)
         return
-    try:
-        out.parent.mkdir(parents=True, exist_ok=True)
-        tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".tmp", dir=out.parent))
-    except OSError as err:
-        msg = f"{out}: cannot create the output folder: {err.strerror or err}"
-        raise OutputError(msg) from err
+    tmp = make_temp(out.absolute())
     try:
         write_trajectory_files(traj, tmp, plot=plot)
-        os.chmod(tmp, 0o777 & ~current_umask())
-        os.rename(tmp, out)
+        finalize(tmp, out.absolute(), overwrite=False)
     except BaseException:
-        with contextlib.suppress(OSError):
-            shutil.rmtree(tmp)
+        shutil.rmtree(tmp, ignore_errors=True)
         raise
 
 
