@@ -160,7 +160,8 @@ class _Run:
         self.progress = Progress(options.quiet)
         self.pool: WorkerPool | None = None
         self.scene: Scene | None = None
-        self.tmp = Path()
+        self.tmp: Path  # the hidden partial folder, made once the plan and scene hold
+        self.ctx: Context  # this process's sensor context, made when the merge starts
         self.writers: MultiBagWriter | None = None
         self.plot: BackgroundPlot | None = None
         self.streams: list[CheckedStream] = []
@@ -433,5 +434,4 @@ class _Run:
         self.progress.stop()
         if self.writers is not None:
             self.writers.abort()
-        if self.tmp != Path():
-            shutil.rmtree(self.tmp, ignore_errors=True)
+        shutil.rmtree(self.tmp, ignore_errors=True)
