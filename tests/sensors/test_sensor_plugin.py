@@ -53,11 +53,13 @@ def test_example_sensor_runs_through_the_pipeline(tmp_path: Path) -> None:
     config = _config(noise_pa=0.0, pose={"position": mount})
     out = tmp_path / "out"
     run = run_simulation(config, out, quiet=True, overview=False)
+    duration = 1.2  # SHORT_TRAJECTORY: touchdown 1.0 s + hold 0.2 s
+    n = round(25.0 * duration) + 1  # 25 Hz, both ends included
 
     # run.json and the bags know the new topic, with its publisher
     assert run["topics"]["/baro"] == {
         "type": "sensor_msgs/msg/FluidPressure",
-        "messages": 31,  # 25 Hz over 1.2 s, both ends included
+        "messages": n,
         "publisher": "baro",
     }
     traj = make_trajectory(base_link_trajectory(config.trajectory, config.vehicle))
@@ -80,7 +82,8 @@ def test_example_sensor_runs_through_the_pipeline(tmp_path: Path) -> None:
         # descending: the pressure rises until touchdown
         assert got[-1] > got[0]
     table = np.loadtxt(out / "baro_baro.txt")
-    assert table.shape == (31, 2)
+    assert table.shape == (n, 2)
+    np.testing.assert_array_equal(np.rint(table[:, 0] * 1e9).astype(np.int64), t_ns)
     np.testing.assert_allclose(table[:, 1], got, atol=5e-4)
 
 

@@ -92,6 +92,28 @@ def test_bad_files_name_file_and_line(tmp_path: Path, text: str, needle: str) ->
     assert ":10:" in str(err.value) or ":11:" in str(err.value)
 
 
+@pytest.mark.parametrize(
+    ("row", "needle"),
+    [
+        (",".join(["0.9"] + ["0"] * 7), "8 columns; expected 19"),
+        (",".join(["0.9", "0", "nan"] + ["0"] * 16), "all 19 columns must be finite"),
+        (",".join(["0.7"] + ["0"] * 18), "not after"),
+    ],
+)
+def test_bad_trajectory_csv_names_file_and_line(tmp_path: Path, row: str, needle: str) -> None:
+    from roslan.trajectory.base import COMPONENTS
+
+    good = "".join(
+        ",".join([f"{0.1 * i:.1f}", "0", "0", "1"] + ["0"] * 15) + "\n" for i in range(9)
+    )
+    path = tmp_path / "trajectory.csv"
+    path.write_text(",".join(["t", *COMPONENTS]) + "\n" + good + row + "\n")
+    cfg = TrajectoryConfig.model_validate({"file": str(path)})
+    with pytest.raises(TrajectoryError, match=needle) as err:
+        FileTrajectory(cfg)
+    assert f"{path}:11:" in str(err.value)
+
+
 def test_too_few_samples_and_tau_keys(tmp_path: Path) -> None:
     path = tmp_path / "few.txt"
     path.write_text("0 0 0 1 0 0 0 1\n0.1 0 0 1 0 0 0 1\n")

@@ -7,7 +7,7 @@ from pathlib import Path
 from typing import Any
 
 from roslan.cli.batch import add_cluster_args
-from roslan.cli.common import seed_arg
+from roslan.cli.common import FORMAT_CHOICES, bag_formats, seed_arg
 from roslan.errors import ConfigError
 
 __all__ = ["register"]
@@ -23,10 +23,6 @@ def _load_sensors(path: str) -> list[dict[str, Any]]:
         msg = f"{path}: expected a list of sensor mappings (or a mapping with only 'sensors')"
         raise ConfigError(msg)
     return data
-
-
-def _formats(value: str | None) -> list[str] | None:
-    return {None: None, "ros1": ["ros1"], "ros2": ["ros2"], "both": ["ros1", "ros2"]}[value]
 
 
 def _dataset(args: argparse.Namespace) -> int:
@@ -46,7 +42,7 @@ def _dataset(args: argparse.Namespace) -> int:
         overwrite=args.overwrite,
         sensors=sensors,
         duration=args.duration,
-        formats=_formats(args.format),
+        formats=bag_formats(args.format),
         progress=not args.quiet,
     )
     if not args.quiet:
@@ -66,7 +62,7 @@ def _dataset_dry_run(args: argparse.Namespace, sensors: list[dict[str, Any]] | N
 
     runs = dataset_plan(
         args.scenes, seed=args.seed, sensors=sensors, duration=args.duration,
-        formats=_formats(args.format),
+        formats=bag_formats(args.format),
     )  # fmt: skip
     tasks = make_tasks(
         [r.config for r in runs], Path.cwd(), names=[r.folder for r in runs],
@@ -123,7 +119,7 @@ def register(subparsers: Any) -> None:
         metavar="S",
         help="touchdown time of every landing (scales the start distance; default: 8 m start)",
     )
-    p.add_argument("--format", choices=("ros1", "ros2", "both"), help="bag formats (default both)")
+    p.add_argument("--format", choices=FORMAT_CHOICES, help="bag formats (default both)")
     p.add_argument("--dry-run", action="store_true", help="print the plan, simulate nothing")
     add_cluster_args(p)
     p.set_defaults(func=_dataset)

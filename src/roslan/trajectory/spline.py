@@ -77,7 +77,7 @@ def read_pose_file(path: Path, max_gap: float) -> tuple[F64, F64, F64]:
             msg = f"{path}:{lineno}: not a number in {s!r}"
             raise TrajectoryError(msg) from None
         if not all(math.isfinite(v) for v in vals):
-            msg = f"{path}:{lineno}: NaN or infinite value; all 8 columns must be finite"
+            msg = f"{path}:{lineno}: NaN or infinite value; all {width} columns must be finite"
             raise TrajectoryError(msg)
         if not rows and "." not in parts[0] and abs(vals[0]) > 1e12:
             ns_stamps = True
