@@ -339,6 +339,45 @@ def run_dir(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Any, list[A
     return tmp, sensor, msgs
 
 
+def test_timestamp_resolution_floors_the_exact_times(
+    run_dir: tuple[Path, Any, list[Any]], tmp_path: Path
+) -> None:
+    """Same seed, exact ns times (``timestamp_resolution: 0``): the same events, and the
+    default run's times are these floored to the sensor's 1 us tick."""
+    import h5py
+
+    tmp, sensor, _ = run_dir
+    exact, _ = _run(tmp_path, 3, optic_flow=True, depthmap=True, timestamp_resolution=0)
+    assert exact.stats["events"] == sensor.stats["events"]
+    with h5py.File(tmp_path / "events.h5", "r") as fe, h5py.File(tmp / "events.h5", "r") as fq:
+        ge, gq = fe["events"], fq["events"]
+        t_exact = ge["t_ns"][:]
+        np.testing.assert_array_equal(ge["t"][:], t_exact // 1000)
+        assert np.count_nonzero(t_exact % 1000) > 0.9 * t_exact.size  # really sub-us
+        np.testing.assert_array_equal(gq["t"][:], t_exact // 1000)
+        for name in "xyp":
+            np.testing.assert_array_equal(gq[name][:], ge[name][:])
+    lines = (tmp / "events.txt").read_text().splitlines()
+    assert all(line.split()[0].endswith("000") for line in lines)
+    _run(tmp_path / "t10", 3, timestamp_resolution=1e-5)
+    with h5py.File(tmp_path / "t10" / "events.h5", "r") as f:
+        assert "t_ns" not in f["events"]
+        np.testing.assert_array_equal(f["events/t"][:], t_exact // 10_000 * 10)
+
+
+@pytest.mark.parametrize(
+    ("value", "match"),
+    [(1.5e-9, "whole number of nanoseconds"), (1e-10, "at least 1e-9"), (0.01, "less than")],
+)
+def test_timestamp_resolution_is_checked(value: float, match: str) -> None:
+    from roslan.sensors.cameras import EventCameraConfig
+
+    with pytest.raises(ValueError, match=match):
+        EventCameraConfig.model_validate(
+            {"type": "event_camera", "name": "dvs", "rate": 25, "timestamp_resolution": value}
+        )
+
+
 def test_stream_is_ordered_and_complete(run_dir: tuple[Path, Any, list[Any]]) -> None:
     tmp, sensor, msgs = run_dir
     stamps = [m.t_ns for m in msgs]
@@ -368,8 +407,9 @@ def test_txt_h5_and_bags_agree(run_dir: tuple[Path, Any, list[Any]]) -> None:
         t_txt = np.array([int(line.split()[0].replace(".", "")) for line in fh], dtype=np.int64)
     with h5py.File(tmp / "events.h5", "r") as f:
         g = f["events"]
-        t, x, y, p = g["t_ns"][:], g["x"][:], g["y"][:], g["p"][:]
-        np.testing.assert_array_equal(g["t"][:], t // 1000)
+        # the realistic preset stamps whole microseconds: events/t is exact, no t_ns
+        assert "t_ns" not in g
+        t, x, y, p = g["t"][:] * 1000, g["x"][:], g["y"][:], g["p"][:]
         assert g["t"].dtype == np.int64
         assert g["x"].dtype == np.uint16
         assert g["p"].dtype == np.uint8

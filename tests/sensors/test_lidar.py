@@ -100,9 +100,20 @@ def test_dropout_and_intensity(tmp_path: Path) -> None:
     _, dropped = _ground_turn(tmp_path, noise_sigma=0.0, dropout=0.3)
     frac = dropped.shape[0] / full.shape[0]
     assert 0.67 < frac < 0.73
-    # flat ground, reflectivity 0.5: intensity = 255 * 0.5 * cos(incidence) = 127.5 |z|/r
+    # flat ground, reflectivity 0.5: intensity = 255 * 0.5 * cos(incidence) = 127.5 |z|/r,
+    # reported as the sensor's integer codes by default (intensity_step 1)
     r = np.sqrt(full["x"] ** 2 + full["y"] ** 2 + full["z"] ** 2)
-    np.testing.assert_allclose(full["intensity"], 127.5 * np.abs(full["z"]) / r, rtol=1e-4)
+    want = 127.5 * np.abs(full["z"]) / r
+    codes = full["intensity"]
+    np.testing.assert_array_equal(codes, np.rint(codes))
+    assert np.abs(codes - want).max() <= 0.5 + 1e-3
+    assert np.unique(codes).size > 20  # many levels, not a constant
+    _, cont = _ground_turn(tmp_path, noise_sigma=0.0, intensity_step=0)
+    np.testing.assert_allclose(cont["intensity"], want, rtol=1e-4)
+    assert np.count_nonzero(cont["intensity"] != np.rint(cont["intensity"])) > 0.9 * want.size
+    _, half = _ground_turn(tmp_path, noise_sigma=0.0, intensity_step=0.5)
+    np.testing.assert_array_equal(half["intensity"] * 2, np.rint(half["intensity"] * 2))
+    assert np.abs(half["intensity"] - want).max() <= 0.25 + 1e-3
 
 
 def test_pointcloud2_roundtrip_through_rosbags(tmp_path: Path) -> None:

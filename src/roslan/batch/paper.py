@@ -89,7 +89,8 @@ _HEADING_STEPS_DEG = (15, -15, 30, -30, 45, -45, 60, -60, 75, -75, 90, -90)
 
 
 def default_sensor_suite() -> list[dict[str, Any]]:
-    """The paper's sensors: frame camera (640x480, 30 Hz), event camera (DAVIS346,
+    """The paper's sensors: frame camera (640x480 grayscale, 30 Hz; as in the default
+    job), event camera (DAVIS346,
     realistic pixel, APS frames at 25 Hz), sonar (straight down), IMU (1 kHz) and a
     Velodyne HDL-32E (10 Hz); ground truth is always written by the pipeline. The
     cameras look forward, pitched 20 deg down towards the landing spot."""
@@ -100,6 +101,7 @@ def default_sensor_suite() -> list[dict[str, Any]]:
             "name": "camera",
             "rate": 30.0,
             "topic": "/camera",
+            "encoding": "mono8",
             "pose": {"position": [0.12, 0.0, 0.0], "rpy": down20},
         },
         {

@@ -7,7 +7,8 @@ bounded by one chunk however long the trajectory is.
   nine decimals (exact, from integer ns), p in {0, 1}. Formatted by a numba kernel
   into a byte buffer (no per-event Python objects).
 * ``events.h5``: the DSEC layout (``events/t`` microseconds, ``t_offset``, ``ms_to_idx``,
-  see :class:`EventH5Writer`) plus ``events/t_ns`` (exact nanoseconds); chunked,
+  see :class:`EventH5Writer`) plus ``events/t_ns`` (exact nanoseconds, for event times
+  finer than 1 us); chunked,
   gzip+shuffle compressed (or lzf); ``width``/``height`` attributes.
 """
 
@@ -154,8 +155,9 @@ class EventH5Writer:
       stamp, i.e. ``output.start_time`` in microseconds;
     * ``ms_to_idx`` uint64: ``ms_to_idx[m]`` is the index of the first event with
       ``t >= 1000 m`` microseconds, for every millisecond up to one past the last event;
-    * ``events/t_ns`` int64: the exact nanosecond times (an extra dataset; DSEC loaders
-      ignore it, roslan's own readers prefer it).
+    * ``events/t_ns`` int64: the exact nanosecond times, only when they are not whole
+      microseconds (``exact_ns``; an extra dataset: DSEC loaders ignore it, roslan's own
+      readers prefer it). A sensor with 1 us timestamps needs none: ``t`` is exact.
 
     Args:
         path: the file to create.
@@ -164,6 +166,7 @@ class EventH5Writer:
         compression: ``"gzip"`` (level 1, any HDF5 reader), ``"lzf"`` (h5py's own filter,
             faster, larger) or None.
         t_offset_ns: absolute stamp of trajectory time 0 (written as ``t_offset`` in us).
+        exact_ns: also write ``events/t_ns`` (event times with sub-microsecond digits).
     """
 
     FIELDS = (
@@ -182,6 +185,7 @@ class EventH5Writer:
         chunk: int = 1 << 16,
         compression: Literal["gzip", "lzf"] | None = "gzip",
         t_offset_ns: int = 0,
+        exact_ns: bool = True,
     ) -> None:
         import h5py
 
@@ -200,7 +204,8 @@ class EventH5Writer:
             "shuffle": compression is not None,
             "track_times": False,
         }
-        for name, dt in self.FIELDS:
+        self._fields = self.FIELDS if exact_ns else self.FIELDS[:-1]
+        for name, dt in self._fields:
             self._ds[name] = g.create_dataset(
                 name, shape=(0,), maxshape=(None,), dtype=dt, chunks=(self.chunk,), **opts
             )
@@ -212,7 +217,8 @@ class EventH5Writer:
             holder["width"] = int(width)
             holder["height"] = int(height)
         g["t"].attrs["unit"] = "us since the trajectory start; absolute = t + t_offset"
-        g["t_ns"].attrs["unit"] = "ns since the trajectory start (exact)"
+        if exact_ns:
+            g["t_ns"].attrs["unit"] = "ns since the trajectory start (exact)"
         g["p"].attrs["values"] = "1 ON (brighter), 0 OFF"
         self._pending: list[EventBatch] = []
         self._n_pending = 0
@@ -245,7 +251,7 @@ class EventH5Writer:
         t_ns = np.asarray(allb.t[:m], dtype=np.int64)
         t_us = t_ns // 1000
         cols = (t_us, allb.x[:m], allb.y[:m], np.asarray(allb.p[:m]) > 0, t_ns)
-        for (name, dt), col in zip(self.FIELDS, cols, strict=True):
+        for (name, dt), col in zip(self._fields, cols[: len(self._fields)], strict=True):
             ds = self._ds[name]
             ds.resize((n0 + m,))
             ds[n0 : n0 + m] = np.asarray(col, dtype=dt)

@@ -23,7 +23,8 @@ _ROOT_FILES: tuple[tuple[str, str], ...] = (
         "DSEC layout: `events/t` (int64, microseconds since the trajectory "
         "start), `events/x`, `events/y` (uint16), `events/p` (uint8, 1 ON / 0 OFF), `t_offset` "
         "(microseconds to add for the absolute bag stamp), `ms_to_idx` (index of the first "
-        "event of each millisecond), and `events/t_ns` (the exact nanosecond times).",
+        "event of each millisecond), and, only for event times finer than the sensor's 1 us "
+        "(`timestamp_resolution`), `events/t_ns` (the exact nanosecond times).",
     ),
     (
         "images.txt",

@@ -32,7 +32,8 @@ class Measurement(NamedTuple):
             no return (miss, beyond max range, dropout), -inf for a surface closer than
             the minimum range (REP 117).
         valid: (N,) bool, a finite return.
-        intensity: (N,) float32 ``scale * reflectivity * cos(incidence)``, 0 without return.
+        intensity: (N,) float32 ``scale * reflectivity * cos(incidence)`` rounded to a
+            multiple of ``intensity_step`` (unless 0), 0 without return.
     """
 
     range: F64
@@ -51,6 +52,7 @@ def measure(
     dropout: float,
     rng: np.random.Generator,
     intensity_scale: float = 1.0,
+    intensity_step: float = 0.0,
 ) -> Measurement:
     """Cast the beams and apply the range sensor model (see :class:`Measurement`).
 
@@ -74,6 +76,9 @@ def measure(
     r[~valid] = np.inf
     r[too_close] = -np.inf
     inten = np.where(valid, np.float32(intensity_scale) * echo, np.float32(0.0)).astype(np.float32)
+    if intensity_step > 0:  # the sensor's integer (e.g. 8-bit) intensity codes
+        step = np.float32(intensity_step)
+        np.multiply(np.rint(inten / step), step, out=inten)
     return Measurement(r, valid, inten)
 
 

@@ -69,6 +69,9 @@ class LaserConfig(SensorConfig):
     noise_sigma: NonNegative = 0.01
     dropout: Annotated[FiniteFloat, Field(ge=0, lt=1)] = 0.0
     intensity_scale: NonNegative = 255.0
+    intensity_step: Annotated[FiniteFloat, Field(ge=0)] = 1.0
+    """Quantization step of the intensity: the sensors report integer codes (8-bit on
+    the HDL-32E, Livox and most 2-D scanners); 0 keeps it continuous."""
     firing_poses: Literal["interpolated", "exact"] = "interpolated"
 
     @model_validator(mode="after")
@@ -163,6 +166,7 @@ class Laser:
             dropout=c.dropout,
             rng=rng,
             intensity_scale=c.intensity_scale,
+            intensity_step=c.intensity_step,
         )
         return m.range.astype(np.float32), m.intensity
 

@@ -160,6 +160,9 @@ class LidarConfig(SensorConfig):
     noise_sigma: Annotated[FiniteFloat, Field(ge=0)] | None = None
     dropout: Annotated[FiniteFloat, Field(ge=0, lt=1)] = 0.0
     intensity_scale: Annotated[FiniteFloat, Field(ge=0)] = 255.0
+    intensity_step: Annotated[FiniteFloat, Field(ge=0)] = 1.0
+    """Quantization step of the intensity: the sensors report integer codes (8-bit on
+    the HDL-32E, Livox and most 2-D scanners); 0 keeps it continuous."""
     organized: bool = False
     firing_poses: Literal["interpolated", "exact"] = "interpolated"
 
@@ -308,6 +311,7 @@ class Lidar(PointCloudSensor):
             dropout=self.config.dropout,
             rng=rng,
             intensity_scale=self.config.intensity_scale,
+            intensity_step=self.config.intensity_step,
         )
         sel: Any
         if self.config.organized:

@@ -92,6 +92,9 @@ class SolidStateLidarConfig(SensorConfig):
     noise_sigma: Annotated[FiniteFloat, Field(ge=0)] | None = None
     dropout: Annotated[FiniteFloat, Field(ge=0, lt=1)] = 0.0
     intensity_scale: Annotated[FiniteFloat, Field(ge=0)] = 255.0
+    intensity_step: Annotated[FiniteFloat, Field(ge=0)] = 1.0
+    """Quantization step of the intensity: the sensors report integer codes (8-bit on
+    the HDL-32E, Livox and most 2-D scanners); 0 keeps it continuous."""
     firing_poses: Literal["interpolated", "exact"] = "interpolated"
 
     @model_validator(mode="after")
@@ -181,6 +184,7 @@ class SolidStateLidar(PointCloudSensor):
             dropout=self.config.dropout,
             rng=rng,
             intensity_scale=self.config.intensity_scale,
+            intensity_step=self.config.intensity_step,
         )
         sel = np.flatnonzero(m.valid)
         d_flat = d_s.reshape(-1, 3)[:n]

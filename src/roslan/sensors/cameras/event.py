@@ -71,13 +71,18 @@ NonNegative = Annotated[FiniteFloat, Field(ge=0)]
 
 @dataclass(frozen=True)
 class SensorPreset:
-    """A commercial sensor: resolution, a typical lens and its ``realistic`` pixel parameters."""
+    """A commercial sensor: resolution, a typical lens and its ``realistic`` pixel parameters.
+
+    ``timestamp_resolution`` (s) is the tick of the sensor's event timestamp counter
+    (iniVation DAVIS346 / DVXplorer and Prophesee's EVT formats: 1 us).
+    """
 
     width: int
     height: int
     focal_px: float
     aps: bool
     realistic: dict[str, float]
+    timestamp_resolution: float = 1e-6
 
 
 SENSOR_PRESETS: dict[str, SensorPreset] = {
@@ -131,6 +136,10 @@ class EventCameraConfig(SensorConfig, CameraIntrinsics):
     """Initial phase of the leak: ``steady`` (default; as if the sensor had been running)
     or ``zero`` (every pixel reset at the start: no leak event before ``1 / leak_rate``)."""
     log_eps: Positive | None = None
+    timestamp_resolution: Annotated[FiniteFloat, Field(ge=0, le=1e-3)] | None = None
+    """Tick of the event timestamps, s: event times are floored to multiples of it, as a
+    sensor's timestamp counter does (a whole number of ns, or 0 for exact ns times).
+    Default: the sensor's (1 us) with ``preset: realistic``, 0 with ``clean``."""
     # adaptive sampling
     sampling: Literal["optical_flow", "brightness", "fixed"] = "optical_flow"
     adaptive_lambda: Positive = 0.5
@@ -160,6 +169,16 @@ class EventCameraConfig(SensorConfig, CameraIntrinsics):
         if self.min_rate > self.max_rate:
             msg = f"min_rate = {self.min_rate} must be <= max_rate = {self.max_rate}"
             raise ValueError(msg)
+        r = self.timestamp_resolution
+        if r is not None and 0 < r < 1e-9:
+            msg = f"timestamp_resolution = {r} s: use 0 (exact ns) or at least 1e-9"
+            raise ValueError(msg)
+        if r is not None and r > 0 and abs(r * 1e9 - round(r * 1e9)) > 1e-6 * r * 1e9:
+            msg = (
+                f"timestamp_resolution = {r} s is not a whole number of nanoseconds "
+                "(use e.g. 1e-6 for 1 us, or 0 for exact ns times)"
+            )
+            raise ValueError(msg)
         return self
 
     # -------------------------------------------------------------- derived
@@ -179,6 +198,14 @@ class EventCameraConfig(SensorConfig, CameraIntrinsics):
             update["fx"] = update["fy"] = sp.focal_px * w / sp.width
         filled = self.model_copy(update=update)
         return intrinsics_model(filled, name=self.name, source=f"sensor {self.name!r}")
+
+    @property
+    def timestamp_resolution_ns(self) -> int:
+        """The event timestamp tick in ns (1: exact)."""
+        r = self.timestamp_resolution
+        if r is None:
+            r = self.preset_info.timestamp_resolution if self.preset == "realistic" else 0.0
+        return max(1, round(r * 1e9))
 
     @property
     def has_aps(self) -> bool:
@@ -369,13 +396,20 @@ class EventCamera:
             c.sampling, c.adaptive_lambda, c.min_rate, c.max_rate, end, forced
         )
         gen = EventGenerator(W, H, self.params, ctx.rng(f"{c.name}/pixels"))
+        tick = c.timestamp_resolution_ns
         prefix = self._folder = self._prefix(ctx)
         stem = "events" if not prefix else f"{prefix}events"
         if c.write_txt:
             self._writers.append(EventTextWriter(ctx.path(f"{stem}.txt")))
         if c.write_h5:
             self._writers.append(
-                EventH5Writer(ctx.path(f"{stem}.h5"), W, H, t_offset_ns=ctx.start_time_ns)
+                EventH5Writer(
+                    ctx.path(f"{stem}.h5"),
+                    W,
+                    H,
+                    t_offset_ns=ctx.start_time_ns,
+                    exact_ns=c.timestamp_resolution_ns % 1000 != 0,
+                )
             )
         if c.has_aps:
             self._images_fh = ctx.path(f"{prefix}images.txt").open(
@@ -399,6 +433,8 @@ class EventCamera:
             lum, depth, v, w = self.render(ctx, t, need_depth=need_depth)
             n_frames += 1
             batch = gen.update(lum, t)
+            if batch.size and tick > 1:
+                batch.t[:] -= batch.t % tick  # the sensor's timestamp counter (order kept)
             if batch.size:
                 n_events += batch.size
                 if self._writers:
