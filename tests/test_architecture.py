@@ -128,3 +128,21 @@ def test_no_references_outside_the_repository() -> None:
         if OUTSIDE.search(line)
     ]
     assert hits == []
+
+
+@pytest.mark.parametrize("package", ["roslan.io", "roslan.plots"])
+def test_lazy_packages_resolve_every_public_name(package: str) -> None:
+    """The PEP 562 packages load each name in ``__all__`` from its module on first use,
+    and an unknown name is an AttributeError naming the package."""
+    import subprocess
+    import sys
+
+    code = (
+        f"import sys, {package} as p\n"
+        "for n in p.__all__: getattr(p, n)\n"
+        "try:\n    p.no_such_name\nexcept AttributeError as e:\n    print(e)\n"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=True
+    ).stdout
+    assert f"module {package!r} has no attribute 'no_such_name'" in out

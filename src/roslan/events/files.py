@@ -204,7 +204,7 @@ class EventH5Writer:
             "shuffle": compression is not None,
             "track_times": False,
         }
-        self._fields = self.FIELDS if exact_ns else self.FIELDS[:-1]
+        self._fields = [(n, dt) for n, dt in self.FIELDS if exact_ns or n != "t_ns"]
         for name, dt in self._fields:
             self._ds[name] = g.create_dataset(
                 name, shape=(0,), maxshape=(None,), dtype=dt, chunks=(self.chunk,), **opts
@@ -250,11 +250,12 @@ class EventH5Writer:
         n0 = self.count
         t_ns = np.asarray(allb.t[:m], dtype=np.int64)
         t_us = t_ns // 1000
-        cols = (t_us, allb.x[:m], allb.y[:m], np.asarray(allb.p[:m]) > 0, t_ns)
-        for (name, dt), col in zip(self._fields, cols[: len(self._fields)], strict=True):
+        cols = {"t": t_us, "x": allb.x[:m], "y": allb.y[:m], "p": np.asarray(allb.p[:m]) > 0}
+        cols["t_ns"] = t_ns
+        for name, dt in self._fields:
             ds = self._ds[name]
             ds.resize((n0 + m,))
-            ds[n0 : n0 + m] = np.asarray(col, dtype=dt)
+            ds[n0 : n0 + m] = np.asarray(cols[name], dtype=dt)
         # every millisecond whose first event is decided: 1000 ms <= the last time written
         last_ms = int(t_us[-1]) // 1000
         ms = np.arange(self._next_ms, last_ms + 1, dtype=np.int64)

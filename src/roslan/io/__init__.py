@@ -7,8 +7,7 @@ package does not load the heavy ones.
 
 from __future__ import annotations
 
-import importlib
-from typing import Any
+from roslan.lazy import lazy_getattr
 
 _WHERE = {
     "BAG_NAMES": "bag",
@@ -52,11 +51,4 @@ _WHERE = {
 
 __all__ = sorted(_WHERE)
 
-
-def __getattr__(name: str) -> Any:
-    try:
-        module = _WHERE[name]
-    except KeyError:
-        msg = f"module {__name__!r} has no attribute {name!r}"
-        raise AttributeError(msg) from None
-    return getattr(importlib.import_module(f"{__name__}.{module}"), name)
+__getattr__ = lazy_getattr(__name__, _WHERE)

@@ -126,7 +126,7 @@ def estimate_run(config: SimConfig, formats: tuple[str, ...] | None = None) -> R
                 if getattr(s, "write_txt", True):
                     add("events.txt", events * _EVENT_TXT)
                 if getattr(s, "write_h5", True):
-                    exact = s.timestamp_resolution_ns % 1000 != 0  # type: ignore[attr-defined]
+                    exact = s.sub_microsecond_times  # type: ignore[attr-defined]
                     add("events.h5", events * _EVENT_H5[exact])
                 if getattr(s, "aps", None) is not False:
                     bag("mono", n * w * h)

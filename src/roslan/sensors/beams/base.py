@@ -7,21 +7,46 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, NamedTuple
+from typing import TYPE_CHECKING, Annotated, Any, Literal, NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
+from pydantic import Field
 
-from roslan.sensors.base import Message, SimContext, StaticTransform, TopicSpec, sample_times_ns
+from roslan.config.base import FiniteFloat
+from roslan.sensors.base import (
+    Message,
+    SensorConfig,
+    SimContext,
+    StaticTransform,
+    TopicSpec,
+    sample_times_ns,
+)
 from roslan.sensors.beams.pointcloud import POINTCLOUD2, pointcloud2
 
 if TYPE_CHECKING:
     from roslan.render.base import BeamCaster
 
-__all__ = ["Measurement", "PointCloudSensor", "ScanWriter", "measure"]
+__all__ = ["BeamConfig", "Measurement", "PointCloudSensor", "ScanWriter", "measure"]
 
 F64 = NDArray[np.float64]
 F32 = NDArray[np.float32]
+
+
+class BeamConfig(SensorConfig):
+    """Keys of the return model every scanning beam sensor (lidar, solid_state_lidar,
+    laser) shares."""
+
+    dropout: Annotated[FiniteFloat, Field(ge=0, lt=1)] = 0.0
+    """Probability that a return is lost."""
+    intensity_scale: Annotated[FiniteFloat, Field(ge=0)] = 255.0
+    """intensity = scale x reflectivity x cos(incidence)."""
+    intensity_step: Annotated[FiniteFloat, Field(ge=0)] = 1.0
+    """Quantization step of the intensity: the sensors report integer codes (8-bit on
+    the HDL-32E, Livox and most 2-D scanners); 0 keeps it continuous."""
+    firing_poses: Literal["interpolated", "exact"] = "interpolated"
+    """Sensor pose of each firing: interpolated between knots, or the trajectory's
+    closed form at every firing instant (:mod:`roslan.sensors.beams.rays`)."""
 
 
 class Measurement(NamedTuple):
@@ -32,8 +57,8 @@ class Measurement(NamedTuple):
             no return (miss, beyond max range, dropout), -inf for a surface closer than
             the minimum range (REP 117).
         valid: (N,) bool, a finite return.
-        intensity: (N,) float32 ``scale * reflectivity * cos(incidence)`` rounded to a
-            multiple of ``intensity_step`` (unless 0), 0 without return.
+        intensity: (N,) float32 ``intensity_scale * reflectivity * cos(incidence)``
+            rounded to a multiple of ``intensity_step`` (unless 0), 0 without return.
     """
 
     range: F64
@@ -49,12 +74,11 @@ def measure(
     min_range: float,
     max_range: float,
     noise_sigma: float,
-    dropout: float,
+    returns: BeamConfig,
     rng: np.random.Generator,
-    intensity_scale: float = 1.0,
-    intensity_step: float = 0.0,
 ) -> Measurement:
-    """Cast the beams and apply the range sensor model (see :class:`Measurement`).
+    """Cast the beams and apply the range sensor model (see :class:`Measurement`):
+    limits, noise, and the dropout and intensity keys of ``returns``.
 
     The random draws (one normal and one uniform per beam) do not depend on what is
     hit, so a seed gives the same noise stream whatever the scene.
@@ -62,6 +86,7 @@ def measure(
     n = origins.shape[0]
     dist, echo = caster.cast_incidence(origins, directions, max_range)
     noise = rng.standard_normal(n) if noise_sigma > 0 else None
+    dropout = returns.dropout
     keep = rng.random(n) >= dropout if dropout > 0 else None
     true = dist.astype(np.float64)
     hit = np.isfinite(true)
@@ -75,9 +100,10 @@ def measure(
         r = np.clip(r + noise_sigma * noise, min_range, max_range)
     r[~valid] = np.inf
     r[too_close] = -np.inf
-    inten = np.where(valid, np.float32(intensity_scale) * echo, np.float32(0.0)).astype(np.float32)
-    if intensity_step > 0:  # the sensor's integer (e.g. 8-bit) intensity codes
-        step = np.float32(intensity_step)
+    scale = np.float32(returns.intensity_scale)
+    inten = np.where(valid, scale * echo, np.float32(0.0)).astype(np.float32)
+    if returns.intensity_step > 0:  # the sensor's integer (e.g. 8-bit) intensity codes
+        step = np.float32(returns.intensity_step)
         np.multiply(np.rint(inten / step), step, out=inten)
     return Measurement(r, valid, inten)
 

@@ -32,14 +32,13 @@ from roslan.config.base import FiniteFloat
 from roslan.io.text import format_seconds
 from roslan.sensors.base import (
     Message,
-    SensorConfig,
     SimContext,
     StaticTransform,
     TopicName,
     TopicSpec,
     sample_times_ns,
 )
-from roslan.sensors.beams.base import measure
+from roslan.sensors.beams.base import BeamConfig, measure
 from roslan.sensors.beams.rays import rays_in_world
 
 if TYPE_CHECKING:
@@ -54,7 +53,7 @@ PositiveFloat = Annotated[FiniteFloat, Field(gt=0)]
 NonNegative = Annotated[FiniteFloat, Field(ge=0)]
 
 
-class LaserConfig(SensorConfig):
+class LaserConfig(BeamConfig):
     """``type: laser``: planar scanner. Angles in rad, ranges in m, times in s."""
 
     type: Literal["laser"]
@@ -67,12 +66,6 @@ class LaserConfig(SensorConfig):
     range_min: NonNegative = 0.1
     range_max: PositiveFloat = 30.0
     noise_sigma: NonNegative = 0.01
-    dropout: Annotated[FiniteFloat, Field(ge=0, lt=1)] = 0.0
-    intensity_scale: NonNegative = 255.0
-    intensity_step: Annotated[FiniteFloat, Field(ge=0)] = 1.0
-    """Quantization step of the intensity: the sensors report integer codes (8-bit on
-    the HDL-32E, Livox and most 2-D scanners); 0 keeps it continuous."""
-    firing_poses: Literal["interpolated", "exact"] = "interpolated"
 
     @model_validator(mode="after")
     def _check(self) -> LaserConfig:
@@ -163,10 +156,8 @@ class Laser:
             min_range=c.range_min,
             max_range=c.range_max,
             noise_sigma=c.noise_sigma,
-            dropout=c.dropout,
+            returns=c,
             rng=rng,
-            intensity_scale=c.intensity_scale,
-            intensity_step=c.intensity_step,
         )
         return m.range.astype(np.float32), m.intensity
 

@@ -34,10 +34,9 @@ from pydantic import Field, model_validator
 
 from roslan.config.base import FiniteFloat
 from roslan.sensors.base import (
-    SensorConfig,
     TopicName,
 )
-from roslan.sensors.beams.base import PointCloudSensor, measure
+from roslan.sensors.beams.base import BeamConfig, PointCloudSensor, measure
 from roslan.sensors.beams.pointcloud import XYZIRT
 from roslan.sensors.beams.rays import rays_in_world
 
@@ -139,7 +138,7 @@ class LidarSpec:
         return out
 
 
-class LidarConfig(SensorConfig):
+class LidarConfig(BeamConfig):
     """``type: lidar``: a spinning multi-beam LiDAR. ``rate`` = turns per second.
 
     ``preset: hdl32e | vlp16`` takes the datasheet geometry and timing; ``custom``
@@ -158,13 +157,7 @@ class LidarConfig(SensorConfig):
     min_range: Annotated[FiniteFloat, Field(ge=0)] | None = None
     max_range: PositiveFloat | None = None
     noise_sigma: Annotated[FiniteFloat, Field(ge=0)] | None = None
-    dropout: Annotated[FiniteFloat, Field(ge=0, lt=1)] = 0.0
-    intensity_scale: Annotated[FiniteFloat, Field(ge=0)] = 255.0
-    intensity_step: Annotated[FiniteFloat, Field(ge=0)] = 1.0
-    """Quantization step of the intensity: the sensors report integer codes (8-bit on
-    the HDL-32E, Livox and most 2-D scanners); 0 keeps it continuous."""
     organized: bool = False
-    firing_poses: Literal["interpolated", "exact"] = "interpolated"
 
     @model_validator(mode="after")
     def _check(self) -> LidarConfig:
@@ -308,10 +301,8 @@ class Lidar(PointCloudSensor):
             min_range=s.min_range,
             max_range=s.max_range,
             noise_sigma=s.noise_sigma,
-            dropout=self.config.dropout,
+            returns=self.config,
             rng=rng,
-            intensity_scale=self.config.intensity_scale,
-            intensity_step=self.config.intensity_step,
         )
         sel: Any
         if self.config.organized:

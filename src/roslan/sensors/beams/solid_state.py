@@ -37,10 +37,9 @@ from pydantic import Field, model_validator
 
 from roslan.config.base import FiniteFloat
 from roslan.sensors.base import (
-    SensorConfig,
     TopicName,
 )
-from roslan.sensors.beams.base import PointCloudSensor, measure
+from roslan.sensors.beams.base import BeamConfig, PointCloudSensor, measure
 from roslan.sensors.beams.pointcloud import XYZIRT
 from roslan.sensors.beams.rays import rays_in_world
 
@@ -76,7 +75,7 @@ PositiveFloat = Annotated[FiniteFloat, Field(gt=0)]
 FovAngle = Annotated[FiniteFloat, Field(gt=0, lt=180)]
 
 
-class SolidStateLidarConfig(SensorConfig):
+class SolidStateLidarConfig(BeamConfig):
     """``type: solid_state_lidar``. ``rate`` = frames per second; None takes the preset."""
 
     type: Literal["solid_state_lidar"]
@@ -90,12 +89,6 @@ class SolidStateLidarConfig(SensorConfig):
     min_range: Annotated[FiniteFloat, Field(ge=0)] | None = None
     max_range: PositiveFloat | None = None
     noise_sigma: Annotated[FiniteFloat, Field(ge=0)] | None = None
-    dropout: Annotated[FiniteFloat, Field(ge=0, lt=1)] = 0.0
-    intensity_scale: Annotated[FiniteFloat, Field(ge=0)] = 255.0
-    intensity_step: Annotated[FiniteFloat, Field(ge=0)] = 1.0
-    """Quantization step of the intensity: the sensors report integer codes (8-bit on
-    the HDL-32E, Livox and most 2-D scanners); 0 keeps it continuous."""
-    firing_poses: Literal["interpolated", "exact"] = "interpolated"
 
     @model_validator(mode="after")
     def _check(self) -> SolidStateLidarConfig:
@@ -181,10 +174,8 @@ class SolidStateLidar(PointCloudSensor):
             min_range=s.min_range,
             max_range=s.max_range,
             noise_sigma=s.noise_sigma,
-            dropout=self.config.dropout,
+            returns=self.config,
             rng=rng,
-            intensity_scale=self.config.intensity_scale,
-            intensity_step=self.config.intensity_step,
         )
         sel = np.flatnonzero(m.valid)
         d_flat = d_s.reshape(-1, 3)[:n]

@@ -22,12 +22,8 @@ from roslan.sensors.cameras.encoding import (
     srgb_curve,
     srgb_lut,
 )
-from roslan.sensors.cameras.event import (
-    SENSOR_PRESETS,
-    EventCamera,
-    EventCameraConfig,
-    SensorPreset,
-)
+from roslan.sensors.cameras.event import EventCamera
+from roslan.sensors.cameras.event_config import SENSOR_PRESETS, EventCameraConfig, SensorPreset
 from roslan.sensors.cameras.frame import (
     Camera,
     CameraConfig,
