@@ -215,6 +215,19 @@ def test_base_from_a_file_and_relative_paths(tmp_path: Path) -> None:
             r"axes\[1\].*already varied by axes\[0\]",
         ),
         ({"name": "{scene}"}, r"name = '\{scene\}'"),
+        (
+            {"axes": [{"sample": {"n": 100_001, "ranges": {"seed": [0, 1]}}}]},
+            r"sample\.n = 100001: an integer in \[1, 100000\]",
+        ),
+        (
+            {
+                "axes": [
+                    {"grid": {"seed": list(range(400))}},
+                    {"grid": {"trajectory.k": [0.3 + 1e-4 * i for i in range(400)]}},
+                ]
+            },
+            r"axes = '160000 tasks': a sweep has at most 100000 tasks",
+        ),
     ],
 )
 def test_sweep_file_errors_name_key_value_allowed(
