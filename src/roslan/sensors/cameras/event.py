@@ -11,7 +11,8 @@ from depth + camera twist), feeds the frames to the vectorized pixel model
   packed with NumPy straight to wire bytes;
 * ``<topic>/camera_info`` at ``rate``; ``<topic>/image_raw`` APS frames (mono8) at
   ``rate`` when ``aps``; ``<topic>/optic_flow`` (32FC2, px/s) and ``<topic>/depthmap``
-  (32FC1, m) at ``ground_truth_rate`` when enabled;
+  (32FC1, m) at ``ground_truth_rate`` when enabled, also as files: DSEC optical-flow PNGs
+  in ``flow/`` and an MVSEC-style ``depth.h5`` (:mod:`roslan.sensors.cameras.event_truth`);
 * dataset files (Event Camera Dataset layout): the first event camera's at the OUTDIR
   root, every other one's in ``<name>/``: ``events.txt``, ``events.h5``, APS frames in
   ``images.txt`` + ``images/NNNNNNNN.png``; the run writes its ``calib.txt``,
@@ -54,6 +55,7 @@ from roslan.sensors.base import (
 )
 from roslan.sensors.cameras.encoding import srgb_curve
 from roslan.sensors.cameras.event_config import EventCameraConfig
+from roslan.sensors.cameras.event_truth import DepthH5Writer, FlowPngWriter
 from roslan.sensors.cameras.model import T_LINK_OPTICAL, CameraModel, RenderPlan
 
 __all__ = ["EventCamera"]
@@ -146,6 +148,7 @@ class EventCamera:
         self._images_fh: IO[str] | None = None
         self._folder = ""  # '' (OUTDIR root) or '<name>/'
         self._sink: BackgroundSink | None = None
+        self._truth: list[FlowPngWriter | DepthH5Writer] = []
         self.stats: dict[str, float] = {}
 
     # -------------------------------------------------------------- interface
@@ -248,6 +251,8 @@ class EventCamera:
             self._images_fh = ctx.path(f"{prefix}images.txt").open(
                 "w", encoding="utf-8", newline="\n"
             )
+        flow_file, depth_file = self._truth_writers(ctx, prefix)
+        gt_dt_ns = round(1e9 / gt_rate)
         # dataset files are written beside the rendering, in order (io/background.py)
         sink = self._sink = BackgroundSink(f"{c.name}-files")
         need_depth = c.sampling == "optical_flow" or c.optic_flow or c.depthmap
@@ -292,9 +297,15 @@ class EventCamera:
             if t in gt_set:
                 if c.optic_flow and flow is not None:
                     out.append(self._image_msg(ctx, t, flow, "32FC2"))
+                    if flow_file is not None:
+                        i = int(np.searchsorted(gt_times, t, side="right"))
+                        t_next = int(gt_times[i]) if i < gt_times.size else t + gt_dt_ns
+                        sink.submit(flow_file.write, t, t_next, flow)
                 if c.depthmap and depth is not None:
                     d = np.where(np.isfinite(depth), depth, np.float32(np.nan)).astype(np.float32)
                     out.append(self._image_msg(ctx, t, d, "32FC1"))
+                    if depth_file is not None:
+                        sink.submit(depth_file.write, t, d)
             buf, ready = packets.split(buf, t, final=False)
             for m in (*ready, *out):
                 heapq.heappush(pending, (m.t_ns, next(counter), m))
@@ -331,6 +342,22 @@ class EventCamera:
             "capped": n_capped,
             "duration_s": end * 1e-9,
         }
+
+    def _truth_writers(
+        self, ctx: SimContext, prefix: str
+    ) -> tuple[FlowPngWriter | None, DepthH5Writer | None]:
+        """The ground-truth file writers this camera's config asks for."""
+        c, cam = self.config, self.camera
+        flow = depth = None
+        if c.optic_flow:
+            flow_dir = ctx.path(f"{prefix}flow/forward_timestamps.txt").parent
+            flow = FlowPngWriter(flow_dir, ctx.start_time_ns)
+            self._truth.append(flow)
+        if c.depthmap:
+            path = ctx.path(f"{prefix}depth.h5")
+            depth = DepthH5Writer(path, cam.width, cam.height, ctx.start_time_ns)
+            self._truth.append(depth)
+        return flow, depth
 
     # -------------------------------------------------------------- messages
     def _camera_info_msg(self, ctx: SimContext, t_ns: int) -> Message:
@@ -370,6 +397,9 @@ class EventCamera:
         for wr in self._writers:
             wr.close()
         self._writers = []
+        for tw in self._truth:
+            tw.close()
+        self._truth = []
         if self._images_fh is not None and not self._images_fh.closed:
             self._images_fh.close()
 
