@@ -58,6 +58,7 @@ from roslan.rundir.manifest import (
     make_manifest,
     write_json,
 )
+from roslan.rundir.layouts import write_layouts
 from roslan.rundir.readme import outdir_readme
 from roslan.sensors.registry import sensor_spec
 from roslan.trajectory.base import Trajectory
@@ -377,6 +378,8 @@ class _Run:
         (tmp / "PLAYBACK.md").write_text(
             playback_text(self.traj.duration, wall, plan.formats, counts), encoding="utf-8"
         )
+        if plan.formats:
+            write_layouts(tmp, {t: e["type"] for t, e in topics.items()})
         readme = outdir_readme(tmp, root_camera(self.config.sensors))
         (tmp / "README.md").write_text(readme, encoding="utf-8")
         write_json(tmp / RUN_FILE, manifest)  # last: its presence marks a complete folder
