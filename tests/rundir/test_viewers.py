@@ -148,8 +148,10 @@ def test_marker_bytes_equal_rosbags_serialization(flavor: Flavor) -> None:
     mesh = scene_mesh(scene)
     data = scene_marker_bytes(store, 1_700_000_000_123_456_789, mesh)
     ts = store.typestore
-    msg = ts.deserialize_ros1(data, SCENE_MSGTYPE) if store.is_ros1 else ts.deserialize_cdr(
-        data, SCENE_MSGTYPE
+    msg = (
+        ts.deserialize_ros1(data, SCENE_MSGTYPE)
+        if store.is_ros1
+        else ts.deserialize_cdr(data, SCENE_MSGTYPE)
     )
     pts = np.array([[p.x, p.y, p.z] for p in msg.markers[0].points])
     np.testing.assert_array_equal(pts, mesh.corners.reshape(-1, 3))
@@ -185,9 +187,7 @@ def test_layouts_name_only_the_bag_topics(run: Path) -> None:
     rviz = yaml.safe_load((run / "landing.rviz").read_text())
     manager = rviz["Visualization Manager"]
     assert manager["Global Options"]["Fixed Frame"] == "world"
-    named = {
-        v for d in manager["Displays"] for k, v in d.items() if k.endswith("Topic")
-    }
+    named = {v for d in manager["Displays"] for k, v in d.items() if k.endswith("Topic")}
     assert named <= bag_topics
     assert {"/scene", "/ground_truth/odometry", "/velodyne_points", "/camera/image_raw"} <= named
     assert "/dvs/image_raw" in named  # the event camera's frames
@@ -218,9 +218,7 @@ def test_view_save_writes_a_verified_recording(run: Path, tmp_path: Path) -> Non
     from rerun.chunk import RrdReader
 
     schema = str(RrdReader(str(out)).store().schema())
-    entities = {
-        ln.split(":", 1)[1].strip() for ln in schema.splitlines() if "Entity path:" in ln
-    }
+    entities = {ln.split(":", 1)[1].strip() for ln in schema.splitlines() if "Entity path:" in ln}
     for sensor in SENSORS:
         assert any(e.startswith(f"/world/base_link/{sensor['name']}/") for e in entities), sensor
     assert "/world/scene" in entities

@@ -25,7 +25,7 @@ def _view(args: argparse.Namespace) -> int:
     if save is None and not _has_display():
         msg = (
             "roslan view: no display here (DISPLAY/WAYLAND_DISPLAY unset) to open the Rerun "
-            f"viewer; write a file with --save FILE.rrd and open it with `rerun FILE.rrd` "
+            "viewer; write a file with --save FILE.rrd and open it with `rerun FILE.rrd` "
             "where a display exists"
         )
         raise ViewError(msg)

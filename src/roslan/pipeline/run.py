@@ -49,6 +49,7 @@ from roslan.pipeline.worker import WorkerJob, WorkerPool, worker_nice
 from roslan.rundir.calibration import root_camera, write_calibration
 from roslan.rundir.extrinsics import write_extrinsics
 from roslan.rundir.folder import clean_stale, finalize, make_temp, outdir_lock
+from roslan.rundir.layouts import write_layouts
 from roslan.rundir.manifest import (
     RUN_FILE,
     TIMING_FILE,
@@ -58,7 +59,6 @@ from roslan.rundir.manifest import (
     make_manifest,
     write_json,
 )
-from roslan.rundir.layouts import write_layouts
 from roslan.rundir.readme import outdir_readme
 from roslan.sensors.registry import sensor_spec
 from roslan.trajectory.base import Trajectory

@@ -101,10 +101,17 @@ def _rviz_displays(topics: Mapping[str, str]) -> list[dict[str, Any]]:
             )
         elif ty == "sensor_msgs/LaserScan":
             d.append(
-                {"Class": "rviz/LaserScan", "Name": f"Scan ({topic})", "Enabled": True, "Topic": topic}
+                {
+                    "Class": "rviz/LaserScan",
+                    "Name": f"Scan ({topic})",
+                    "Enabled": True,
+                    "Topic": topic,
+                }
             )
         elif ty == "sensor_msgs/Range":
-            d.append({"Class": "rviz/Range", "Name": f"Range ({topic})", "Enabled": True, "Topic": topic})
+            d.append(
+                {"Class": "rviz/Range", "Name": f"Range ({topic})", "Enabled": True, "Topic": topic}
+            )
     for topic in _image_topics(topics):
         base = topic.rsplit("/", 1)[0]
         info = f"{base}/camera_info"
@@ -185,9 +192,16 @@ def foxglove_layout(topics: Mapping[str, str]) -> dict[str, Any]:
             "followTf": "base_link" if "/tf" in topics else FIXED_FRAME,
             "followMode": "follow-position",
             "scene": {"transforms": {"showLabel": False}},
-            "layers": {"grid": {"layerId": "foxglove.Grid", "visible": True, "frameId": FIXED_FRAME}},
+            "layers": {
+                "grid": {"layerId": "foxglove.Grid", "visible": True, "frameId": FIXED_FRAME}
+            },
             "topics": visible,
-            "cameraState": {"distance": 12.0, "phi": 60.0, "thetaOffset": 45.0, "perspective": True},
+            "cameraState": {
+                "distance": 12.0,
+                "phi": 60.0,
+                "thetaOffset": 45.0,
+                "perspective": True,
+            },
         }
     }
     panels = ["3D!scene"]
@@ -199,23 +213,33 @@ def foxglove_layout(topics: Mapping[str, str]) -> dict[str, Any]:
     for topic, ty in topics.items():
         if _short(ty) == "sensor_msgs/Imu":
             series += [
-                {"value": f"{topic}.linear_acceleration.{a}", "enabled": True, "timestampMethod": "headerStamp"}
+                {
+                    "value": f"{topic}.linear_acceleration.{a}",
+                    "enabled": True,
+                    "timestampMethod": "headerStamp",
+                }
                 for a in "xyz"
             ]
         elif _short(ty) == "sensor_msgs/Range":
-            series.append({"value": f"{topic}.range", "enabled": True, "timestampMethod": "headerStamp"})
+            series.append(
+                {"value": f"{topic}.range", "enabled": True, "timestampMethod": "headerStamp"}
+            )
     if series:
         config["Plot!series"] = {"paths": series, "showLegend": True}
         panels.append("Plot!series")
     side: Any = panels[-1]
     for key in reversed(panels[1:-1]):
         side = {"first": key, "second": side, "direction": "column"}
-    layout: Any = panels[0] if len(panels) == 1 else {
-        "first": panels[0],
-        "second": side,
-        "direction": "row",
-        "splitPercentage": 60,
-    }
+    layout: Any = (
+        panels[0]
+        if len(panels) == 1
+        else {
+            "first": panels[0],
+            "second": side,
+            "direction": "row",
+            "splitPercentage": 60,
+        }
+    )
     return {
         "configById": config,
         "globalVariables": {},

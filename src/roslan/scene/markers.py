@@ -80,7 +80,8 @@ def _shade(scene: Scene, corners: F64, base: F64) -> F32:
     lambert = np.abs(n @ sun) * scene.lights.sun_intensity
     lin = np.clip(base * (scene.lights.ambient + lambert)[:, None], 0.0, 1.0)
     srgb = np.where(lin <= 0.0031308, 12.92 * lin, 1.055 * np.power(lin, 1 / 2.4) - 0.055)
-    return srgb.astype(np.float32)
+    out: F32 = srgb.astype(np.float32)
+    return out
 
 
 def _cluster(

@@ -82,7 +82,10 @@ def _bag_paths(outdir: Path) -> list[Path]:
     for name in ("landing_ros2", "landing.bag"):
         if (outdir / name).exists():
             return [outdir / name]
-    msg = f"roslan view: {outdir} has no bag (landing_ros2/ or landing.bag); simulate with a bag format"
+    msg = (
+        f"roslan view: {outdir} has no bag (landing_ros2/ or landing.bag); "
+        "simulate with output.formats [ros1] or [ros2]"
+    )
     raise ViewError(msg)
 
 
@@ -352,15 +355,18 @@ def build_recording(
                 c
                 for c in reader.connections
                 if c.msgtype in handlers
-                and (c.topic == "/ground_truth/pose" or topics.get(c.topic, {}).get("publisher", "ground_truth") != "ground_truth")
+                and (
+                    c.topic == "/ground_truth/pose"
+                    or topics.get(c.topic, {}).get("publisher", "ground_truth") != "ground_truth"
+                )
             ]
             for conn, stamp, raw in reader.messages(connections=wanted):
-                msg = reader.deserialize(raw, conn.msgtype)
+                m: Any = reader.deserialize(raw, conn.msgtype)
                 owner = topics.get(conn.topic, {}).get("publisher", "ground_truth")
                 if owner == "ground_truth":
-                    handlers[conn.msgtype]("world/base_link", stamp, msg)
+                    handlers[conn.msgtype]("world/base_link", stamp, m)
                     continue
-                frame = msg.header.frame_id
+                frame = m.header.frame_id
                 entity = f"world/base_link/{owner}/{frame}"
                 if entity not in placed:
                     placed.add(entity)
@@ -371,7 +377,7 @@ def build_recording(
                         static=True,
                     )
                     entities.setdefault(owner, entity)
-                handlers[conn.msgtype](entity, stamp, msg)
+                handlers[conn.msgtype](entity, stamp, m)
         log.flush_series()
         root = root_camera_name((str(s.get("type")), str(s.get("name"))) for s in sensors)
         for s in sensors:

@@ -149,6 +149,8 @@ class EventCamera:
         self._folder = ""  # '' (OUTDIR root) or '<name>/'
         self._sink: BackgroundSink | None = None
         self._truth: list[FlowPngWriter | DepthH5Writer] = []
+        self._flow_file: FlowPngWriter | None = None
+        self._depth_file: DepthH5Writer | None = None
         self.stats: dict[str, float] = {}
 
     # -------------------------------------------------------------- interface
@@ -251,8 +253,7 @@ class EventCamera:
             self._images_fh = ctx.path(f"{prefix}images.txt").open(
                 "w", encoding="utf-8", newline="\n"
             )
-        flow_file, depth_file = self._truth_writers(ctx, prefix)
-        gt_dt_ns = round(1e9 / gt_rate)
+        self._truth_writers(ctx, prefix)
         # dataset files are written beside the rendering, in order (io/background.py)
         sink = self._sink = BackgroundSink(f"{c.name}-files")
         need_depth = c.sampling == "optical_flow" or c.optic_flow or c.depthmap
@@ -295,17 +296,7 @@ class EventCamera:
                     sink.submit(self._write_image, ctx, t, aps, image_index)
                     image_index += 1
             if t in gt_set:
-                if c.optic_flow and flow is not None:
-                    out.append(self._image_msg(ctx, t, flow, "32FC2"))
-                    if flow_file is not None:
-                        i = int(np.searchsorted(gt_times, t, side="right"))
-                        t_next = int(gt_times[i]) if i < gt_times.size else t + gt_dt_ns
-                        sink.submit(flow_file.write, t, t_next, flow)
-                if c.depthmap and depth is not None:
-                    d = np.where(np.isfinite(depth), depth, np.float32(np.nan)).astype(np.float32)
-                    out.append(self._image_msg(ctx, t, d, "32FC1"))
-                    if depth_file is not None:
-                        sink.submit(depth_file.write, t, d)
+                out += self._truth_msgs(ctx, t, flow, depth, gt_times, gt_rate)
             buf, ready = packets.split(buf, t, final=False)
             for m in (*ready, *out):
                 heapq.heappush(pending, (m.t_ns, next(counter), m))
@@ -343,21 +334,44 @@ class EventCamera:
             "duration_s": end * 1e-9,
         }
 
-    def _truth_writers(
-        self, ctx: SimContext, prefix: str
-    ) -> tuple[FlowPngWriter | None, DepthH5Writer | None]:
-        """The ground-truth file writers this camera's config asks for."""
+    def _truth_writers(self, ctx: SimContext, prefix: str) -> None:
+        """Open the ground-truth file writers this camera's config asks for."""
         c, cam = self.config, self.camera
-        flow = depth = None
+        self._flow_file = self._depth_file = None
         if c.optic_flow:
             flow_dir = ctx.path(f"{prefix}flow/forward_timestamps.txt").parent
-            flow = FlowPngWriter(flow_dir, ctx.start_time_ns)
-            self._truth.append(flow)
+            self._flow_file = FlowPngWriter(flow_dir, ctx.start_time_ns)
+            self._truth.append(self._flow_file)
         if c.depthmap:
             path = ctx.path(f"{prefix}depth.h5")
-            depth = DepthH5Writer(path, cam.width, cam.height, ctx.start_time_ns)
-            self._truth.append(depth)
-        return flow, depth
+            self._depth_file = DepthH5Writer(path, cam.width, cam.height, ctx.start_time_ns)
+            self._truth.append(self._depth_file)
+
+    def _truth_msgs(
+        self,
+        ctx: SimContext,
+        t: int,
+        flow: F32 | None,
+        depth: F32 | None,
+        gt_times: NDArray[np.int64],
+        gt_rate: float,
+    ) -> list[Message]:
+        """The optic-flow / depth messages of ground-truth instant ``t``; their files are
+        written by the background sink (the flow as the displacement to the next instant)."""
+        c, sink, out = self.config, self._sink, []
+        assert sink is not None
+        if c.optic_flow and flow is not None:
+            out.append(self._image_msg(ctx, t, flow, "32FC2"))
+            if self._flow_file is not None:
+                i = int(np.searchsorted(gt_times, t, side="right"))
+                t_next = int(gt_times[i]) if i < gt_times.size else t + round(1e9 / gt_rate)
+                sink.submit(self._flow_file.write, t, t_next, flow)
+        if c.depthmap and depth is not None:
+            d = np.where(np.isfinite(depth), depth, np.float32(np.nan)).astype(np.float32)
+            out.append(self._image_msg(ctx, t, d, "32FC1"))
+            if self._depth_file is not None:
+                sink.submit(self._depth_file.write, t, d)
+        return out
 
     # -------------------------------------------------------------- messages
     def _camera_info_msg(self, ctx: SimContext, t_ns: int) -> Message:
