@@ -87,7 +87,10 @@ _ROOT_FILES: tuple[tuple[str, str], ...] = (
         "`calib/<camera>.yaml` (ROS camera_info), `camchain.yaml` (Kalibr), "
         "`imu.yaml` (Kalibr IMU noise), `extrinsics.yaml` (every `T_base_link_sensor`).",
     ),
-    ("scene", "the scene's models and poses."),
+    (
+        "scene",
+        "the scene's models and poses (also in both bags: the latched `/scene` MarkerArray).",
+    ),
     ("run.json", "resolved config, seed, versions, messages per topic."),
     ("timing.json", "wall time and real-time factor of this run."),
     ("PLAYBACK.md", "how to play the bags."),
