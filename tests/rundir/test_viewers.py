@@ -190,7 +190,7 @@ def test_layouts_name_only_the_bag_topics(run: Path) -> None:
     named = {v for d in manager["Displays"] for k, v in d.items() if k.endswith("Topic")}
     assert named <= bag_topics
     assert {"/scene", "/ground_truth/odometry", "/velodyne_points", "/camera/image_raw"} <= named
-    assert "/dvs/image_raw" in named  # the event camera's frames
+    assert {"/dvs/image_raw", "/dvs/event_image"} <= named  # APS frames, events as an image
     classes = {d["Class"] for d in manager["Displays"]}
     assert {"rviz/MarkerArray", "rviz/Odometry", "rviz/PointCloud2", "rviz/Camera"} <= classes
     fox = json.loads((run / "landing.foxglove.json").read_text())

@@ -74,8 +74,11 @@ def _images(msgs: list[Any], topic: str) -> list[tuple[int, np.ndarray]]:
             continue
         img = store.typestore.deserialize_cdr(m.build(store), "sensor_msgs/msg/Image")
         stamp = img.header.stamp.sec * 10**9 + img.header.stamp.nanosec
-        ch = 2 if img.encoding == "32FC2" else 1
-        data = np.frombuffer(img.data.tobytes(), np.float32).reshape(img.height, img.width, ch)
+        if img.encoding == "rgb8":
+            data = img.data.reshape(img.height, img.width, 3)
+        else:
+            ch = 2 if img.encoding == "32FC2" else 1
+            data = np.frombuffer(img.data.tobytes(), np.float32).reshape(img.height, img.width, ch)
         out.append((stamp, data))
     return out
 
@@ -151,3 +154,27 @@ def test_dsec_encoding_round_trip_and_range() -> None:
     assert np.abs(back[valid] - d[valid]).max() <= 0.5 / 128 + 1e-12
     # the formula itself: 2**15 + 128 * flow
     np.testing.assert_array_equal(raw[2, 2, :2], np.rint(d[2, 2] * 128) + 2**15)
+
+
+def test_event_image_shows_the_last_window_of_events(truth_run: tuple[Path, list[Any]]) -> None:
+    """``/dvs/event_image`` (for bag viewers): at each camera_info instant, white, with the
+    events of the last 10 ms from events.txt, the last one of a pixel deciding blue (ON)
+    or red (OFF)."""
+    tmp, msgs = truth_run
+    frames = _images(msgs, "/dvs/event_image")
+    infos = [m.t_ns for m in msgs if m.topic == "/dvs/camera_info"]
+    assert len(frames) == len(infos) >= 10
+    lines = (tmp / "events.txt").read_text().split()
+    ev = np.array(lines, dtype=np.float64).reshape(-1, 4)
+    t_ns = np.array([int(v.replace(".", "")) for v in lines[0::4]], dtype=np.int64)
+    n_colored = 0
+    for stamp, img in frames:
+        t = stamp - START
+        sel = np.flatnonzero((t_ns > t - 10_000_000) & (t_ns <= t))
+        expect = np.full((30, 40, 3), 255, np.uint8)
+        for i in sel:  # independent: event by event, in time order
+            x, y, p = int(ev[i, 1]), int(ev[i, 2]), int(ev[i, 3])
+            expect[y, x] = (0, 0, 255) if p == 1 else (255, 0, 0)
+        np.testing.assert_array_equal(img, expect)
+        n_colored += int(np.any(expect != 255, axis=-1).sum())
+    assert n_colored > 50

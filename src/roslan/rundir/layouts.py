@@ -11,18 +11,18 @@ tf2_msgs/TFMessage                     TF (frames, no topic)           3D (follo
 nav_msgs/Odometry                      Odometry: the trajectory        3D (topic visible)
                                        (last 10000 poses as axes)
 sensor_msgs/Image ``*/image_raw``      Camera (with its camera_info)   Image
-sensor_msgs/Image ``*/depthmap``,      Image                           Image
-``*/depth``
+sensor_msgs/Image ``*/event_image``,   Image                           Image
+``*/depthmap``, ``*/depth``
 sensor_msgs/PointCloud2                PointCloud2 (intensity)         3D (topic visible)
 sensor_msgs/LaserScan                  LaserScan                       3D (topic visible)
 sensor_msgs/Range                      Range                           Plot (``.range``)
 sensor_msgs/Imu                        (none in RViz)                  Plot (acceleration)
 =====================================  ==============================  ======================
 
-The fixed frame is ``world``. Events (``dvs_msgs/EventArray``) have no display in either
-tool: RViz shows them through rpg_dvs_ros' ``dvs_renderer`` node, and ``roslan view``
-draws them as ON/OFF event frames in Rerun; an event camera's APS frames
-(``<topic>/image_raw``) get a Camera display like any camera.
+The fixed frame is ``world``. Neither tool draws ``dvs_msgs/EventArray``: the events are
+shown as an image through the event camera's ``<topic>/event_image``
+(:mod:`roslan.sensors.cameras.event_image`); its APS frames (``<topic>/image_raw``) get a
+Camera display like any camera.
 """
 
 from __future__ import annotations
@@ -50,7 +50,7 @@ def _image_topics(topics: Mapping[str, str]) -> list[str]:
         t
         for t, ty in topics.items()
         if _short(ty) == "sensor_msgs/Image"
-        and t.rsplit("/", 1)[-1] in ("image_raw", "depthmap", "depth", "image_rect")
+        and t.rsplit("/", 1)[-1] in ("image_raw", "event_image", "depthmap", "depth", "image_rect")
     ]
 
 

@@ -146,6 +146,7 @@ def _image_array(msg: Any) -> NDArray[Any]:
 
 
 def _log_image(log: _Logger, entity: str, msg: Any) -> None:
+    """An image message as ``<entity>/image`` (JPEG) or ``<entity>/depth``."""
     import cv2
 
     rr = log.rr
@@ -355,6 +356,7 @@ def build_recording(
                 c
                 for c in reader.connections
                 if c.msgtype in handlers
+                and not c.topic.endswith("/event_image")  # drawn from the event files
                 and (
                     c.topic == "/ground_truth/pose"
                     or topics.get(c.topic, {}).get("publisher", "ground_truth") != "ground_truth"

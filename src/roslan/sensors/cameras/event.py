@@ -10,7 +10,9 @@ from depth + camera twist), feeds the frames to the vectorized pixel model
   ``packet_events`` events), stamped with their last event (as rpg_dvs_ros does),
   packed with NumPy straight to wire bytes;
 * ``<topic>/camera_info`` at ``rate``; ``<topic>/image_raw`` APS frames (mono8) at
-  ``rate`` when ``aps``; ``<topic>/optic_flow`` (32FC2, px/s) and ``<topic>/depthmap``
+  ``rate`` when ``aps``; ``<topic>/event_image`` (rgb8 event frames for bag viewers,
+  :mod:`roslan.sensors.cameras.event_image`) at ``rate`` when ``event_image``;
+  ``<topic>/optic_flow`` (32FC2, px/s) and ``<topic>/depthmap``
   (32FC1, m) at ``ground_truth_rate`` when enabled, also as files: DSEC optical-flow PNGs
   in ``flow/`` and an MVSEC-style ``depth.h5`` (:mod:`roslan.sensors.cameras.event_truth`);
 * dataset files (Event Camera Dataset layout): the first event camera's at the OUTDIR
@@ -55,6 +57,7 @@ from roslan.sensors.base import (
 )
 from roslan.sensors.cameras.encoding import srgb_curve
 from roslan.sensors.cameras.event_config import EventCameraConfig
+from roslan.sensors.cameras.event_image import RecentEvents
 from roslan.sensors.cameras.event_truth import DepthH5Writer, FlowPngWriter
 from roslan.sensors.cameras.model import T_LINK_OPTICAL, CameraModel, RenderPlan
 
@@ -166,6 +169,8 @@ class EventCamera:
         ]
         if c.has_aps:
             out.append(TopicSpec(f"{t}/image_raw", "sensor_msgs/msg/Image"))
+        if c.event_image:
+            out.append(TopicSpec(f"{t}/event_image", "sensor_msgs/msg/Image"))
         if c.optic_flow:
             out.append(TopicSpec(f"{t}/optic_flow", "sensor_msgs/msg/Image"))
         if c.depthmap:
@@ -235,25 +240,8 @@ class EventCamera:
         )
         gen = EventGenerator(W, H, self.params, ctx.rng(f"{c.name}/pixels"))
         tick = c.timestamp_resolution_ns
-        prefix = self._folder = self._prefix(ctx)
-        stem = "events" if not prefix else f"{prefix}events"
-        if c.write_txt:
-            self._writers.append(EventTextWriter(ctx.path(f"{stem}.txt")))
-        if c.write_h5:
-            self._writers.append(
-                EventH5Writer(
-                    ctx.path(f"{stem}.h5"),
-                    W,
-                    H,
-                    t_offset_ns=ctx.start_time_ns,
-                    exact_ns=c.sub_microsecond_times,
-                )
-            )
-        if c.has_aps:
-            self._images_fh = ctx.path(f"{prefix}images.txt").open(
-                "w", encoding="utf-8", newline="\n"
-            )
-        self._truth_writers(ctx, prefix)
+        self._open_files(ctx)
+        recent = RecentEvents(W, H, round(c.event_image_window * 1e9)) if c.event_image else None
         # dataset files are written beside the rendering, in order (io/background.py)
         sink = self._sink = BackgroundSink(f"{c.name}-files")
         need_depth = c.sampling == "optical_flow" or c.optic_flow or c.depthmap
@@ -279,6 +267,8 @@ class EventCamera:
                 if self._writers:
                     sink.submit(self._write_events, batch)
                 buf.append(batch)
+            if recent is not None:
+                recent.add(batch, t)
             flow = None
             speed = 0.0  # max |flow|, px/s (optical_flow sampling)
             if depth is not None and c.optic_flow and t in gt_set:
@@ -290,6 +280,8 @@ class EventCamera:
             out: list[Message] = []
             if t in info_set:
                 out.append(self._camera_info_msg(ctx, t))
+                if recent is not None:
+                    out.append(self._image_msg(ctx, t, recent.frame(t), "rgb8"))
                 if c.has_aps:
                     aps = _srgb8(lum)
                     out.append(self._image_msg(ctx, t, aps, "mono8"))
@@ -333,6 +325,29 @@ class EventCamera:
             "capped": n_capped,
             "duration_s": end * 1e-9,
         }
+
+    def _open_files(self, ctx: SimContext) -> None:
+        """Open the dataset files: events, APS listing, ground truth."""
+        c, W, H = self.config, self.camera.width, self.camera.height
+        prefix = self._folder = self._prefix(ctx)
+        stem = "events" if not prefix else f"{prefix}events"
+        if c.write_txt:
+            self._writers.append(EventTextWriter(ctx.path(f"{stem}.txt")))
+        if c.write_h5:
+            self._writers.append(
+                EventH5Writer(
+                    ctx.path(f"{stem}.h5"),
+                    W,
+                    H,
+                    t_offset_ns=ctx.start_time_ns,
+                    exact_ns=c.sub_microsecond_times,
+                )
+            )
+        if c.has_aps:
+            self._images_fh = ctx.path(f"{prefix}images.txt").open(
+                "w", encoding="utf-8", newline="\n"
+            )
+        self._truth_writers(ctx, prefix)
 
     def _truth_writers(self, ctx: SimContext, prefix: str) -> None:
         """Open the ground-truth file writers this camera's config asks for."""
@@ -385,7 +400,12 @@ class EventCamera:
         )
 
     def _image_msg(self, ctx: SimContext, t_ns: int, data: NDArray[Any], encoding: str) -> Message:
-        topic = {"mono8": "image_raw", "32FC2": "optic_flow", "32FC1": "depthmap"}[encoding]
+        topic = {
+            "mono8": "image_raw",
+            "rgb8": "event_image",
+            "32FC2": "optic_flow",
+            "32FC1": "depthmap",
+        }[encoding]
         frame, stamp = self.optical_frame, ctx.stamp(t_ns)
 
         def build(store: MessageStore) -> bytes:
