@@ -30,13 +30,10 @@ def _scene() -> Scene:
     return Scene("test", (floor, crate))
 
 
-@pytest.fixture(scope="module")
-def truth_run(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, list[Any]]:
-    pytest.importorskip("roslan.render.gl")
+def _run(tmp: Path) -> list[Any]:
     from roslan.pipeline.context import Context
     from roslan.sensors.cameras import EventCamera, EventCameraConfig
 
-    tmp = tmp_path_factory.mktemp("truth")
     traj = TauTrajectory(
         TrajectoryConfig(
             initial={"position": (-1.2, 0.3, 0.6), "rpy": (0, 0, 0), "descent_rate": 1.5}
@@ -63,7 +60,23 @@ def truth_run(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, list[Any]
     sensor = EventCamera(cfg)
     msgs = list(sensor.messages(ctx))
     sensor.close(ctx)
-    return tmp, msgs
+    return msgs
+
+
+@pytest.fixture(scope="module")
+def truth_run(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, list[Any]]:
+    pytest.importorskip("roslan.render.gl")
+    tmp = tmp_path_factory.mktemp("truth")
+    return tmp, _run(tmp)
+
+
+def test_truth_files_are_deterministic(truth_run: tuple[Path, list[Any]], tmp_path: Path) -> None:
+    tmp, _ = truth_run
+    _run(tmp_path)
+    names = ["depth.h5", "flow/forward_timestamps.txt"]
+    names += [f"flow/forward/{p.name}" for p in sorted((tmp / "flow" / "forward").glob("*"))]
+    for name in names:
+        assert (tmp_path / name).read_bytes() == (tmp / name).read_bytes(), name
 
 
 def _images(msgs: list[Any], topic: str) -> list[tuple[int, np.ndarray]]:
