@@ -13,8 +13,9 @@ vertex clustering (Rossignac & Borrel, "Multi-resolution 3D approximations for r
 complex scenes", 1993): vertices are snapped to a uniform grid (the mean of the vertices in
 each cell), triangles that collapse or repeat are dropped; the cell is the smallest (to 1 % in
 size) whose result fits the budget. Flat, large surfaces (floors, walls, tanks) keep their
-shape; fine detail merges. The marker is about 88 bytes per triangle (3 float64 points +
-3 float32 colours).
+shape; fine detail merges. The marker takes 120 bytes per triangle (3 float64 points +
+3 float32 RGBA colours) before the bags' chunk compression (the warehouse: 7.8 MB, 0.8 MB
+in landing.bag with lz4 HC, 0.4 MB in the MCAP with zstd).
 
 The points and colours are appended as NumPy bytes into a message whose other fields
 rosbags serializes (its serializer would build a Python object per point).
@@ -43,7 +44,7 @@ __all__ = [
 SCENE_TOPIC = "/scene"
 SCENE_MSGTYPE = "visualization_msgs/msg/MarkerArray"
 SCENE_TRIANGLE_BUDGET = 250_000
-"""Most triangles the /scene marker carries (about 22 MB per bag at the limit)."""
+"""Most triangles the /scene marker carries (30 MB uncompressed at the limit)."""
 TRIANGLE_LIST = 11
 
 F64 = NDArray[np.float64]
