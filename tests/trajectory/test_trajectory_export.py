@@ -122,11 +122,17 @@ def _check_outputs(out: Path, traj: Trajectory) -> None:
     body = [ln for ln in gt_lines if not ln.startswith("#")]
     assert all(len(ln.split(" ")) == 8 for ln in body)
     gt = np.loadtxt(out / "groundtruth.txt")
-    np.testing.assert_array_equal(np.round(gt[:, 0] * 1e9).astype(np.int64), expected)
+    # at the ground-truth rate (default 200 Hz, as /ground_truth/pose), not every sample_dt:
+    # every 5 ms from 0, then the end of the run exactly
+    gt_ns = np.round(gt[:, 0] * 1e9).astype(np.int64)
+    end = round(traj.duration * 1e9)
+    every = np.arange(0, end + 1, 5_000_000, dtype=np.int64)
+    np.testing.assert_array_equal(gt_ns, every if every[-1] == end else np.append(every, end))
+    st = traj.state(gt_ns * 1e-9)
     np.testing.assert_allclose(gt[:, 1:4], st.position, atol=1e-9)
     np.testing.assert_allclose(np.linalg.norm(gt[:, 4:], axis=1), 1.0, atol=1e-8)
     np.testing.assert_allclose(quat_xyzw_to_matrix(gt[:, 4:]), st.R_world_body, atol=1e-8)
-    np.testing.assert_allclose(gt[i_T, 1:4], traj.config.goal.position, atol=1e-9)
+    np.testing.assert_allclose(gt[-1, 1:4], traj.config.goal.position, atol=1e-9)
     summary = json.loads((out / "summary.json").read_text())
     assert summary["T"] == pytest.approx(traj.T)
     assert summary["tau0"] == pytest.approx(traj.tau0)

@@ -37,8 +37,8 @@ from numpy.typing import NDArray
 
 from roslan.io.messages import MessageStore
 from roslan.io.packing import FixedLayout, Leaf, PackedBatch
-from roslan.sensors.base import Message, SimContext, StaticTransform, TopicSpec, sample_times_ns
-from roslan.trajectory.base import COMPONENTS, GAPS
+from roslan.sensors.base import Message, SimContext, StaticTransform, TopicSpec
+from roslan.trajectory.base import COMPONENTS, DEFAULT_GROUND_TRUTH_RATE, GAPS, ground_truth_times_ns
 from roslan.trajectory.frames import matrix_to_quat_xyzw
 
 __all__ = [
@@ -202,7 +202,7 @@ class GroundTruth:
     )
     LATCHED = frozenset({"/tf_static"})
 
-    def __init__(self, rate: float = 200.0, static: Sequence[StaticTransform] = ()) -> None:
+    def __init__(self, rate: float = DEFAULT_GROUND_TRUTH_RATE, static: Sequence[StaticTransform] = ()) -> None:
         self.rate = float(rate)
         self.static = list(static)
         self._layouts: dict[str, _Layouts] = {}
@@ -230,10 +230,8 @@ class GroundTruth:
             "tf2_msgs/msg/TFMessage",
             lambda store: static_transform_message(store, start, static),
         )
-        end = int(ctx.trajectory.duration_ns)
-        times = sample_times_ns(self.rate, end)
-        if times[-1] < end:  # the record ends exactly at the end of the run
-            times = np.append(times, np.int64(end))
+        # the record ends exactly at the end of the run; groundtruth.txt has the same rows
+        times = ground_truth_times_ns(self.rate, int(ctx.trajectory.duration_ns))
         per_chunk = max(1, round(self.rate * CHUNK_S))
         for i0 in range(0, times.size, per_chunk):
             t = times[i0 : i0 + per_chunk]

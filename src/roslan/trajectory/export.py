@@ -5,8 +5,10 @@ Files written into ``outdir`` (each atomically, see :mod:`roslan.io.files`):
 * ``trajectory.csv``: the 18 components in the goal frame F (m, rad, s), one row at
   every instant of :meth:`Trajectory.table_times` (every ``sample_dt`` from 0, the
   last landing row exactly at T, then the hold).
-* ``groundtruth.txt``: TUM ``t px py pz qx qy qz qw`` of base_link in the world frame,
-  same instants.
+* ``groundtruth.txt``: TUM ``t px py pz qx qy qz qw`` of base_link in the world frame
+  at the ground-truth rate (``output.ground_truth_rate``, default 200 Hz): the instants
+  of the bag's ``/ground_truth/pose`` (:func:`~roslan.trajectory.base.ground_truth_times_ns`,
+  every ``1 / rate`` from 0 plus the end of the run), not the table's.
 * ``summary.json``: :meth:`Trajectory.summary`.
 * ``trajectory.png``: 3-D path with velocity vectors (the paper's Fig. 3) and each gap
   against time.
@@ -22,7 +24,14 @@ from numpy.typing import NDArray
 
 from roslan.io.files import atomic_write, atomic_write_text
 from roslan.io.text import write_columns
-from roslan.trajectory.base import COMPONENTS, GAPS, State, Trajectory
+from roslan.trajectory.base import (
+    COMPONENTS,
+    DEFAULT_GROUND_TRUTH_RATE,
+    GAPS,
+    State,
+    Trajectory,
+    ground_truth_times_ns,
+)
 from roslan.trajectory.generator import TauTrajectory
 
 __all__ = [
@@ -30,7 +39,9 @@ __all__ = [
     "TUM_HEADER",
     "plot_trajectory",
     "table_times_ns",
+    "write_groundtruth",
     "write_trajectory_files",
+    "write_trajectory_plot",
 ]
 
 CSV_HEADER = "t," + ",".join(COMPONENTS)
@@ -48,13 +59,20 @@ def table_times_ns(traj: Trajectory) -> NDArray[np.int64]:
     return np.round(traj.table_times() * 1e9).astype(np.int64)
 
 
-def write_trajectory_files(traj: Trajectory, outdir: Path, *, plot: bool = True) -> None:
+def write_trajectory_files(
+    traj: Trajectory,
+    outdir: Path,
+    *,
+    plot: bool = True,
+    ground_truth_rate: float = DEFAULT_GROUND_TRUTH_RATE,
+) -> None:
     """Write trajectory.csv, groundtruth.txt, summary.json and (if ``plot``) trajectory.png.
 
     Args:
         traj: the trajectory to sample (closed form, evaluated at the table instants).
         outdir: existing folder; files of the same names are replaced atomically.
         plot: also render trajectory.png (matplotlib Agg, deterministic).
+        ground_truth_rate: Hz of groundtruth.txt (``output.ground_truth_rate``).
     """
     outdir = Path(outdir)
     t = traj.table_times()
@@ -64,12 +82,29 @@ def write_trajectory_files(traj: Trajectory, outdir: Path, *, plot: bool = True)
     with atomic_write(outdir / "trajectory.csv") as fh:
         fh.write(CSV_HEADER + "\n")
         write_columns(fh, t_ns, *comps.T, fmt=_FMT, sep=",")
-    with atomic_write(outdir / "groundtruth.txt") as fh:
-        write_columns(fh, t_ns, *st.position.T, *st.quat_xyzw.T, fmt="%.9f", sep=" ")
+    write_groundtruth(traj, outdir / "groundtruth.txt", ground_truth_rate)
     summary = traj.summary()
     atomic_write_text(outdir / "summary.json", json.dumps(summary, indent=2) + "\n")
     if plot:
         plot_trajectory(traj, st, outdir / "trajectory.png")
+
+
+def write_groundtruth(traj: Trajectory, path: Path, rate: float) -> None:
+    """TUM ``t px py pz qx qy qz qw`` (t in integer ns of trajectory time) at the
+    ground-truth instants: the rows are the bag's ``/ground_truth/pose`` messages (stamp
+    minus ``output.start_time``), written chunk by chunk (memory bounded)."""
+    times = ground_truth_times_ns(rate, traj.duration_ns)
+    step = max(1, round(rate * 10.0))  # ten seconds of poses per chunk
+    with atomic_write(path) as fh:
+        for i0 in range(0, times.size, step):
+            t = times[i0 : i0 + step]
+            st = traj.state_ns(t)
+            write_columns(fh, t, *st.position.T, *st.quat_xyzw.T, fmt="%.9f", sep=" ")
+
+
+def write_trajectory_plot(traj: Trajectory, path: Path) -> None:
+    """trajectory.png alone (the simulation renders it in a background process)."""
+    plot_trajectory(traj, traj.state(traj.table_times()), path)
 
 
 def plot_trajectory(traj: Trajectory, table: State, path: Path) -> None:

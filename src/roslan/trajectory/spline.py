@@ -215,13 +215,12 @@ class FileTrajectory(Trajectory):
         velocity = np.column_stack([s(tc, 1) for s in self._pos]) * moving
         acceleration = np.column_stack([s(tc, 2) for s in self._pos]) * moving
         rot = self._rot(tc)
-        # RotationSpline's rates are in the world frame: rotate into the body
-        omega_w = self._rot(tc, 1) * moving
-        alpha_w = self._rot(tc, 2) * moving
+        # RotationSpline's first and second derivatives are already the body angular
+        # velocity and acceleration (in base_link; checked against closed forms in
+        # tests/trajectory/test_file_imu.py): no rotation by R^T
+        omega = self._rot(tc, 1) * moving
+        alpha = self._rot(tc, 2) * moving
         R = rot.as_matrix()
-        Rt = np.swapaxes(R, 1, 2)
-        omega = np.einsum("nij,nj->ni", Rt, omega_w)
-        alpha = np.einsum("nij,nj->ni", Rt, alpha_w)
         quat = rot.as_quat()
         quat = np.where(quat[:, 3:4] < 0, -quat, quat)
         rpy = matrix_to_rpy(R).reshape(-1, 3)
