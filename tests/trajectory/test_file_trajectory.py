@@ -43,7 +43,7 @@ def test_round_trip_positions_and_specific_force(
     fb = np.einsum("nji,nj->ni", b.R_world_body, b.acceleration - G)
     rel = np.linalg.norm(fa - fb, axis=1) / np.linalg.norm(fa, axis=1)
     assert rel.max() < 0.01
-    # body rates (RotationSpline, rotated into the body) against the closed form
+    # body rates (RotationSpline's derivative, already in the body) against the closed form
     # (RotationSpline's free end conditions bend the rate near the first sample: 2 %)
     assert np.abs(a.omega_body - b.omega_body).max() < 0.02 * np.abs(a.omega_body).max()
     res = ft.residual()
