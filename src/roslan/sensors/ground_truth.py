@@ -38,7 +38,12 @@ from numpy.typing import NDArray
 from roslan.io.messages import MessageStore
 from roslan.io.packing import FixedLayout, Leaf, PackedBatch
 from roslan.sensors.base import Message, SimContext, StaticTransform, TopicSpec
-from roslan.trajectory.base import COMPONENTS, DEFAULT_GROUND_TRUTH_RATE, GAPS, ground_truth_times_ns
+from roslan.trajectory.base import (
+    COMPONENTS,
+    DEFAULT_GROUND_TRUTH_RATE,
+    GAPS,
+    ground_truth_times_ns,
+)
 from roslan.trajectory.frames import matrix_to_quat_xyzw
 
 __all__ = [
@@ -202,7 +207,9 @@ class GroundTruth:
     )
     LATCHED = frozenset({"/tf_static"})
 
-    def __init__(self, rate: float = DEFAULT_GROUND_TRUTH_RATE, static: Sequence[StaticTransform] = ()) -> None:
+    def __init__(
+        self, rate: float = DEFAULT_GROUND_TRUTH_RATE, static: Sequence[StaticTransform] = ()
+    ) -> None:
         self.rate = float(rate)
         self.static = list(static)
         self._layouts: dict[str, _Layouts] = {}
