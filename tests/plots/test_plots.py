@@ -382,6 +382,44 @@ def test_event_windows_agree_between_txt_and_h5(run_dir: Path, tmp_path: Path) -
         assert ex.size == int(((t_ns >= 0) & (t_ns < 20_000_000)).sum())
 
 
+@pytest.mark.parametrize("kind", ["events.h5", "events.txt"])
+def test_plot_events_spreads_frames_and_rate_over_the_run(
+    run_dir: Path, tmp_path: Path, kind: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """events.h5 holds microseconds (DSEC): the time range, the frames and the rate plot
+    must cover the whole run, as from events.txt (seconds)."""
+    import shutil
+
+    import roslan.plots.events as ev
+
+    d = tmp_path / "run"
+    d.mkdir()
+    shutil.copy(run_dir / kind, d / kind)
+    t, _, _, _ = _ground_truth_events(_traj().duration)
+    with open_events(d, "x") as src:
+        assert src.path.name == kind
+        assert src.time_range_ns() == (0, round(t[-1] * 1e9))
+    spans: list[tuple[int, int]] = []
+    real_rate = ev.event_rate
+
+    def rate(src: object, t0: int, t1: int, bin_ns: int) -> object:
+        spans.append((t0, t1))
+        return real_rate(src, t0, t1, bin_ns)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(ev, "event_rate", rate)
+    ev.plot_events(d, tmp_path / "plots", frames=4)
+    assert spans == [(0, round(t[-1] * 1e9) + 1)]
+    # the square slides right over the run: each frame's ON edge lies further right
+    cols = []
+    for i in range(4):
+        img = iio.imread(tmp_path / "plots" / f"event_frame_{i:02d}.png")[:, :, :3]
+        on = np.argwhere(np.all(img == EVENT_POS_RGB, axis=-1))
+        assert on.size, i
+        cols.append(on[:, 1].mean())
+    assert np.all(np.diff(cols) > 5), cols
+    assert cols[-1] - cols[0] > 0.5 * (W - 20), cols
+
+
 def test_event_frame_colours_net_polarity() -> None:
     from roslan.plots.raster import event_frame
 
