@@ -461,9 +461,54 @@ def test_overview_copes_with_missing_sensors(bare_dir: Path) -> None:
     out = write_overview(bare_dir)
     assert out == bare_dir / "overview.png"
     img = _png(out)
-    _assert_figure(img, 1400, 1000, min_ink=0.02)  # three placeholder panels
+    _assert_figure(img, 1400, 600)  # one row: the trajectory and its gaps
     # no event pixels without an event camera
     assert _near(img, EVENT_POS_RGB, 10) == 0
+
+
+def _overview(outdir: Path) -> tuple[list[str], list[str]]:
+    """Panel titles of the overview figure and the legend texts of its trajectory panel."""
+    from roslan.plots.media import RunMedia
+    from roslan.plots.overview import overview_figure
+    from roslan.plots.style import style
+
+    media = RunMedia.open(outdir, "test")
+    try:
+        with style():
+            fig = overview_figure(outdir, media, "test")
+    finally:
+        media.close()
+    titles = [ax.get_title() for ax in fig.axes if ax.get_title()]  # colorbars have none
+    legend = [t.get_text() for t in fig.axes[0].get_legend().get_texts()]
+    return titles, legend
+
+
+def test_overview_draws_only_what_the_run_has(
+    run_dir: Path, bare_dir: Path, tmp_path: Path
+) -> None:
+    import shutil
+
+    # event camera (APS frames at the root), LiDAR, IMU: the media, no IMU panel
+    titles, legend = _overview(run_dir)
+    assert [t.split(" ")[0] for t in titles] == ["Trajectory", "Event", "Events,", "LiDAR"]
+    assert titles[1].startswith("Event camera 'dvs' APS frame, t = ")
+    assert any("(frames shown)" in t for t in legend)
+    # the same run while roslan simulate draws it: no run.json yet, names from calib/
+    d = tmp_path / "nojson"
+    shutil.copytree(run_dir, d)
+    (d / "run.json").unlink()
+    (d / "calib").mkdir(exist_ok=True)
+    (d / "calib" / "extrinsics.yaml").write_text("sensors:\n  dvs: {type: event_camera}\n")
+    assert _overview(d)[0][1].startswith("Event camera 'dvs' APS frame")
+    # IMU only: accelerometer, gyroscope, gaps; no "frames shown" dot
+    imu = write_synthetic_outdir(tmp_path / "imu", camera=False, events=None, lidar=False)
+    titles, legend = _overview(imu)
+    assert [t.split(" ")[0] for t in titles] == ["Trajectory", "IMU", "IMU", "Position"]
+    assert not any("shown" in t for t in legend)
+    # nothing but the trajectory: two panels, no placeholder
+    titles, legend = _overview(bare_dir)
+    assert [t.split(" ")[0] for t in titles] == ["Trajectory", "Position"]
+    assert not any("shown" in t for t in legend)
 
 
 @pytest.mark.parametrize("speed", [1.0, 2.5])

@@ -148,6 +148,12 @@ def test_write_trajectory_files(tmp_path: Path) -> None:
     _check_outputs(tmp_path, traj)
     png = (tmp_path / "trajectory.png").read_bytes()
     assert png[:8] == b"\x89PNG\r\n\x1a\n"
+    # the velocity arrows (dark orange, thick) stand out on the 3-D panel (left half)
+    import imageio.v3 as iio
+
+    img = iio.imread(tmp_path / "trajectory.png")[:, :, :3].astype(int)
+    left = img[:, : img.shape[1] // 2]
+    assert (np.abs(left - [255, 140, 0]).sum(axis=-1) < 60).sum() > 1000
     # deterministic: byte-identical on a second run
     second = tmp_path / "again"
     second.mkdir()

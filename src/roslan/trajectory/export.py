@@ -28,7 +28,6 @@ from roslan.trajectory.base import (
     COMPONENTS,
     DEFAULT_GROUND_TRUTH_RATE,
     GAPS,
-    State,
     Trajectory,
     ground_truth_times_ns,
 )
@@ -86,7 +85,7 @@ def write_trajectory_files(
     summary = traj.summary()
     atomic_write_text(outdir / "summary.json", json.dumps(summary, indent=2) + "\n")
     if plot:
-        plot_trajectory(traj, st, outdir / "trajectory.png")
+        plot_trajectory(traj, outdir / "trajectory.png")
 
 
 def write_groundtruth(traj: Trajectory, path: Path, rate: float) -> None:
@@ -104,16 +103,17 @@ def write_groundtruth(traj: Trajectory, path: Path, rate: float) -> None:
 
 def write_trajectory_plot(traj: Trajectory, path: Path) -> None:
     """trajectory.png alone (the simulation renders it in a background process)."""
-    plot_trajectory(traj, traj.state(traj.table_times()), path)
+    plot_trajectory(traj, path)
 
 
-def plot_trajectory(traj: Trajectory, table: State, path: Path) -> None:
-    """Render the 3-D path in F with velocity vectors at the table instants, and the six
-    gaps against time, to a PNG at ``path`` (atomic, deterministic)."""
+def plot_trajectory(traj: Trajectory, path: Path) -> None:
+    """Render the 3-D path in F with velocity vectors (12 evenly spaced instants of the
+    landing), and the six gaps against time, to a PNG at ``path`` (atomic,
+    deterministic)."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    from roslan.plots.style import DPI, GAP_COLORS
+    from roslan.plots.style import DPI, GAP_COLORS, velocity_arrows
 
     dense = traj.state(np.linspace(0.0, traj.T, 600))
     fig = Figure(figsize=(12.0, 6.0), dpi=DPI)
@@ -121,19 +121,10 @@ def plot_trajectory(traj: Trajectory, table: State, path: Path) -> None:
     grid = fig.add_gridspec(3, 4, width_ratios=[1.0, 1.0, 0.8, 0.8])
     ax3 = fig.add_subplot(grid[:, :2], projection="3d")
     p = dense.gaps[:, :3]
-    ax3.plot(p[:, 0], p[:, 1], p[:, 2], color="0.55", lw=0.8, ls="--", label="path")
-    landing = table.t <= traj.T
-    stride = max(1, int(np.count_nonzero(landing)) // 40)  # at most ~40 arrows
-    q = table.gaps[landing, :3][::stride]
-    v = table.rates[landing, :3][::stride]
-    span = float(np.ptp(p, axis=0).max()) or 1.0
-    vmax = float(np.linalg.norm(v, axis=1).max()) or 1.0
-    # arrows: at each table row, the velocity (length proportional to speed)
-    ax3.quiver(
-        q[:, 0], q[:, 1], q[:, 2], v[:, 0], v[:, 1], v[:, 2],
-        length=0.12 * span / vmax, normalize=False, color="tab:blue", lw=1.0,
-        arrow_length_ratio=0.25, label=f"velocity (max {vmax:.2f} m/s)",
-    )  # fmt: skip
+    ax3.plot(p[:, 0], p[:, 1], p[:, 2], color="tab:blue", lw=1.2, label="path")
+    # arrows at evenly spaced instants of the landing: each the travel of a round number
+    # of seconds at that velocity (the table rows crowd the arrows onto the path)
+    velocity_arrows(ax3, p, dense.rates[:, :3])
     ax3.plot([p[0, 0]], [p[0, 1]], [p[0, 2]], "o", color="k", ms=5, label="start")
     ax3.plot([0.0], [0.0], [0.0], "*", color="gold", mec="k", ms=11, label="goal")
     ax3.set_xlabel("x [m]")
@@ -143,7 +134,7 @@ def plot_trajectory(traj: Trajectory, table: State, path: Path) -> None:
         ax3.set_title(f"path in goal frame F (k = {traj.k:g}, T = {traj.T:.3f} s)")
     else:
         ax3.set_title(f"path relative to the last pose (file, {traj.T:.3f} s)")
-    ax3.legend(loc="upper left", fontsize=8)
+    ax3.legend(loc="upper right", fontsize=8)  # the start is usually upper left
     units = {"x": "m", "y": "m", "z": "m", "roll": "rad", "pitch": "rad", "yaw": "rad"}
     for i, name in enumerate(GAPS):
         ax = fig.add_subplot(grid[i % 3, 2 + i // 3])
