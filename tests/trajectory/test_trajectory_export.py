@@ -187,6 +187,23 @@ def test_cli_trajectory(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> N
     assert run_cli("trajectory", str(cfg), "-o", str(out), "--overwrite", "--no-plot") == 0
 
 
+def test_cli_trajectory_follows_the_ground_truth_rate(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """groundtruth.txt of `roslan trajectory CONFIG` is written at the YAML's
+    output.ground_truth_rate, as `roslan simulate` writes it; a bad rate names the key."""
+    cfg = tmp_path / "sim.yaml"
+    cfg.write_text(CONFIG + "output: {ground_truth_rate: 40.0, formats: [ros2]}\n")
+    assert run_cli("trajectory", str(cfg), "-o", str(tmp_path / "out"), "--no-plot") == 0
+    t = np.loadtxt(tmp_path / "out" / "groundtruth.txt")[:, 0]
+    np.testing.assert_allclose(np.diff(t)[:-1], 0.025, atol=1e-9)
+    assert t[-1] == pytest.approx(4.6 + 0.25)  # touchdown plus hold
+    cfg.write_text(CONFIG + "output: {ground_truth_rate: -1}\n")
+    assert run_cli("trajectory", str(cfg), "-o", str(tmp_path / "bad")) == 2
+    assert "ground_truth_rate" in capsys.readouterr().err
+    assert not (tmp_path / "bad").exists()
+
+
 def _yaml(text: str) -> dict[str, dict[str, object]]:
     import yaml
 
