@@ -249,7 +249,9 @@ class _Run:
         self.progress.phase("preparing sensors (the first run compiles kernels, then cached)")
         if self.pool is not None:  # the workers render while this process sets up
             self._send_jobs(self.pool)
-        write_trajectory_files(self.traj, tmp, plot=False)
+        write_trajectory_files(
+            self.traj, tmp, plot=False, ground_truth_rate=config.output.ground_truth_rate
+        )
         self.plot = BackgroundPlot(self.traj, tmp)
         if self.scene is not None:
             import roslan.scene as scene_mod

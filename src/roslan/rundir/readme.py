@@ -44,7 +44,8 @@ _ROOT_FILES: tuple[tuple[str, str], ...] = (
     (
         "groundtruth.txt",
         "`t px py pz qx qy qz qw` (TUM): pose of base_link in the world "
-        "frame, m and unit quaternion; t in s since the trajectory start.",
+        "frame, m and unit quaternion; t in s since the trajectory start; one row per "
+        "`/ground_truth/pose` message (`output.ground_truth_rate`, plus the end of the run).",
     ),
     (
         "trajectory.csv",

@@ -47,8 +47,13 @@ from roslan.scene.markers import (
     scene_marker_bytes,
     scene_mesh,
 )
-from roslan.sensors.base import Message, SimContext, StaticTransform, TopicSpec, sample_times_ns
-from roslan.trajectory.base import COMPONENTS, GAPS
+from roslan.sensors.base import Message, SimContext, StaticTransform, TopicSpec
+from roslan.trajectory.base import (
+    COMPONENTS,
+    DEFAULT_GROUND_TRUTH_RATE,
+    GAPS,
+    ground_truth_times_ns,
+)
 from roslan.trajectory.frames import matrix_to_quat_xyzw
 
 __all__ = [
@@ -214,7 +219,11 @@ class GroundTruth:
     LATCHED = frozenset({"/tf_static", SCENE_TOPIC})
 
     def __init__(
-        self, rate: float = 200.0, static: Sequence[StaticTransform] = (), *, scene: bool = False
+        self,
+        rate: float = DEFAULT_GROUND_TRUTH_RATE,
+        static: Sequence[StaticTransform] = (),
+        *,
+        scene: bool = False,
     ) -> None:
         self.rate = float(rate)
         self.static = list(static)
@@ -255,10 +264,8 @@ class GroundTruth:
                 return scene_marker_bytes(store, start, mesh[0], WORLD_FRAME)
 
             yield Message(0, SCENE_TOPIC, SCENE_MSGTYPE, scene_msg)
-        end = int(ctx.trajectory.duration_ns)
-        times = sample_times_ns(self.rate, end)
-        if times[-1] < end:  # the record ends exactly at the end of the run
-            times = np.append(times, np.int64(end))
+        # the record ends exactly at the end of the run; groundtruth.txt has the same rows
+        times = ground_truth_times_ns(self.rate, int(ctx.trajectory.duration_ns))
         per_chunk = max(1, round(self.rate * CHUNK_S))
         for i0 in range(0, times.size, per_chunk):
             t = times[i0 : i0 + per_chunk]
