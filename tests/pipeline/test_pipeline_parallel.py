@@ -283,6 +283,28 @@ def test_killed_child_fails_the_run_cleanly(
     assert _children() == []
 
 
+@pytest.mark.parametrize("workers", [0, 2])
+def test_bag_writer_failure_leaves_no_outdir(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, workers: int
+) -> None:
+    """A bag writer failing on its own thread (disk full while writing an MCAP chunk) fails
+    the run with that error: no OUTDIR, no partial folder, no worker left behind."""
+    from roslan.io import bag
+
+    seen: list[int] = []
+
+    def full(self: Any, chunk: Any, compressed: bytes) -> None:
+        seen.append(len(compressed))
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(bag._FastMcapWriter, "_write_out", full)
+    with pytest.raises(OSError, match="No space left on device"):
+        run_simulation(tiny_config(), tmp_path / "out", quiet=True, workers=workers, overview=False)
+    assert len(seen) == 1
+    assert list(tmp_path.iterdir()) == []
+    assert _children() == []
+
+
 @pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGKILL])
 def test_stopping_the_parent_stops_the_children(tmp_path: Path, sig: signal.Signals) -> None:
     """SIGTERM: the parent terminates its children and removes its partial folder; SIGKILL:

@@ -14,7 +14,10 @@ from __future__ import annotations
 
 import contextlib
 import struct
+from collections import defaultdict
 from collections.abc import Iterable, Sequence
+from concurrent.futures import ThreadPoolExecutor
+from io import BytesIO
 from pathlib import Path
 from typing import Any, Literal, NamedTuple, Protocol
 
@@ -29,12 +32,22 @@ from rosbags.interfaces import (
     QosTime,
 )
 from rosbags.rosbag1 import Writer as _Ros1Writer
-from rosbags.rosbag1.writer import WriteChunk
+from rosbags.rosbag1.reader import RecordType
+from rosbags.rosbag1.writer import MAXSIZE, Header, WriteChunk, serialize_time
 from rosbags.rosbag2 import StoragePlugin
 from rosbags.rosbag2 import Writer as _Ros2Writer
 from rosbags.rosbag2.storage_mcap import McapWriter as _McapWriter
+from rosbags.rosbag2.storage_mcap import (
+    PendingChunk,
+    write_record,
+    write_string,
+    write_uint16,
+    write_uint32,
+    write_uint64,
+)
 
 from roslan.errors import OutputError
+from roslan.io.bag_threads import BagThread, OrderedChunks, chunk_pool
 from roslan.io.messages import Flavor, MessageStore
 from roslan.io.ros1_msgdefs import ros1_full_text
 
@@ -90,6 +103,7 @@ def _ros2_qos(latched: bool) -> list[Qos]:
 _U32 = struct.Struct("<L").pack
 _SEC_NSEC_LEN = struct.Struct("<LLL").pack
 _MCAP_MSG = struct.Struct("<BQHLQQ").pack
+_U64X2 = struct.Struct("<QQ").pack
 _NS = 1_000_000_000
 
 
@@ -164,12 +178,56 @@ class _FastRos1Writer(_Ros1Writer):
         if bio.tell() > self.chunk_threshold:
             self.write_chunk(chunk)
 
+    _ordered: OrderedChunks | None = None
+    _closing = False
+
+    def set_pool(self, pool: ThreadPoolExecutor | None) -> None:
+        """Compress chunks in ``pool`` (written in order: the same bytes as inline)."""
+        self._ordered = OrderedChunks(pool, self.compressor, self._write_out)
+
     def write_chunk(self, chunk: WriteChunk) -> None:
-        super().write_chunk(chunk)
-        if chunk.pos != -1:
-            # close() only takes len() of each entry; range(n) is len-able and tiny.
-            counts = {cid: range(len(items)) for cid, items in chunk.connections.items()}
-            chunk.connections = counts  # type: ignore[assignment]
+        if self._ordered is None:
+            self._ordered = OrderedChunks(None, self.compressor, self._write_out)
+        if chunk.data.tell() == 0:
+            return
+        # the next chunk fills while this one is compressed (as rosbags: appended after it)
+        self.chunks.append(WriteChunk(BytesIO(), -1, MAXSIZE, 0, defaultdict(list)))
+        self._ordered.submit(chunk, chunk.data.getvalue(), now=self._closing)
+
+    def _write_out(self, chunk: WriteChunk, data: bytes) -> None:
+        """rosbags' chunk record and index records of ``chunk`` with ``data`` compressed."""
+        bio = self.bio
+        assert bio is not None
+        chunk.pos = bio.tell()
+        header = Header()
+        header.set_string("compression", self.compression_format)
+        header.set_uint32("size", chunk.data.tell())
+        header.write(bio, RecordType.CHUNK)
+        bio.write(_U32(len(data)))
+        bio.write(data)
+        for cid, items in chunk.connections.items():
+            header = Header()
+            header.set_uint32("ver", 1)
+            header.set_uint32("conn", cid)
+            header.set_uint32("count", len(items))
+            header.write(bio, RecordType.IDXDATA)
+            bio.write(_U32(len(items) * 12))
+            bio.write(b"".join(serialize_time(t) + _U32(off) for t, off in items))
+        chunk.data.close()
+        # close() only takes len() of each entry; range(n) is len-able and tiny.
+        counts = {cid: range(len(items)) for cid, items in chunk.connections.items()}
+        chunk.connections = counts  # type: ignore[assignment]
+
+    def close(self) -> None:
+        self._closing = True
+        if self._ordered is not None:
+            self._ordered.drain()
+        super().close()
+
+    def abort(self) -> None:
+        if self._ordered is not None:
+            self._ordered.cancel()
+        super().abort()
 
 
 def _mcap_compressor(name: str) -> Any:
@@ -191,15 +249,72 @@ class _FastMcapWriter(_McapWriter):
     compression ``zstd``/``lz4``/none (:data:`chunk_compression`, set before the first chunk
     closes) and ``ros_distro`` = :data:`ROS2_DISTRO` in the metadata record."""
 
-    def set_chunk_compression(self, name: str) -> None:
+    _ordered: OrderedChunks | None = None
+    _closing = False
+
+    def set_chunk_compression(self, name: str, pool: ThreadPoolExecutor | None = None) -> None:
+        """Chunk compression ``name``, chunks compressed in ``pool`` (None: inline)."""
         if name not in ROS2_COMPRESSIONS:
             msg = f"ROS 2 chunk compression {name!r}: use one of {', '.join(ROS2_COMPRESSIONS)}"
             raise ValueError(msg)
         self.compression = "" if name == "none" else name
         self.compressor = _mcap_compressor(name)
+        self._ordered = OrderedChunks(pool, self.compressor, self._write_out)
+
+    def close_chunk(self) -> None:
+        if self._ordered is None:
+            self._ordered = OrderedChunks(None, self.compressor, self._write_out)
+        chunk = self.chunk
+        self.chunk = PendingChunk(2**63 - 1, 0, BytesIO(), defaultdict(list))
+        self._ordered.submit(chunk, chunk.bio.getvalue(), now=self._closing)
+
+    def _write_out(self, chunk: PendingChunk, compressed: bytes) -> None:
+        """rosbags' chunk, message index and chunk index records of ``chunk``."""
+        bio = self.bio
+        rec = BytesIO()
+        write_uint64(rec, chunk.message_start_time)
+        write_uint64(rec, chunk.message_end_time)
+        write_uint64(rec, chunk.bio.tell())
+        write_uint32(rec, 0)
+        write_string(rec, self.compression)
+        write_uint64(rec, len(compressed))
+        rec.write(compressed)
+        chunk_start = bio.tell()
+        write_record(bio, 0x06, rec)
+        chunk_end = bio.tell()
+        offsets: list[tuple[int, int]] = []
+        for cid, msgs in chunk.msgs.items():
+            offsets.append((cid, bio.tell()))
+            rec = BytesIO()
+            write_uint16(rec, cid)
+            write_uint32(rec, len(msgs) * 16)
+            rec.write(b"".join(_U64X2(ts, off) for ts, off in msgs))
+            write_record(bio, 0x07, rec)
+        rec = BytesIO()
+        write_uint64(rec, chunk.message_start_time)
+        write_uint64(rec, chunk.message_end_time)
+        write_uint64(rec, chunk_start)
+        write_uint64(rec, chunk_end - chunk_start)
+        write_uint32(rec, len(offsets) * 10)
+        for cid, offset in offsets:
+            write_uint16(rec, cid)
+            write_uint64(rec, offset)
+        write_uint64(rec, bio.tell() - chunk_end)
+        write_string(rec, self.compression)
+        write_uint64(rec, len(compressed))
+        write_uint64(rec, chunk.bio.tell())
+        self.chunks.append(rec)
 
     def close(self, version: int, metadata: str) -> None:
+        self._closing = True
+        if self._ordered is not None:
+            self._ordered.drain()
         super().close(version, _with_distro(metadata))
+
+    def abort(self) -> None:
+        if self._ordered is not None:
+            self._ordered.cancel()
+        super().abort()
 
     def write(self, connection: Connection, timestamp: int, data: bytes | memoryview) -> None:
         if timestamp < self.message_start_time:
@@ -300,7 +415,11 @@ class Ros1BagWriter(_BagWriter):
     """ROS 1 bag v2.0 at ``path`` (must not exist), chunked, ``compression`` none/lz4/bz2."""
 
     def __init__(
-        self, path: Path, compression: str = "lz4", store: MessageStore | None = None
+        self,
+        path: Path,
+        compression: str = "lz4",
+        store: MessageStore | None = None,
+        pool: ThreadPoolExecutor | None = None,
     ) -> None:
         self.path = path
         self.store = store or MessageStore(Flavor.ROS1)
@@ -308,6 +427,7 @@ class Ros1BagWriter(_BagWriter):
         if compression != "none":
             fmt = _Ros1Writer.CompressionFormat[compression.upper()]
             self._writer.set_compression(fmt)
+        self._writer.set_pool(pool)
         self._writer.open()
         self._conns: dict[str, Connection] = {}
 
@@ -336,7 +456,11 @@ class Ros2BagWriter(_BagWriter):
     """
 
     def __init__(
-        self, path: Path, store: MessageStore | None = None, compression: str = "zstd"
+        self,
+        path: Path,
+        store: MessageStore | None = None,
+        compression: str = "zstd",
+        pool: ThreadPoolExecutor | None = None,
     ) -> None:
         self.path = path
         self.store = store or MessageStore(Flavor.ROS2)
@@ -346,7 +470,7 @@ class Ros2BagWriter(_BagWriter):
         self._writer.open()
         storage = self._writer.storage
         assert isinstance(storage, _FastMcapWriter)
-        storage.set_chunk_compression(compression)
+        storage.set_chunk_compression(compression, pool)
         self._conns: dict[str, Connection] = {}
 
     def add_topics(self, topics: Sequence[BagTopic]) -> None:
@@ -362,12 +486,18 @@ class Ros2BagWriter(_BagWriter):
 class MultiBagWriter:
     """All bags of one run: every message goes to each flavour, built for that flavour.
 
+    The caller (the stamp merge) builds each message's wire bytes per flavour; each bag
+    is written by its own :class:`~roslan.io.bag_threads.BagThread` in the order of the
+    calls, its chunks compressed in a shared pool (``threads=False``: everything inline
+    in the caller; the bytes are the same).
+
     Args:
         outdir: folder receiving ``landing.bag`` / ``landing_ros2/``.
         formats: flavours to write (``'ros1'``, ``'ros2'``).
         topics: every connection, in a fixed (deterministic) order.
         compression: ROS 1 chunk compression (``none``, ``lz4``, ``bz2``).
         ros2_compression: ROS 2 MCAP chunk compression (``zstd``, ``lz4``, ``none``).
+        threads: a writer thread per bag and a chunk-compression pool.
     """
 
     def __init__(
@@ -377,18 +507,22 @@ class MultiBagWriter:
         topics: Sequence[BagTopic],
         compression: str = "lz4",
         ros2_compression: str = "zstd",
+        *,
+        threads: bool = True,
     ) -> None:
         self.writers: list[BagWriter] = []
         self.msgtypes = {t.topic: t.msgtype for t in topics}
         self.counts: dict[str, int] = {t.topic: 0 for t in topics}
+        fmts = [Flavor(f) for f in formats]
+        self._pool = chunk_pool(len(fmts)) if threads else None
+        self._threads: list[BagThread] = []
         try:
-            for fmt in formats:
-                flavor = Flavor(fmt)
+            for flavor in fmts:
                 path = outdir / BAG_NAMES[flavor]
                 writer: BagWriter = (
-                    Ros1BagWriter(path, compression)
+                    Ros1BagWriter(path, compression, pool=self._pool)
                     if flavor is Flavor.ROS1
-                    else Ros2BagWriter(path, compression=ros2_compression)
+                    else Ros2BagWriter(path, compression=ros2_compression, pool=self._pool)
                 )
                 self.writers.append(writer)
                 writer.add_topics(topics)
@@ -396,19 +530,29 @@ class MultiBagWriter:
             self.abort()
             msg = f"cannot write bag in {outdir}: {err}"
             raise OutputError(msg) from err
+        if threads:
+            self._threads = [
+                BagThread(f"roslan-bag-{w.store.flavor}", w.write, w.close) for w in self.writers
+            ]
         self._prepare()
 
+    @property
+    def thread_cpu_s(self) -> float:
+        """CPU seconds of the bag threads so far (0 without threads; known after close)."""
+        return sum(t.cpu_s for t in self._threads)
+
     def _prepare(self) -> None:
-        # per topic: (store, msgtype, raw rosbags write, connection) for every writer
+        # per topic: (store, msgtype, sink) for every bag: its thread, or its writer
+        sinks = [t.put for t in self._threads] or [w.write for w in self.writers]
         self._targets = {
-            topic: [(w.store, msgtype, w.raw_write, w.connection(topic)) for w in self.writers]
+            topic: [(w.store, msgtype, sink) for w, sink in zip(self.writers, sinks, strict=True)]
             for topic, msgtype in self.msgtypes.items()
         }
 
     def write(self, topic: str, stamp_ns: int, build: Any) -> None:
         """Write one message (``build`` as in ``Message.build``) at record time ``stamp_ns``."""
-        for store, msgtype, raw_write, conn in self._targets[topic]:
-            raw_write(conn, stamp_ns, store.encode(build, msgtype))
+        for store, msgtype, sink in self._targets[topic]:
+            sink(topic, stamp_ns, store.encode(build, msgtype))
         self.counts[topic] += 1
 
     def build(self, topic: str, build: Any) -> list[bytes | bytearray | memoryview]:
@@ -420,15 +564,28 @@ class MultiBagWriter:
         self, topic: str, stamp_ns: int, datas: Sequence[bytes | bytearray | memoryview]
     ) -> None:
         """Write bytes from :meth:`build` (one entry per writer)."""
-        for w, data in zip(self.writers, datas, strict=True):
-            w.write(topic, stamp_ns, data)
+        for (_, _, sink), data in zip(self._targets[topic], datas, strict=True):
+            sink(topic, stamp_ns, data)
         self.counts[topic] += 1
 
     def close(self) -> None:
-        for w in self.writers:
-            w.close()
+        """Write what waits and close every bag (raises the first writer error)."""
+        try:
+            if self._threads:
+                for t in self._threads:
+                    t.close()
+            else:
+                for w in self.writers:
+                    w.close()
+        finally:
+            if self._pool is not None:
+                self._pool.shutdown(wait=True)
 
     def abort(self) -> None:
+        for t in self._threads:
+            t.abort()
         for w in self.writers:
             with contextlib.suppress(Exception):  # best effort while already failing
                 w.abort()
+        if self._pool is not None:
+            self._pool.shutdown(wait=True, cancel_futures=True)
