@@ -71,6 +71,8 @@ ROS2_DISTRO = "humble"
 Humble typestore); written as ``ros_distro`` in metadata.yaml and the MCAP metadata."""
 
 ROS2_COMPRESSIONS = ("zstd", "lz4", "none")
+ZSTD_LEVEL = 1
+"""zstd level of the MCAP chunks (1: about half the CPU of level 3, a 7 % larger bag)."""
 """MCAP chunk compressions of the ROS 2 bag (``output.ros2_compression``)."""
 
 
@@ -107,9 +109,11 @@ _U64X2 = struct.Struct("<QQ").pack
 _NS = 1_000_000_000
 
 
-_ROS1_LZ4_LEVEL = 3
-"""lz4 HC level of the ROS 1 chunks: on the default job 12 % smaller than lz4's fast mode
-(146 vs 165 MB) for about 3 CPU-s more; roslz4 decodes any level (docs/performance.md)."""
+_ROS1_LZ4_LEVEL = 0
+"""lz4 level of the ROS 1 chunks: 0 = lz4's fast mode. HC level 3 made the default job's
+bag 12 % smaller (146 vs 165 MB) for about 2.5 CPU-s more (7x the compression time); the
+fast mode keeps the default OUTDIR within its budget (docs/performance.md). roslz4
+decodes any level."""
 
 
 def _roslz4_compatible(data: bytes) -> bytes:
@@ -237,7 +241,8 @@ def _mcap_compressor(name: str) -> Any:
         except ImportError:
             from backports import zstd
 
-        return lambda data: zstd.compress(data, level=3)
+        # level 1: half the CPU of level 3 for a 7 % larger bag (docs/performance.md)
+        return lambda data: zstd.compress(data, level=ZSTD_LEVEL)
     if name == "lz4":
         # MCAP's lz4: one lz4 frame per chunk (what the mcap libraries write and read)
         return lambda data: lz4.frame.compress(data, store_size=True)
