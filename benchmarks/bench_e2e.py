@@ -209,7 +209,10 @@ def _report(r: dict[str, Any], workers: str) -> None:
         print(f"    {name:14s} {t:8.2f} s  {100 * t / total:5.1f} %{where}")
     w = r["profile"]["writers_s"]
     print(f"    {'bag writers':14s} {w:8.2f} s  {100 * w / total:5.1f} % (hand-over in main)")
-    print(f"    bag writer threads: {r['profile'].get('bag_threads_cpu_s', 0.0):.2f} CPU-s")
+    print(
+        f"    bag writer threads: {r['profile'].get('bag_threads_cpu_s', 0.0):.2f} CPU-s, "
+        f"chunk compression {r['profile'].get('chunk_compression_cpu_s', 0.0):.2f} CPU-s"
+    )
     for ww in r["profile"].get("worker_wait", []):
         print(f"    main waited {ww['wait_s']:6.2f} s for {', '.join(ww['sensors'])}")
     print(

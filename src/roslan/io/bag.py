@@ -32,21 +32,14 @@ from rosbags.interfaces import (
     QosTime,
 )
 from rosbags.rosbag1 import Writer as _Ros1Writer
-from rosbags.rosbag1.reader import RecordType
-from rosbags.rosbag1.writer import MAXSIZE, Header, WriteChunk, serialize_time
+from rosbags.rosbag1.writer import MAXSIZE, WriteChunk
 from rosbags.rosbag2 import StoragePlugin
 from rosbags.rosbag2 import Writer as _Ros2Writer
 from rosbags.rosbag2.storage_mcap import McapWriter as _McapWriter
-from rosbags.rosbag2.storage_mcap import (
-    PendingChunk,
-    write_record,
-    write_string,
-    write_uint16,
-    write_uint32,
-    write_uint64,
-)
+from rosbags.rosbag2.storage_mcap import PendingChunk
 
 from roslan.errors import OutputError
+from roslan.io.bag_chunks import write_mcap_chunk, write_ros1_chunk
 from roslan.io.bag_threads import BagThread, OrderedChunks, chunk_pool
 from roslan.io.messages import Flavor, MessageStore
 from roslan.io.ros1_msgdefs import ros1_full_text
@@ -105,7 +98,6 @@ def _ros2_qos(latched: bool) -> list[Qos]:
 _U32 = struct.Struct("<L").pack
 _SEC_NSEC_LEN = struct.Struct("<LLL").pack
 _MCAP_MSG = struct.Struct("<BQHLQQ").pack
-_U64X2 = struct.Struct("<QQ").pack
 _NS = 1_000_000_000
 
 
@@ -199,25 +191,8 @@ class _FastRos1Writer(_Ros1Writer):
         self._ordered.submit(chunk, chunk.data.getvalue(), now=self._closing)
 
     def _write_out(self, chunk: WriteChunk, data: bytes) -> None:
-        """rosbags' chunk record and index records of ``chunk`` with ``data`` compressed."""
-        bio = self.bio
-        assert bio is not None
-        chunk.pos = bio.tell()
-        header = Header()
-        header.set_string("compression", self.compression_format)
-        header.set_uint32("size", chunk.data.tell())
-        header.write(bio, RecordType.CHUNK)
-        bio.write(_U32(len(data)))
-        bio.write(data)
-        for cid, items in chunk.connections.items():
-            header = Header()
-            header.set_uint32("ver", 1)
-            header.set_uint32("conn", cid)
-            header.set_uint32("count", len(items))
-            header.write(bio, RecordType.IDXDATA)
-            bio.write(_U32(len(items) * 12))
-            bio.write(b"".join(serialize_time(t) + _U32(off) for t, off in items))
-        chunk.data.close()
+        assert self.bio is not None
+        write_ros1_chunk(self.bio, self.compression_format, chunk, data)
         # close() only takes len() of each entry; range(n) is len-able and tiny.
         counts = {cid: range(len(items)) for cid, items in chunk.connections.items()}
         chunk.connections = counts  # type: ignore[assignment]
@@ -274,41 +249,7 @@ class _FastMcapWriter(_McapWriter):
         self._ordered.submit(chunk, chunk.bio.getvalue(), now=self._closing)
 
     def _write_out(self, chunk: PendingChunk, compressed: bytes) -> None:
-        """rosbags' chunk, message index and chunk index records of ``chunk``."""
-        bio = self.bio
-        rec = BytesIO()
-        write_uint64(rec, chunk.message_start_time)
-        write_uint64(rec, chunk.message_end_time)
-        write_uint64(rec, chunk.bio.tell())
-        write_uint32(rec, 0)
-        write_string(rec, self.compression)
-        write_uint64(rec, len(compressed))
-        rec.write(compressed)
-        chunk_start = bio.tell()
-        write_record(bio, 0x06, rec)
-        chunk_end = bio.tell()
-        offsets: list[tuple[int, int]] = []
-        for cid, msgs in chunk.msgs.items():
-            offsets.append((cid, bio.tell()))
-            rec = BytesIO()
-            write_uint16(rec, cid)
-            write_uint32(rec, len(msgs) * 16)
-            rec.write(b"".join(_U64X2(ts, off) for ts, off in msgs))
-            write_record(bio, 0x07, rec)
-        rec = BytesIO()
-        write_uint64(rec, chunk.message_start_time)
-        write_uint64(rec, chunk.message_end_time)
-        write_uint64(rec, chunk_start)
-        write_uint64(rec, chunk_end - chunk_start)
-        write_uint32(rec, len(offsets) * 10)
-        for cid, offset in offsets:
-            write_uint16(rec, cid)
-            write_uint64(rec, offset)
-        write_uint64(rec, bio.tell() - chunk_end)
-        write_string(rec, self.compression)
-        write_uint64(rec, len(compressed))
-        write_uint64(rec, chunk.bio.tell())
-        self.chunks.append(rec)
+        self.chunks.append(write_mcap_chunk(self.bio, self.compression, chunk, compressed))
 
     def close(self, version: int, metadata: str) -> None:
         self._closing = True
@@ -387,6 +328,9 @@ class BagWriter(Protocol):
     @property
     def raw_write(self) -> Any: ...
 
+    @property
+    def compress_cpu_s(self) -> float: ...
+
     def close(self) -> None: ...
 
     def abort(self) -> None: ...
@@ -408,6 +352,13 @@ class _BagWriter:
     def raw_write(self) -> Any:
         """rosbags' ``write(connection, timestamp, data)`` of this bag."""
         return self._writer.write
+
+    @property
+    def compress_cpu_s(self) -> float:
+        """CPU seconds spent compressing this bag's chunks."""
+        inner = getattr(self._writer, "storage", self._writer)
+        ordered: OrderedChunks | None = getattr(inner, "_ordered", None)
+        return ordered.cpu_s if ordered is not None else 0.0
 
     def close(self) -> None:
         self._writer.close()
@@ -543,8 +494,13 @@ class MultiBagWriter:
 
     @property
     def thread_cpu_s(self) -> float:
-        """CPU seconds of the bag threads so far (0 without threads; known after close)."""
+        """CPU seconds of the bag threads (known after close; 0 without threads)."""
         return sum(t.cpu_s for t in self._threads)
+
+    @property
+    def compress_cpu_s(self) -> float:
+        """CPU seconds of the chunk compression (pool or inline)."""
+        return sum(w.compress_cpu_s for w in self.writers)
 
     def _prepare(self) -> None:
         # per topic: (store, msgtype, sink) for every bag: its thread, or its writer

@@ -69,15 +69,27 @@ class OrderedChunks:
         self.write_out = write_out
         self.depth = max(1, depth)
         self._pending: deque[tuple[Any, Future[bytes]]] = deque()
+        self._cpu: list[float] = []  # CPU seconds of each compression (list.append is atomic)
+
+    @property
+    def cpu_s(self) -> float:
+        """CPU seconds spent compressing chunks so far (on whichever thread)."""
+        return sum(self._cpu)
+
+    def _compress(self, data: bytes) -> bytes:
+        c0 = time.thread_time()
+        out = self.compress(data)
+        self._cpu.append(time.thread_time() - c0)
+        return out
 
     def submit(self, payload: Any, data: bytes, *, now: bool = False) -> None:
         """Compress ``data`` (the chunk's uncompressed bytes) and write ``payload`` out once
         every earlier chunk is written; ``now``: before returning."""
         if self.pool is None:
             self.drain()
-            self.write_out(payload, self.compress(data))
+            self.write_out(payload, self._compress(data))
             return
-        self._pending.append((payload, self.pool.submit(self.compress, data)))
+        self._pending.append((payload, self.pool.submit(self._compress, data)))
         self.drain(0 if now else self.depth)
 
     def drain(self, keep: int = 0) -> None:

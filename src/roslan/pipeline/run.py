@@ -172,6 +172,7 @@ class _Run:
         self.ticks: dict[str, float] = {}
         self.write_s = 0.0
         self.bag_cpu_s = 0.0
+        self.compress_cpu_s = 0.0
         self.build_s: dict[str, float] = {}
         self.close_s: dict[str, float] = {}
 
@@ -347,6 +348,7 @@ class _Run:
         self.writers.close()
         self.write_s += time.perf_counter() - t0
         self.bag_cpu_s = self.writers.thread_cpu_s
+        self.compress_cpu_s = self.writers.compress_cpu_s
         counts, self.writers = dict(self.writers.counts), None
         self.ticks["done"] = time.perf_counter()
         return counts
@@ -429,6 +431,7 @@ class _Run:
             "sensors": per,
             "writers_s": self.write_s,
             "bag_threads_cpu_s": self.bag_cpu_s,
+            "chunk_compression_cpu_s": self.compress_cpu_s,
         }
         if self.pool is not None:
             out["worker_wait"] = self.pool.wait_seconds()
