@@ -58,7 +58,8 @@ def _machine() -> dict[str, Any]:
         "print(c.info['GL_RENDERER'], '/', c.info['GL_VERSION'])\n"
     )
     r = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=120)
-    info["gl"] = (r.stdout.strip() or r.stderr.strip().splitlines()[-1:] or ["?"])[-1]
+    lines = (r.stdout.strip() or r.stderr.strip() or "?").splitlines()
+    info["gl"] = lines[-1]
     return info
 
 
