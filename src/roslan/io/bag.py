@@ -64,9 +64,10 @@ ROS2_DISTRO = "humble"
 Humble typestore); written as ``ros_distro`` in metadata.yaml and the MCAP metadata."""
 
 ROS2_COMPRESSIONS = ("zstd", "lz4", "none")
+"""MCAP chunk compressions of the ROS 2 bag (``output.ros2_compression``)."""
+
 ZSTD_LEVEL = 1
 """zstd level of the MCAP chunks (1: about half the CPU of level 3, a 7 % larger bag)."""
-"""MCAP chunk compressions of the ROS 2 bag (``output.ros2_compression``)."""
 
 
 class BagTopic(NamedTuple):
