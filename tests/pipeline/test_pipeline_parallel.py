@@ -28,7 +28,7 @@ from roslan.pipeline import worker as worker_mod
 from roslan.pipeline.worker import ByteQueue, WorkerError, plan_workers, resolve_workers
 from roslan.sensors.base import Message
 from roslan.sensors.cameras import Camera
-from roslan.sensors.registry import sensor_class
+from roslan.sensors.registry import SENSOR_TYPES, sensor_class
 
 HERE = Path(__file__).parent
 
@@ -152,6 +152,43 @@ def test_workers_give_byte_identical_outputs(tmp_path: Path) -> None:
     assert run0["workers"] == 0
     # run.json (deterministic) records the config, not how this run was parallelized
     assert (outs[0] / "run.json").read_bytes() == (outs[2] / "run.json").read_bytes()
+    assert _children() == []
+
+
+EVERY_SENSOR: list[dict[str, Any]] = [
+    {"type": "imu", "name": "imu", "rate": 200.0, "topic": "/imu"},
+    {"type": "event_camera", "name": "dvs", "rate": 20.0, "topic": "/dvs",
+     "resolution": [40, 30], "max_rate": 120.0, "pose": {"rpy": [0.0, 0.6, 0.0]}},
+    {"type": "camera", "name": "cam", "rate": 10.0, "topic": "/cam", "resolution": [40, 30],
+     "pose": {"rpy": [0.0, 0.6, 0.0]}},
+    {"type": "depth_camera", "name": "depth", "rate": 10.0, "topic": "/depth",
+     "resolution": [32, 24], "pose": {"rpy": [0.0, 0.6, 0.0]}},
+    {"type": "stereo_camera", "name": "pair", "rate": 5.0, "topic": "/pair",
+     "resolution": [32, 24], "fx": 20.0, "baseline": 0.1, "pose": {"rpy": [0.0, 0.6, 0.0]}},
+    {"type": "lidar", "name": "velo", "rate": 10.0, "topic": "/velo", "preset": "vlp16"},
+    {"type": "solid_state_lidar", "name": "livox", "rate": 10.0, "topic": "/livox"},
+    {"type": "laser", "name": "scan", "rate": 20.0, "topic": "/scan"},
+    {"type": "sonar", "name": "son", "rate": 20.0, "topic": "/son"},
+    {"type": "altimeter", "name": "alt", "rate": 20.0, "topic": "/alt"},
+]  # fmt: skip
+
+
+def test_every_sensor_type_identical_for_workers_0_to_3(tmp_path: Path) -> None:
+    """A job with every sensor type: every output byte is the same in one process, with one,
+    two or three worker processes (only timing.json and PLAYBACK.md report the run)."""
+    assert {s["type"] for s in EVERY_SENSOR} == set(SENSOR_TYPES)  # a new type joins here
+    cfg = short_config(scene="empty", sensors=EVERY_SENSOR)
+    outs = {w: tmp_path / f"w{w}" for w in (0, 1, 2, 3)}
+    for w, out in outs.items():
+        run_simulation(cfg, out, quiet=True, workers=w, overview=False)
+    ref = tree_bytes(outs[0])
+    assert {"landing.bag", "events.h5", "depth_depth.txt"} <= set(ref)
+    assert any(k.startswith("lidar/livox/") for k in ref)
+    for w in (1, 2, 3):
+        got = tree_bytes(outs[w])
+        assert got.keys() == ref.keys()
+        assert [k for k in ref if got[k] != ref[k]] == []
+        assert json.loads((outs[w] / "timing.json").read_text())["workers"] == w
     assert _children() == []
 
 
@@ -283,6 +320,28 @@ def test_killed_child_fails_the_run_cleanly(
     assert _children() == []
 
 
+@pytest.mark.parametrize("workers", [0, 2])
+def test_bag_writer_failure_leaves_no_outdir(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, workers: int
+) -> None:
+    """A bag writer failing on its own thread (disk full while writing an MCAP chunk) fails
+    the run with that error: no OUTDIR, no partial folder, no worker left behind."""
+    from roslan.io import bag
+
+    seen: list[int] = []
+
+    def full(self: Any, chunk: Any, compressed: bytes) -> None:
+        seen.append(len(compressed))
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(bag._FastMcapWriter, "_write_out", full)
+    with pytest.raises(OSError, match="No space left on device"):
+        run_simulation(tiny_config(), tmp_path / "out", quiet=True, workers=workers, overview=False)
+    assert len(seen) == 1
+    assert list(tmp_path.iterdir()) == []
+    assert _children() == []
+
+
 @pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGKILL])
 def test_stopping_the_parent_stops_the_children(tmp_path: Path, sig: signal.Signals) -> None:
     """SIGTERM: the parent terminates its children and removes its partial folder; SIGKILL:
@@ -294,7 +353,7 @@ def test_stopping_the_parent_stops_the_children(tmp_path: Path, sig: signal.Sign
         from pathlib import Path
         import roslan.pipeline.plan as plan
         from roslan.pipeline import run_simulation
-        from roslan.sensors.registry import sensor_class
+        from roslan.sensors.registry import SENSOR_TYPES, sensor_class
         from test_pipeline_parallel import SlowCamera, tiny_config
         plan.sensor_class = lambda n: SlowCamera if n == "camera" else sensor_class(n)
         try:

@@ -14,7 +14,10 @@ from __future__ import annotations
 
 import contextlib
 import struct
+from collections import defaultdict
 from collections.abc import Iterable, Sequence
+from concurrent.futures import ThreadPoolExecutor
+from io import BytesIO
 from pathlib import Path
 from typing import Any, Literal, NamedTuple, Protocol
 
@@ -29,12 +32,15 @@ from rosbags.interfaces import (
     QosTime,
 )
 from rosbags.rosbag1 import Writer as _Ros1Writer
-from rosbags.rosbag1.writer import WriteChunk
+from rosbags.rosbag1.writer import MAXSIZE, WriteChunk
 from rosbags.rosbag2 import StoragePlugin
 from rosbags.rosbag2 import Writer as _Ros2Writer
 from rosbags.rosbag2.storage_mcap import McapWriter as _McapWriter
+from rosbags.rosbag2.storage_mcap import PendingChunk
 
 from roslan.errors import OutputError
+from roslan.io.bag_chunks import write_mcap_chunk, write_ros1_chunk
+from roslan.io.bag_threads import BagThread, OrderedChunks, chunk_pool
 from roslan.io.messages import Flavor, MessageStore
 from roslan.io.ros1_msgdefs import ros1_full_text
 
@@ -59,6 +65,9 @@ Humble typestore); written as ``ros_distro`` in metadata.yaml and the MCAP metad
 
 ROS2_COMPRESSIONS = ("zstd", "lz4", "none")
 """MCAP chunk compressions of the ROS 2 bag (``output.ros2_compression``)."""
+
+ZSTD_LEVEL = 1
+"""zstd level of the MCAP chunks (1: about half the CPU of level 3, a 7 % larger bag)."""
 
 
 class BagTopic(NamedTuple):
@@ -93,9 +102,11 @@ _MCAP_MSG = struct.Struct("<BQHLQQ").pack
 _NS = 1_000_000_000
 
 
-_ROS1_LZ4_LEVEL = 3
-"""lz4 HC level of the ROS 1 chunks: on the default job 12 % smaller than lz4's fast mode
-(146 vs 165 MB) for about 3 CPU-s more; roslz4 decodes any level (docs/performance.md)."""
+_ROS1_LZ4_LEVEL = 0
+"""lz4 level of the ROS 1 chunks: 0 = lz4's fast mode. HC level 3 made the default job's
+bag 12 % smaller (146 vs 165 MB) for about 2.5 CPU-s more (7x the compression time); the
+fast mode keeps the default OUTDIR within its budget (docs/performance.md). roslz4
+decodes any level."""
 
 
 def _roslz4_compatible(data: bytes) -> bytes:
@@ -164,12 +175,39 @@ class _FastRos1Writer(_Ros1Writer):
         if bio.tell() > self.chunk_threshold:
             self.write_chunk(chunk)
 
+    _ordered: OrderedChunks | None = None
+    _closing = False
+
+    def set_pool(self, pool: ThreadPoolExecutor | None) -> None:
+        """Compress chunks in ``pool`` (written in order: the same bytes as inline)."""
+        self._ordered = OrderedChunks(pool, self.compressor, self._write_out)
+
     def write_chunk(self, chunk: WriteChunk) -> None:
-        super().write_chunk(chunk)
-        if chunk.pos != -1:
-            # close() only takes len() of each entry; range(n) is len-able and tiny.
-            counts = {cid: range(len(items)) for cid, items in chunk.connections.items()}
-            chunk.connections = counts  # type: ignore[assignment]
+        if self._ordered is None:
+            self._ordered = OrderedChunks(None, self.compressor, self._write_out)
+        if chunk.data.tell() == 0:
+            return
+        # the next chunk fills while this one is compressed (as rosbags: appended after it)
+        self.chunks.append(WriteChunk(BytesIO(), -1, MAXSIZE, 0, defaultdict(list)))
+        self._ordered.submit(chunk, chunk.data.getvalue(), now=self._closing)
+
+    def _write_out(self, chunk: WriteChunk, data: bytes) -> None:
+        assert self.bio is not None
+        write_ros1_chunk(self.bio, self.compression_format, chunk, data)
+        # close() only takes len() of each entry; range(n) is len-able and tiny.
+        counts = {cid: range(len(items)) for cid, items in chunk.connections.items()}
+        chunk.connections = counts  # type: ignore[assignment]
+
+    def close(self) -> None:
+        self._closing = True
+        if self._ordered is not None:
+            self._ordered.drain()
+        super().close()
+
+    def abort(self) -> None:
+        if self._ordered is not None:
+            self._ordered.cancel()
+        super().abort()
 
 
 def _mcap_compressor(name: str) -> Any:
@@ -179,7 +217,8 @@ def _mcap_compressor(name: str) -> Any:
         except ImportError:
             from backports import zstd
 
-        return lambda data: zstd.compress(data, level=3)
+        # level 1: half the CPU of level 3 for a 7 % larger bag (docs/performance.md)
+        return lambda data: zstd.compress(data, level=ZSTD_LEVEL)
     if name == "lz4":
         # MCAP's lz4: one lz4 frame per chunk (what the mcap libraries write and read)
         return lambda data: lz4.frame.compress(data, store_size=True)
@@ -191,15 +230,38 @@ class _FastMcapWriter(_McapWriter):
     compression ``zstd``/``lz4``/none (:data:`chunk_compression`, set before the first chunk
     closes) and ``ros_distro`` = :data:`ROS2_DISTRO` in the metadata record."""
 
-    def set_chunk_compression(self, name: str) -> None:
+    _ordered: OrderedChunks | None = None
+    _closing = False
+
+    def set_chunk_compression(self, name: str, pool: ThreadPoolExecutor | None = None) -> None:
+        """Chunk compression ``name``, chunks compressed in ``pool`` (None: inline)."""
         if name not in ROS2_COMPRESSIONS:
             msg = f"ROS 2 chunk compression {name!r}: use one of {', '.join(ROS2_COMPRESSIONS)}"
             raise ValueError(msg)
         self.compression = "" if name == "none" else name
         self.compressor = _mcap_compressor(name)
+        self._ordered = OrderedChunks(pool, self.compressor, self._write_out)
+
+    def close_chunk(self) -> None:
+        if self._ordered is None:
+            self._ordered = OrderedChunks(None, self.compressor, self._write_out)
+        chunk = self.chunk
+        self.chunk = PendingChunk(2**63 - 1, 0, BytesIO(), defaultdict(list))
+        self._ordered.submit(chunk, chunk.bio.getvalue(), now=self._closing)
+
+    def _write_out(self, chunk: PendingChunk, compressed: bytes) -> None:
+        self.chunks.append(write_mcap_chunk(self.bio, self.compression, chunk, compressed))
 
     def close(self, version: int, metadata: str) -> None:
+        self._closing = True
+        if self._ordered is not None:
+            self._ordered.drain()
         super().close(version, _with_distro(metadata))
+
+    def abort(self) -> None:
+        if self._ordered is not None:
+            self._ordered.cancel()
+        super().abort()
 
     def write(self, connection: Connection, timestamp: int, data: bytes | memoryview) -> None:
         if timestamp < self.message_start_time:
@@ -267,6 +329,9 @@ class BagWriter(Protocol):
     @property
     def raw_write(self) -> Any: ...
 
+    @property
+    def compress_cpu_s(self) -> float: ...
+
     def close(self) -> None: ...
 
     def abort(self) -> None: ...
@@ -289,6 +354,13 @@ class _BagWriter:
         """rosbags' ``write(connection, timestamp, data)`` of this bag."""
         return self._writer.write
 
+    @property
+    def compress_cpu_s(self) -> float:
+        """CPU seconds spent compressing this bag's chunks."""
+        inner = getattr(self._writer, "storage", self._writer)
+        ordered: OrderedChunks | None = getattr(inner, "_ordered", None)
+        return ordered.cpu_s if ordered is not None else 0.0
+
     def close(self) -> None:
         self._writer.close()
 
@@ -300,7 +372,11 @@ class Ros1BagWriter(_BagWriter):
     """ROS 1 bag v2.0 at ``path`` (must not exist), chunked, ``compression`` none/lz4/bz2."""
 
     def __init__(
-        self, path: Path, compression: str = "lz4", store: MessageStore | None = None
+        self,
+        path: Path,
+        compression: str = "lz4",
+        store: MessageStore | None = None,
+        pool: ThreadPoolExecutor | None = None,
     ) -> None:
         self.path = path
         self.store = store or MessageStore(Flavor.ROS1)
@@ -308,6 +384,7 @@ class Ros1BagWriter(_BagWriter):
         if compression != "none":
             fmt = _Ros1Writer.CompressionFormat[compression.upper()]
             self._writer.set_compression(fmt)
+        self._writer.set_pool(pool)
         self._writer.open()
         self._conns: dict[str, Connection] = {}
 
@@ -336,7 +413,11 @@ class Ros2BagWriter(_BagWriter):
     """
 
     def __init__(
-        self, path: Path, store: MessageStore | None = None, compression: str = "zstd"
+        self,
+        path: Path,
+        store: MessageStore | None = None,
+        compression: str = "zstd",
+        pool: ThreadPoolExecutor | None = None,
     ) -> None:
         self.path = path
         self.store = store or MessageStore(Flavor.ROS2)
@@ -346,7 +427,7 @@ class Ros2BagWriter(_BagWriter):
         self._writer.open()
         storage = self._writer.storage
         assert isinstance(storage, _FastMcapWriter)
-        storage.set_chunk_compression(compression)
+        storage.set_chunk_compression(compression, pool)
         self._conns: dict[str, Connection] = {}
 
     def add_topics(self, topics: Sequence[BagTopic]) -> None:
@@ -362,12 +443,18 @@ class Ros2BagWriter(_BagWriter):
 class MultiBagWriter:
     """All bags of one run: every message goes to each flavour, built for that flavour.
 
+    The caller (the stamp merge) builds each message's wire bytes per flavour; each bag
+    is written by its own :class:`~roslan.io.bag_threads.BagThread` in the order of the
+    calls, its chunks compressed in a shared pool (``threads=False``: everything inline
+    in the caller; the bytes are the same).
+
     Args:
         outdir: folder receiving ``landing.bag`` / ``landing_ros2/``.
         formats: flavours to write (``'ros1'``, ``'ros2'``).
         topics: every connection, in a fixed (deterministic) order.
         compression: ROS 1 chunk compression (``none``, ``lz4``, ``bz2``).
         ros2_compression: ROS 2 MCAP chunk compression (``zstd``, ``lz4``, ``none``).
+        threads: a writer thread per bag and a chunk-compression pool.
     """
 
     def __init__(
@@ -377,18 +464,22 @@ class MultiBagWriter:
         topics: Sequence[BagTopic],
         compression: str = "lz4",
         ros2_compression: str = "zstd",
+        *,
+        threads: bool = True,
     ) -> None:
         self.writers: list[BagWriter] = []
         self.msgtypes = {t.topic: t.msgtype for t in topics}
         self.counts: dict[str, int] = {t.topic: 0 for t in topics}
+        fmts = [Flavor(f) for f in formats]
+        self._pool = chunk_pool(len(fmts)) if threads else None
+        self._threads: list[BagThread] = []
         try:
-            for fmt in formats:
-                flavor = Flavor(fmt)
+            for flavor in fmts:
                 path = outdir / BAG_NAMES[flavor]
                 writer: BagWriter = (
-                    Ros1BagWriter(path, compression)
+                    Ros1BagWriter(path, compression, pool=self._pool)
                     if flavor is Flavor.ROS1
-                    else Ros2BagWriter(path, compression=ros2_compression)
+                    else Ros2BagWriter(path, compression=ros2_compression, pool=self._pool)
                 )
                 self.writers.append(writer)
                 writer.add_topics(topics)
@@ -396,19 +487,34 @@ class MultiBagWriter:
             self.abort()
             msg = f"cannot write bag in {outdir}: {err}"
             raise OutputError(msg) from err
+        if threads:
+            self._threads = [
+                BagThread(f"roslan-bag-{w.store.flavor}", w.write, w.close) for w in self.writers
+            ]
         self._prepare()
 
+    @property
+    def thread_cpu_s(self) -> float:
+        """CPU seconds of the bag threads (known after close; 0 without threads)."""
+        return sum(t.cpu_s for t in self._threads)
+
+    @property
+    def compress_cpu_s(self) -> float:
+        """CPU seconds of the chunk compression (pool or inline)."""
+        return sum(w.compress_cpu_s for w in self.writers)
+
     def _prepare(self) -> None:
-        # per topic: (store, msgtype, raw rosbags write, connection) for every writer
+        # per topic: (store, msgtype, sink) for every bag: its thread, or its writer
+        sinks = [t.put for t in self._threads] or [w.write for w in self.writers]
         self._targets = {
-            topic: [(w.store, msgtype, w.raw_write, w.connection(topic)) for w in self.writers]
+            topic: [(w.store, msgtype, sink) for w, sink in zip(self.writers, sinks, strict=True)]
             for topic, msgtype in self.msgtypes.items()
         }
 
     def write(self, topic: str, stamp_ns: int, build: Any) -> None:
         """Write one message (``build`` as in ``Message.build``) at record time ``stamp_ns``."""
-        for store, msgtype, raw_write, conn in self._targets[topic]:
-            raw_write(conn, stamp_ns, store.encode(build, msgtype))
+        for store, msgtype, sink in self._targets[topic]:
+            sink(topic, stamp_ns, store.encode(build, msgtype))
         self.counts[topic] += 1
 
     def build(self, topic: str, build: Any) -> list[bytes | bytearray | memoryview]:
@@ -420,15 +526,28 @@ class MultiBagWriter:
         self, topic: str, stamp_ns: int, datas: Sequence[bytes | bytearray | memoryview]
     ) -> None:
         """Write bytes from :meth:`build` (one entry per writer)."""
-        for w, data in zip(self.writers, datas, strict=True):
-            w.write(topic, stamp_ns, data)
+        for (_, _, sink), data in zip(self._targets[topic], datas, strict=True):
+            sink(topic, stamp_ns, data)
         self.counts[topic] += 1
 
     def close(self) -> None:
-        for w in self.writers:
-            w.close()
+        """Write what waits and close every bag (raises the first writer error)."""
+        try:
+            if self._threads:
+                for t in self._threads:
+                    t.close()
+            else:
+                for w in self.writers:
+                    w.close()
+        finally:
+            if self._pool is not None:
+                self._pool.shutdown(wait=True)
 
     def abort(self) -> None:
+        for t in self._threads:
+            t.abort()
         for w in self.writers:
             with contextlib.suppress(Exception):  # best effort while already failing
                 w.abort()
+        if self._pool is not None:
+            self._pool.shutdown(wait=True, cancel_futures=True)

@@ -6,13 +6,15 @@
    anything is written (trajectory, limits, sensors, names, topics, free space, OUTDIR);
    then the scene is loaded and the path's clearance checked (unless ``allow_collision``).
 2. **Folder**: everything is written into a hidden sibling ``.<OUTDIR>.partial-XXXX``
-   (:mod:`roslan.rundir.folder`): trajectory files, the scene export, then
+   (:mod:`roslan.rundir.folder`): trajectory files, the scene export (on a thread of its
+   own, beside the streaming), then
 3. **Merge** (:mod:`roslan.pipeline.merge`): every component's lazy message generator
-   through one stamp merge into the ROS 1 and/or ROS 2 writers. Memory is bounded by what
-   each sensor holds for its current chunk, not by the trajectory length. Render-heavy
-   sensors may run in worker processes (:mod:`roslan.pipeline.worker`) that send ready
-   wire bytes through bounded queues; the merge order and every output byte are the same
-   whatever the number of workers.
+   through one stamp merge into the ROS 1 and/or ROS 2 writers, each bag written by its
+   own thread with its chunks compressed in a pool (:mod:`roslan.io.bag_threads`). Memory
+   is bounded by what each sensor holds for its current chunk, not by the trajectory
+   length. Render-heavy sensors may run in worker processes (:mod:`roslan.pipeline.worker`)
+   that send ready wire bytes through bounded queues; the merge order and every output
+   byte are the same whatever the number of workers.
 4. **Manifest**: sensors close (dataset files), the bags close, then the run-level files
    are written (``calib/extrinsics.yaml``, ``timing.json``, ``overview.png``,
    ``PLAYBACK.md``, ``README.md``) and finally ``run.json`` (:mod:`roslan.rundir.manifest`)
@@ -39,6 +41,7 @@ from typing import TYPE_CHECKING, Any
 
 from roslan.config.sim import SimConfig
 from roslan.errors import ConfigError
+from roslan.io.background import BackgroundSink
 from roslan.io.bag import BAG_NAMES, MultiBagWriter
 from roslan.io.messages import Flavor
 from roslan.pipeline.context import Context
@@ -165,9 +168,12 @@ class _Run:
         self.ctx: Context  # this process's sensor context, made when the merge starts
         self.writers: MultiBagWriter | None = None
         self.plot: BackgroundPlot | None = None
+        self.export: BackgroundSink | None = None  # the scene export's thread
         self.streams: list[CheckedStream] = []
         self.ticks: dict[str, float] = {}
         self.write_s = 0.0
+        self.bag_cpu_s = 0.0
+        self.compress_cpu_s = 0.0
         self.build_s: dict[str, float] = {}
         self.close_s: dict[str, float] = {}
 
@@ -253,10 +259,11 @@ class _Run:
             self.traj, tmp, plot=False, ground_truth_rate=config.output.ground_truth_rate
         )
         self.plot = BackgroundPlot(self.traj, tmp)
-        if self.scene is not None:
+        if self.scene is not None:  # written beside the streaming (after the plot's fork)
             import roslan.scene as scene_mod
 
-            scene_mod.export_scene(self.scene, tmp / "scene")
+            self.export = BackgroundSink("scene-export", backlog=1)
+            self.export.submit(scene_mod.export_scene, self.scene, tmp / "scene")
         out = config.output
         self.writers = MultiBagWriter(
             tmp, plan.formats, plan.bag_topics, out.compression, out.ros2_compression
@@ -333,6 +340,8 @@ class _Run:
         if self.pool is not None:
             self.pool.finish()
         self.plot.finish()
+        if self.export is not None:
+            self.export.close()  # raises the export's error, if any
         for i, s in enumerate(self.plan.sensors):
             if i not in self.remote:
                 t0 = time.perf_counter()
@@ -341,6 +350,8 @@ class _Run:
         t0 = time.perf_counter()
         self.writers.close()
         self.write_s += time.perf_counter() - t0
+        self.bag_cpu_s = self.writers.thread_cpu_s
+        self.compress_cpu_s = self.writers.compress_cpu_s
         counts, self.writers = dict(self.writers.counts), None
         self.ticks["done"] = time.perf_counter()
         return counts
@@ -393,6 +404,7 @@ class _Run:
         timing: Timing = {
             "wall_time_s": wall,
             "setup_s": ticks["stream"] - ticks["setup"],
+            "stream_start_s": ticks["stream"] - self.wall0,
             "stream_s": stream_s,
             # real-time factor = simulation wall time / trajectory time (<= 1: faster
             # than real time); speedup is its inverse.
@@ -420,7 +432,12 @@ class _Run:
         away = self.pool.profile() if self.pool is not None else {}
         names = ["ground_truth", *(s.config.name for s in self.plan.sensors)]
         per = {name: away.get(name) or local[name] for name in names}
-        out: dict[str, Any] = {"sensors": per, "writers_s": self.write_s}
+        out: dict[str, Any] = {
+            "sensors": per,
+            "writers_s": self.write_s,
+            "bag_threads_cpu_s": self.bag_cpu_s,
+            "chunk_compression_cpu_s": self.compress_cpu_s,
+        }
         if self.pool is not None:
             out["worker_wait"] = self.pool.wait_seconds()
         if not self.opts.quiet:
@@ -433,6 +450,8 @@ class _Run:
             self.pool.kill()  # before removing tmp: the children write into it
         if self.plot is not None:
             self.plot.kill()
+        if self.export is not None:
+            self.export.abort()  # its running call ends before the folder is removed
         for st in self.streams:  # sensors stop their own writer threads (before removing tmp)
             with contextlib.suppress(BaseException):
                 st.close()

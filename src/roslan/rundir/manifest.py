@@ -79,6 +79,8 @@ class Timing(TypedDict):
 
     wall_time_s: float
     setup_s: float
+    stream_start_s: float
+    """Seconds from the run's start to the first streamed message (after the set-up)."""
     stream_s: float
     real_time_factor: float
     stream_real_time_factor: float

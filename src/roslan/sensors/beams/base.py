@@ -14,6 +14,7 @@ from numpy.typing import NDArray
 from pydantic import Field
 
 from roslan.config.base import FiniteFloat
+from roslan.io.files import save_npz
 from roslan.sensors.base import (
     Message,
     SensorConfig,
@@ -134,7 +135,7 @@ class ScanWriter:
         arrays = {k: np.ascontiguousarray(points[k][ok]) for k in points.dtype.names or ()}
         tmp = self.folder / (name + ".part")
         with tmp.open("wb") as fh:
-            np.savez_compressed(fh, stamp=np.asarray(t_ns, np.int64), **arrays)  # type: ignore[arg-type]
+            save_npz(fh, {"stamp": np.asarray(t_ns, np.int64), **arrays})
         tmp.replace(self.folder / name)
         sec, nsec = divmod(int(t_ns), 1_000_000_000)
         self._fh.write(f"{sec}.{nsec:09d} {self.folder.name}/{name}\n")
