@@ -55,23 +55,29 @@ from roslan.render.base import RenderResult
 from roslan.render.gl.context import EGL_PACKAGES, create_context
 from roslan.render.gl.renderer import (
     FLUSH_CHUNKS,
-    MSAA_SAMPLES,
-    SOFTWARE_MSAA_SAMPLES,
     Renderer,
-    default_samples,
     get_renderer,
     projection_from_K,
 )
+from roslan.render.gl.settings import (
+    DEFAULT_SAMPLES,
+    MAX_ANISO,
+    MAX_SUPERSAMPLING,
+    default_samples,
+    image_formation,
+)
 
 __all__ = [
+    "DEFAULT_SAMPLES",
     "EGL_PACKAGES",
     "FLUSH_CHUNKS",
-    "MSAA_SAMPLES",
-    "SOFTWARE_MSAA_SAMPLES",
+    "MAX_ANISO",
+    "MAX_SUPERSAMPLING",
     "RenderResult",
     "Renderer",
     "create_context",
     "default_samples",
     "get_renderer",
+    "image_formation",
     "projection_from_K",
 ]

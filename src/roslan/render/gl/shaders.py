@@ -64,6 +64,32 @@ void main() {
 COLOR_FRAG = """
 uniform sampler2D u_tex;
 uniform sampler2DShadow u_shadow;
+uniform int u_max_aniso;     // most taps of the anisotropic texture filter (1: trilinear)
+// Texture filtering in the shader, the same arithmetic on every OpenGL implementation
+// (a driver's anisotropic filtering is its own, and llvmpipe's stalls): the pixel's
+// footprint in texels from the explicit (fine, per 2x2 quad) uv derivatives; along its
+// major axis n = ceil(major / minor) trilinear taps (at most u_max_aniso; 1 where the
+// texture is magnified), each at the mip level of major / n (the EXT_texture_filter_
+// anisotropic recipe), spread evenly over the pixel's footprint and averaged.
+#ifndef GL_ARB_derivative_control
+#define dFdxFine dFdx
+#define dFdyFine dFdy
+#endif
+vec3 tex_filtered(vec2 uv) {
+    vec2 size = vec2(textureSize(u_tex, 0));
+    vec2 gx = dFdxFine(uv), gy = dFdyFine(uv);
+    float lx = dot(gx * size, gx * size), ly = dot(gy * size, gy * size);
+    vec2 major = lx >= ly ? gx : gy;
+    float lmaj = sqrt(max(lx, ly)), lmin = sqrt(min(lx, ly));
+    float n = clamp(ceil(min(lmaj / max(lmin, 1e-20), lmaj)), 1.0, float(u_max_aniso));
+    float lod = log2(max(lmaj / n, 1e-20));
+    int taps = int(n);
+    vec3 acc = vec3(0.0);
+    for (int i = 0; i < taps; ++i) {
+        acc += textureLod(u_tex, uv + major * ((float(i) + 0.5) / n - 0.5), lod).rgb;
+    }
+    return acc / n;
+}
 in vec2 v_uv;
 uniform float u_ambient;
 in vec3 v_albedo;
@@ -81,7 +107,7 @@ layout(location = 0) out vec4 o_color;
 #endif
 void main() {
     float lit = texture(u_shadow, v_light);  // bilinear PCF (compare + LINEAR)
-    vec3 c = clamp(texture(u_tex, v_uv).rgb * v_albedo * (u_ambient + v_sun * lit), 0.0, 1.0);
+    vec3 c = clamp(tex_filtered(v_uv) * v_albedo * (u_ambient + v_sun * lit), 0.0, 1.0);
     // optical z at the pixel centre (non-centroid), even for partially covered pixels
     float invz = 1.0 / max(v_z, 1e-6);
 #ifdef LUM
@@ -209,7 +235,7 @@ void main() {
     vec4 tn = FETCH(ivec2(p.x, min(p.y + 1, hi.y)));
     // Over a plane 1/z is affine in the image, so its second differences vanish: they
     // are non-zero only at silhouettes and creases, the edges that rasterization
-    // aliases (texture detail lies on planes and is mip-mapped already).
+    // aliases (texture detail lies on planes and is filtered already).
     // On the image border the clamped neighbour equals this pixel, which would make a
     // plane's one-sided slope look like a crease: that axis's difference is not used there.
     float zm = tm[ZCH];
@@ -250,6 +276,8 @@ void main() {
 def source(body: str, *, lum: bool, depth: bool, image: bool = False) -> str:
     """``body`` with the ``#version`` line, the variant defines and ``LUMA`` prepended."""
     defs = ["#version 420" if image else "#version 410"]
+    # explicit fine derivatives (core in GL 4.5; llvmpipe and the GPU drivers have it)
+    defs.append("#extension GL_ARB_derivative_control : enable")
     if image:
         defs.append("#define IMAGE")
     if lum:
