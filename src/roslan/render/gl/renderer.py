@@ -111,8 +111,8 @@ class Renderer:
         samples: default MSAA samples per pixel of the colour pass (1: no MSAA, the
             edge filter instead); see :func:`default_samples`.
         near: near clipping distance (m), chosen from the scene size.
-        max_aniso: most taps of the shader's anisotropic texture filter
-            (:data:`MAX_ANISO`; 1: isotropic trilinear, for benchmarks).
+        max_aniso: most taps of the supersampled reference's anisotropic texture filter
+            (:data:`MAX_ANISO`; the default image formation takes at most 2).
         software: True on Mesa's llvmpipe (CPU) renderer (only the flushing differs:
             the image formation is the same on every implementation).
         front_to_back: draw the visible clusters nearest first (default; False: index
@@ -315,7 +315,7 @@ class Renderer:
         if not (color or luminance):
             return RenderResult(None, self._render_depth(width, height, view))
         ns = self.samples if samples is None else self._clamp_samples(samples)
-        return self._render_color(view, width, height, color, depth, luminance, ns, True, out)
+        return self._render_color(view, width, height, color, depth, luminance, ns, False, out)
 
     def _render_color(
         self,
@@ -326,11 +326,11 @@ class Renderer:
         depth: bool,
         luminance: bool,
         ns: int,
-        edge: bool,
+        reference: bool,
         out: F32 | None,
     ) -> RenderResult:
-        """The colour pass of a view with ``ns`` MSAA samples (1: then the edge filter
-        if ``edge``), read back."""
+        """The colour pass of a view with ``ns`` MSAA samples (1: then the edge filter,
+        unless ``reference``: the supersampled reference's samples), read back."""
         # No ctx.viewport here: in moderngl it writes the viewport of whichever framebuffer
         # is bound *now* (another resolution's), corrupting that target for its next frame.
         # Each target framebuffer keeps its own full-size viewport, applied by fbo.use().
@@ -344,11 +344,11 @@ class Renderer:
         fbo.use()
         self._clear(fbo, lum, depth)
         if view.first.size:
-            self._draw_color(view, lum, depth)
+            self._draw_color(view, lum, depth, reference)
         if ns > 1:
             src = self._resolve_pass(t, ns, lum, depth)
         else:
-            src = self._edge_pass(t, lum) if edge else t.out_fbo
+            src = t.out_fbo if reference else self._edge_pass(t, lum)
         col = lum_out = dep = None
         if lum:
             lum_out = out_array(out, (height, width))
@@ -401,10 +401,10 @@ class Renderer:
         marks.discard(len(cum) - 1)
         return marks
 
-    def _draw_color(self, view: _View, lum: bool, depth: bool) -> None:
+    def _draw_color(self, view: _View, lum: bool, depth: bool, reference: bool = False) -> None:
         """The colour pass over the visible runs, into the bound framebuffer."""
         ctx = self.ctx
-        prog, vao = self.programs.color(lum, depth)
+        prog, vao = self.programs.color(lum, depth, reference)
         ctx.enable_only(ctx.DEPTH_TEST)
         ctx.depth_func = "<"
         # outward faces are counter-clockwise seen from outside; the projection

@@ -11,6 +11,7 @@ from roslan.render.gl.context import create_context
 from roslan.render.gl.upload import SHADOW_MAP_MAX
 
 __all__ = [
+    "DEFAULT_ANISO",
     "DEFAULT_SAMPLES",
     "MAX_ANISO",
     "MAX_SUPERSAMPLING",
@@ -24,8 +25,13 @@ DEFAULT_SAMPLES = 1
 docs/performance.md). Override with ``ROSLAN_MSAA_SAMPLES`` or ``Renderer(samples=)``."""
 
 MAX_ANISO = 16
-"""Most taps of the colour shader's anisotropic texture filter
-(:attr:`Renderer.max_aniso <roslan.render.gl.Renderer>`)."""
+"""Most taps of the supersampled reference's anisotropic texture filter
+(:attr:`Renderer.max_aniso <roslan.render.gl.Renderer>`); the default image formation
+takes at most 2 (:data:`DEFAULT_ANISO`)."""
+
+DEFAULT_ANISO = 2
+"""Most taps of the default image formation's anisotropic texture filter (fixed in the
+shader: llvmpipe's cost of a tap; docs/performance.md, "Image formation")."""
 
 MAX_SUPERSAMPLING = 8
 """Largest ``supersampling`` factor (N x N samples per pixel) of
@@ -65,8 +71,10 @@ def image_formation(samples: int | None = None) -> dict[str, Any]:
             else f"{ns}x MSAA, samples averaged"
         ),
         "texture_filtering": (
-            "trilinear on roslan-computed mip-maps (area average in linear light), "
-            f"anisotropic in the shader (up to {MAX_ANISO} taps along the footprint)"
+            "anisotropic in the shader on roslan-computed mip-maps (area average in "
+            f"linear light): up to {DEFAULT_ANISO} bilinear taps in the nearest mip level "
+            f"along the footprint (the supersampled reference: up to {MAX_ANISO} "
+            "trilinear taps per sample)"
         ),
         "shadow_map_max": SHADOW_MAP_MAX,
         "supersampling": "per camera (its supersampling key; N > 1: N x N samples per "

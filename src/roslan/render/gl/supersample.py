@@ -96,7 +96,7 @@ def render_supersampled(
     view = r._view(T_world_cam, supersampled_K(K, n), W, H, near)
     if not (color or luminance):
         return RenderResult(None, combine_depth(r._render_depth(W, H, view), n))
-    big = r._render_color(view, W, H, color, depth, luminance, 1, False, None)
+    big = r._render_color(view, W, H, color, depth, luminance, 1, True, None)
     col = None if big.color is None else box_down(big.color, n, None if luminance else out)
     lum = None
     if luminance:

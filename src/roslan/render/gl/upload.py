@@ -62,7 +62,8 @@ def _texture(ctx: Any, img: NDArray[np.uint8]) -> Any:
     tex.build_mipmaps()  # allocates every level; each is overwritten below
     for k, lvl in enumerate(levels[1:], start=1):
         tex.write(lvl.tobytes(), level=k)
-    tex.filter = (ctx.LINEAR_MIPMAP_LINEAR, ctx.LINEAR)
+    # the shader picks integer mip levels (and blends two for trilinear filtering)
+    tex.filter = (ctx.LINEAR_MIPMAP_NEAREST, ctx.LINEAR)
     tex.anisotropy = 1.0
     tex.repeat_x = tex.repeat_y = True
     return tex
