@@ -14,8 +14,9 @@ Three modes:
     keep ``OUT/run`` (removed by default: the default job writes ~0.5 GB).
 ``cost [--poses N] [--reps N]``
     Median CPU time (all of llvmpipe's threads; robust to other load) and wall time of
-    one render of the default job's event camera and frame camera (the luminance pass) over poses spread along the default landing; works with
-    older checkouts too (A/B through ``PYTHONPATH``).
+    one render of the default job's event camera and frame camera (the luminance pass)
+    over poses spread along the default landing; works with older checkouts too (A/B
+    through ``PYTHONPATH``).
 ``compare A B``
     The figures of issue 28 between two summaries: total and per-250 ms event
     differences, correlation of the per-pixel event-count maps, mean |diff| and the

@@ -3,7 +3,8 @@
 
 Variants (``#define``): ``LUM`` shades one luminance channel instead of RGB, ``DEPTH``
 adds the 1/z attachment, ``IMAGE`` loads the edge filter's texels with ``imageLoad``
-(GL 4.2), ``REFERENCE`` is the supersampled reference's texture filter. Every source sees ``const vec3 LUMA``, the Rec. 709 luminance weights.
+(GL 4.2), ``REFERENCE`` is the supersampled reference's texture filter. Every source
+sees ``const vec3 LUMA``, the Rec. 709 luminance weights.
 """
 
 from __future__ import annotations

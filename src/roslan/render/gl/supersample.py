@@ -65,7 +65,8 @@ def combine_depth(z: F32, n: int) -> F32:
     one = (lo > 0.0) & (hi - lo <= DEPTH_SPREAD * hi)
     pick = np.where(one, b.mean(axis=(1, 3)), hi)
     with np.errstate(divide="ignore"):
-        return np.reciprocal(pick).astype(np.float32)
+        out: F32 = np.reciprocal(pick).astype(np.float32)
+    return out
 
 
 def render_supersampled(
