@@ -319,7 +319,7 @@ def main() -> None:
     syn = Synth(K, W, H)
     print(
         f"DAVIS346 {W}x{H} fx={K[0, 0]}; renderer software={renderer.software} "
-        f"samples={renderer.samples} aniso={renderer.anisotropy}; C={C}, C/4={C / 4}, eps={eps}"
+        f"samples={renderer.samples} aniso={renderer.max_aniso}; C={C}, C/4={C / 4}, eps={eps}"
     )
     # numba warm-up
     d0 = np.ones((H, W), np.float32)

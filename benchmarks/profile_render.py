@@ -132,7 +132,7 @@ def stages(r: gl.Renderer, T: np.ndarray, K: np.ndarray, w: int, h: int, ns: int
     # shader ablations (same culled draws)
     for name, old, new in [
         ("no shadow lookup", "texture(u_shadow, v_light)", "1.0"),
-        ("no texture lookup", "texture(u_tex, v_uv).rgb", "vec3(1.0)"),
+        ("no texture lookup", "tex_filtered(v_uv)", "vec3(1.0)"),
     ]:
         p2 = ctx.program(
             vertex_shader=shaders.source(shaders.COLOR_VERT, lum=False, depth=True),

@@ -61,6 +61,10 @@ _BYTES_PER_PIXEL = 64
 """Working bytes per pixel of a frame sensor (float64 buffers of colour, depth, the event
 model's state and supersampling), an upper estimate used by the pre-flight check."""
 
+_SUPERSAMPLE_BYTES = 40
+"""Working bytes per sample of a camera's ``supersampling`` render (RGBA + 1/z float32
+targets, the read-back colour and depth)."""
+
 
 def check_seed(seed: Any, where: str) -> int:
     """``seed`` as an int in [0, MAX_SEED]; ConfigError naming ``where`` otherwise."""
@@ -107,13 +111,14 @@ def preflight(config: Any, duration_s: float, formats: Sequence[str], source: st
             )
             raise ConfigError(msg)
         scale = float(getattr(s, "render_scale", None) or 1.0)
-        need = w * h * scale * scale * _BYTES_PER_PIXEL
+        ss = int(getattr(s, "supersampling", 1) or 1)  # the reference's N x N larger render
+        need = w * h * scale * scale * (_BYTES_PER_PIXEL + _SUPERSAMPLE_BYTES * (ss * ss - 1))
         if need > MAX_WORKING_BYTES:
             msg = (
                 f"{source}: sensors[{i}] ({s.name}): a {w}x{h} frame needs about "
                 f"{format_bytes(need)} of working memory "
                 f"(limit {format_bytes(MAX_WORKING_BYTES)}); "
-                "lower resolution or render_scale"
+                "lower resolution, render_scale or supersampling"
             )
             raise ConfigError(msg)
     if total > MAX_MESSAGES:

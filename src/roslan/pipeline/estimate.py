@@ -117,7 +117,7 @@ def estimate_run(config: SimConfig, formats: tuple[str, ...] | None = None) -> R
         t = s.type
         if t in ("camera", "stereo_camera", "depth_camera", "event_camera"):
             w, h = _resolution(s)
-            mpix = w * h / 1e6
+            mpix = w * h / 1e6 * int(getattr(s, "supersampling", 1)) ** 2  # rendered pixels
             bag("small", n * 400.0)  # camera_info
             if t == "event_camera":
                 events = ev_rate * w * h * duration

@@ -376,6 +376,7 @@ class _Run:
             bags={f: BAG_NAMES[Flavor(f)] for f in plan.formats},
             topics=topics,
             sensors=[s.config.name for s in plan.sensors],
+            renderer=_image_formation(self.config.sensors),
         )
         wall = time.perf_counter() - self.wall0
         timing = self._timing(wall)
@@ -459,3 +460,13 @@ class _Run:
         if self.writers is not None:
             self.writers.abort()
         shutil.rmtree(self.tmp, ignore_errors=True)
+
+
+def _image_formation(sensors: Any) -> dict[str, Any] | None:
+    """run.json's record of the renderer, for a run with a camera-type sensor (they all
+    have the ``supersampling`` key); None otherwise (no OpenGL context is made)."""
+    if not any(hasattr(s, "supersampling") for s in sensors):
+        return None
+    from roslan.render.gl import image_formation
+
+    return image_formation()

@@ -61,6 +61,7 @@ class FrameRenderer(Protocol):
         samples: int | None = None,
         out: F32 | None = None,
         near: float | None = None,
+        supersampling: int = 1,
     ) -> RenderResult:
         """Render the view of a pinhole camera (pose of the OPTICAL frame, OpenCV ``K``)."""
         ...

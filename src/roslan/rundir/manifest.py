@@ -71,6 +71,10 @@ class RunManifest(TypedDict):
     timing: str
     config: dict[str, Any]
     """The resolved config (every default filled in): rerunning it reproduces the run."""
+    renderer: NotRequired[dict[str, Any]]
+    """The OpenGL implementation that rendered the camera images (``gl_renderer``,
+    ``gl_version``, ``gl_vendor``) and the anti-aliasing and texture-filtering settings
+    (:func:`roslan.render.gl.image_formation`); only in runs with a camera-type sensor."""
 
 
 class Timing(TypedDict):
@@ -112,10 +116,12 @@ def make_manifest(
     bags: Mapping[str, str],
     topics: Mapping[str, TopicEntry],
     sensors: Sequence[str],
+    renderer: Mapping[str, Any] | None = None,
 ) -> RunManifest:
-    """The run.json content of a finished run of ``config`` (a SimConfig)."""
+    """The run.json content of a finished run of ``config`` (a SimConfig); ``renderer``:
+    the image formation record of a run with cameras (:data:`RunManifest.renderer`)."""
     start_ns = int(config.output.start_time)
-    return {
+    manifest: RunManifest = {
         "complete": True,
         "roslan_version": __version__,
         "config_file": str(config_path) if config_path is not None else None,
@@ -136,6 +142,9 @@ def make_manifest(
         "identical runs are timing.json and PLAYBACK.md)",
         "config": config.model_dump(mode="json"),
     }
+    if renderer is not None:
+        manifest["renderer"] = dict(renderer)
+    return manifest
 
 
 def write_json(path: Path, data: Mapping[str, Any]) -> None:

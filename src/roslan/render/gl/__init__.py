@@ -19,15 +19,21 @@ in LINEAR radiance (textures are sRGB-decoded by the sampler), two-sided (the si
 facing the camera is lit). The sun term ``n.l`` and the shadow-map bias are computed
 per vertex (exact for flat faces, whose normal is constant; Gouraud for smooth ones);
 ``lit`` is one hardware-filtered (bilinear PCF) shadow-map lookup per fragment.
-Anti-aliasing (aliasing would turn into fake events in the event camera): trilinear
-mip-mapped textures, anisotropic filtering on GPUs, and for geometric edges either
-MSAA (:data:`MSAA_SAMPLES` = 4 per pixel on a GPU, resolved by averaging the samples)
-or, with 1 sample (the default on llvmpipe, :data:`SOFTWARE_MSAA_SAMPLES`, where MSAA
-is expensive), an FXAA-style edge filter on geometric edges only: where 1/z is
-not affine in the image (silhouettes, creases) and the luma contrast is high, the pixel
-is resampled bilinearly across the edge by its sub-pixel coverage estimate; texture
-detail on planes is left untouched. Sub-pixel geometry (wires, lines thinner than a
-pixel) needs MSAA: ``ROSLAN_MSAA_SAMPLES=4``.
+Image formation, the same on every OpenGL implementation (nothing that sets a pixel is
+left to the driver; :func:`image_formation` is what run.json records): aliasing would
+turn into fake events in the event camera, over-blurring into missing ones. Textures:
+mip levels computed by roslan (:mod:`.mipmaps`, area averages in linear light) and
+filtered in the shader from explicit uv derivatives: up to :data:`DEFAULT_ANISO`
+bilinear taps along the pixel's footprint in the nearest level (llvmpipe's own
+anisotropic filtering stalls, and a GPU's differs). Geometric edges: 1 sample per pixel
+(:data:`DEFAULT_SAMPLES`) and an FXAA-style edge filter on geometric edges only: where
+1/z is not affine in the image (silhouettes, creases) and the luma contrast is high, the
+neighbour across the edge is blended in by its estimated coverage (1/8 to 3/8); texture
+detail on planes is left untouched. One shadow-map size (:data:`.upload.SHADOW_MAP_MAX`).
+Sub-pixel geometry (wires, lines thinner than a pixel) needs MSAA:
+``ROSLAN_MSAA_SAMPLES=4``. ``render(supersampling=N)`` is the reference the default is
+measured against (:mod:`.supersample`): N x N samples per pixel, box-filtered, textures
+filtered per sample with up to :data:`MAX_ANISO` trilinear taps, no edge filter.
 
 Where no surface is hit, colour and luminance are the scene's sky radiance
 (:attr:`~roslan.scene.model.Lights.sky`) and depth is ``inf``.
@@ -47,31 +53,40 @@ writes an RGB32F target where that is renderable; callers that render every fram
 ``out=`` buffers (fresh multi-MB arrays cost page faults).
 
 Modules: :mod:`.context` (EGL context, raw GL entry points), :mod:`.shaders` (GLSL),
-:mod:`.upload` (scene buffers, culling clusters, shadow map), :mod:`.targets`
-(framebuffers), :mod:`.renderer` (:class:`Renderer`).
+:mod:`.upload` (scene buffers, culling clusters, shadow map), :mod:`.mipmaps`,
+:mod:`.targets` (framebuffers), :mod:`.settings` (image-formation settings),
+:mod:`.supersample` (the reference), :mod:`.renderer` (:class:`Renderer`).
 """
 
 from roslan.render.base import RenderResult
 from roslan.render.gl.context import EGL_PACKAGES, create_context
 from roslan.render.gl.renderer import (
     FLUSH_CHUNKS,
-    MSAA_SAMPLES,
-    SOFTWARE_MSAA_SAMPLES,
     Renderer,
-    default_samples,
     get_renderer,
     projection_from_K,
 )
+from roslan.render.gl.settings import (
+    DEFAULT_ANISO,
+    DEFAULT_SAMPLES,
+    MAX_ANISO,
+    MAX_SUPERSAMPLING,
+    default_samples,
+    image_formation,
+)
 
 __all__ = [
+    "DEFAULT_ANISO",
+    "DEFAULT_SAMPLES",
     "EGL_PACKAGES",
     "FLUSH_CHUNKS",
-    "MSAA_SAMPLES",
-    "SOFTWARE_MSAA_SAMPLES",
+    "MAX_ANISO",
+    "MAX_SUPERSAMPLING",
     "RenderResult",
     "Renderer",
     "create_context",
     "default_samples",
     "get_renderer",
+    "image_formation",
     "projection_from_K",
 ]

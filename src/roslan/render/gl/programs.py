@@ -27,20 +27,23 @@ class Programs:
         self.scene = scene
         self.buffers = buffers
         self.shadow = shadow
-        self._color: dict[tuple[bool, bool], tuple[Any, Any]] = {}
+        self._color: dict[tuple[bool, bool, bool], tuple[Any, Any]] = {}
         self._resolve: dict[tuple[bool, bool], tuple[Any, Any]] = {}
         self._edge: dict[tuple[bool, bool], tuple[Any, Any]] = {}
 
-    def color(self, lum: bool, depth: bool) -> tuple[Any, Any]:
+    def color(self, lum: bool, depth: bool, reference: bool = False) -> tuple[Any, Any]:
         """(program, vertex array) of the colour pass variant (vertex array None for a
-        scene without triangles)."""
-        key = (lum, depth)
+        scene without triangles); ``reference``: the supersampled reference's texture
+        filter (up to ``u_max_aniso`` taps)."""
+        key = (lum, depth, reference)
         pv = self._color.get(key)
         if pv is None:
             ctx = self.ctx
             prog = ctx.program(
                 vertex_shader=shaders.source(shaders.COLOR_VERT, lum=lum, depth=depth),
-                fragment_shader=shaders.source(shaders.COLOR_FRAG, lum=lum, depth=depth),
+                fragment_shader=shaders.source(
+                    shaders.COLOR_FRAG, lum=lum, depth=depth, reference=reference
+                ),
             )
             lights = self.scene.lights
             d = np.asarray(lights.sun_direction, dtype=np.float64)

@@ -15,7 +15,6 @@ nothing is hit. The depth buffer only resolves visibility.
 from __future__ import annotations
 
 import ctypes
-import os
 import weakref
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
@@ -36,33 +35,19 @@ from roslan.render.gl.context import (
     gl_mat,
 )
 from roslan.render.gl.programs import Programs
+from roslan.render.gl.settings import MAX_ANISO, default_samples
+from roslan.render.gl.supersample import render_supersampled
 from roslan.render.gl.targets import Targets, out_array
 from roslan.render.gl.upload import CLUSTER_CELLS, SceneBuffers, ShadowMap, merge_runs
 
 if TYPE_CHECKING:
     from roslan.scene.model import Scene
 
-__all__ = [
-    "FLUSH_CHUNKS",
-    "MSAA_SAMPLES",
-    "SOFTWARE_MSAA_SAMPLES",
-    "Renderer",
-    "default_samples",
-    "get_renderer",
-    "projection_from_K",
-]
+__all__ = ["FLUSH_CHUNKS", "Renderer", "get_renderer", "projection_from_K"]
 
 F32 = NDArray[np.float32]
 F64 = NDArray[np.float64]
 I64 = NDArray[np.int64]
-
-MSAA_SAMPLES = 4
-"""MSAA samples per pixel of the colour pass on a GPU (clamped to what it supports)."""
-
-SOFTWARE_MSAA_SAMPLES = 1
-"""Default MSAA samples on Mesa's llvmpipe (CPU), where MSAA costs much more than the
-edge filter (see docs/performance.md). Override with ``ROSLAN_MSAA_SAMPLES`` or
-``Renderer(samples=)``."""
 
 FLUSH_CHUNKS = 4
 """llvmpipe: the colour pass is flushed to the rasterizer threads in this many parts
@@ -118,21 +103,6 @@ def projection_from_K(K: F64, width: int, height: int, near: float, far: float) 
     return P
 
 
-def default_samples(software: bool, samples: int | None = None) -> int:
-    """MSAA samples to use: ``samples`` if given, else ``$ROSLAN_MSAA_SAMPLES``, else
-    :data:`SOFTWARE_MSAA_SAMPLES` on llvmpipe and :data:`MSAA_SAMPLES` on a GPU."""
-    if samples is not None:
-        return int(samples)
-    env = os.environ.get("ROSLAN_MSAA_SAMPLES", "").strip()
-    if env:
-        try:
-            return int(env)
-        except ValueError:
-            msg = f"ROSLAN_MSAA_SAMPLES = {env!r}: must be an integer number of samples (1, 4)"
-            raise RenderError(msg) from None
-    return SOFTWARE_MSAA_SAMPLES if software else MSAA_SAMPLES
-
-
 class Renderer:
     """Rasterizer of one scene. Use :func:`get_renderer` (one per scene and process).
 
@@ -141,8 +111,10 @@ class Renderer:
         samples: default MSAA samples per pixel of the colour pass (1: no MSAA, the
             edge filter instead); see :func:`default_samples`.
         near: near clipping distance (m), chosen from the scene size.
-        anisotropy: texture anisotropic filtering level (1 on llvmpipe: see below).
-        software: True on Mesa's llvmpipe (CPU) renderer.
+        max_aniso: most taps of the supersampled reference's anisotropic texture filter
+            (:data:`MAX_ANISO`; the default image formation takes at most 2).
+        software: True on Mesa's llvmpipe (CPU) renderer (only the flushing differs:
+            the image formation is the same on every implementation).
         front_to_back: draw the visible clusters nearest first (default; False: index
             order, for benchmarks), see :meth:`visible_ranges`.
         flush_chunks: flush the colour pass to the rasterizer in this many parts
@@ -168,11 +140,13 @@ class Renderer:
                 *ctx.info["GL_MAX_VIEWPORT_DIMS"],
             )
         )
-        # Mesa's llvmpipe (LLVM 15) stalls for minutes on anisotropic filtering of
-        # near-grazing, near-clipped ground planes: trilinear mip-mapping + MSAA there.
+        # Nothing that changes a pixel depends on the implementation: the texture
+        # filter runs in the shader (llvmpipe's own anisotropic filtering stalls for
+        # minutes on near-grazing ground planes), mip-maps are computed here, one
+        # shadow-map size and one anti-aliasing everywhere.
         self.software = "llvmpipe" in str(ctx.info.get("GL_RENDERER", "")).lower()
-        self.samples = self._clamp_samples(default_samples(self.software, samples))
-        self.anisotropy = 1.0 if self.software else 16.0
+        self.samples = self._clamp_samples(default_samples(samples))
+        self.max_aniso = MAX_ANISO
         self.front_to_back = True
         self.cull_back_faces = True
         # image load/store (GL 4.2) for the edge filter's point loads
@@ -204,7 +178,6 @@ class Renderer:
             ctx,
             scene,
             cell=max(diag / CLUSTER_CELLS, 1.0),
-            anisotropy=self.anisotropy,
             prog_depth=self._prog_depth,
             prog_shadow=self._prog_shadow,
         )
@@ -214,7 +187,6 @@ class Renderer:
             scene,
             self.buffers,
             self._prog_shadow,
-            software=self.software,
             max_size=self.max_size,
         )
         self.programs = Programs(ctx, scene, self.buffers, self.shadow)
@@ -292,6 +264,7 @@ class Renderer:
         samples: int | None = None,
         out: F32 | None = None,
         near: float | None = None,
+        supersampling: int = 1,
     ) -> RenderResult:
         """Render the view of a pinhole camera.
 
@@ -316,6 +289,12 @@ class Renderer:
                 multi-MB arrays per frame cost page faults).
             near: near clipping distance (m) of this view (None: :attr:`near`); the
                 sensors pass their ``near_clip``.
+            supersampling: N > 1 renders the reference: N x N samples per pixel on a
+                regular grid (an N-times larger render, 1 sample each, no edge filter,
+                textures filtered over each sample's own footprint), box-filtered, so
+                the result converges to the area average of the true image as N grows;
+                depth: see :func:`~roslan.render.gl.supersample.combine_depth`.
+                ``samples`` is ignored then.
         Returns:
             :class:`RenderResult`; row 0 is the top of the image. Arrays are fresh (the
             caller may keep and modify them), except ``out``.
@@ -327,16 +306,35 @@ class Renderer:
         self.check_size(width, height)
         if not (color or depth or luminance):
             return RenderResult(None, None)
+        n = int(supersampling)
+        if n > 1:
+            return render_supersampled(
+                self, T_world_cam, K, width, height, n, (color, depth, luminance), out, near
+            )
         view = self._view(T_world_cam, K, width, height, near)
+        if not (color or luminance):
+            return RenderResult(None, self._render_depth(width, height, view))
+        ns = self.samples if samples is None else self._clamp_samples(samples)
+        return self._render_color(view, width, height, color, depth, luminance, ns, False, out)
+
+    def _render_color(
+        self,
+        view: _View,
+        width: int,
+        height: int,
+        color: bool,
+        depth: bool,
+        luminance: bool,
+        ns: int,
+        reference: bool,
+        out: F32 | None,
+    ) -> RenderResult:
+        """The colour pass of a view with ``ns`` MSAA samples (1: then the edge filter,
+        unless ``reference``: the supersampled reference's samples), read back."""
         # No ctx.viewport here: in moderngl it writes the viewport of whichever framebuffer
         # is bound *now* (another resolution's), corrupting that target for its next frame.
         # Each target framebuffer keeps its own full-size viewport, applied by fbo.use().
-
-        if not (color or luminance):
-            return RenderResult(None, self._render_depth(width, height, view))
-
         lum = luminance and not color
-        ns = self.samples if samples is None else self._clamp_samples(samples)
         key = (width, height, ns, lum, depth, self._rgb_target)
         t = self._targets.get(key)
         if t is None:
@@ -346,8 +344,11 @@ class Renderer:
         fbo.use()
         self._clear(fbo, lum, depth)
         if view.first.size:
-            self._draw_color(view, lum, depth)
-        src = self._resolve_pass(t, ns, lum, depth) if ns > 1 else self._edge_pass(t, lum)
+            self._draw_color(view, lum, depth, reference)
+        if ns > 1:
+            src = self._resolve_pass(t, ns, lum, depth)
+        else:
+            src = t.out_fbo if reference else self._edge_pass(t, lum)
         col = lum_out = dep = None
         if lum:
             lum_out = out_array(out, (height, width))
@@ -400,10 +401,10 @@ class Renderer:
         marks.discard(len(cum) - 1)
         return marks
 
-    def _draw_color(self, view: _View, lum: bool, depth: bool) -> None:
+    def _draw_color(self, view: _View, lum: bool, depth: bool, reference: bool = False) -> None:
         """The colour pass over the visible runs, into the bound framebuffer."""
         ctx = self.ctx
-        prog, vao = self.programs.color(lum, depth)
+        prog, vao = self.programs.color(lum, depth, reference)
         ctx.enable_only(ctx.DEPTH_TEST)
         ctx.depth_func = "<"
         # outward faces are counter-clockwise seen from outside; the projection
@@ -414,6 +415,8 @@ class Renderer:
         # 1/z feeds the edge filter (last colour channel) whether or not depth is read back
         prog["u_zrow"].value = view.zrow
         prog["u_cam_pos"].value = tuple(float(x) for x in view.cam_pos)
+        if "u_max_aniso" in prog:  # (a uniform the compiler optimised away is absent)
+            prog["u_max_aniso"].value = int(self.max_aniso)
         self.shadow.tex.use(1)
         bound = -1
         # glFlush after the draws that end each 1/flush_chunks of the indices: the

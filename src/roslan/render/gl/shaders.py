@@ -3,7 +3,8 @@
 
 Variants (``#define``): ``LUM`` shades one luminance channel instead of RGB, ``DEPTH``
 adds the 1/z attachment, ``IMAGE`` loads the edge filter's texels with ``imageLoad``
-(GL 4.2). Every source sees ``const vec3 LUMA``, the Rec. 709 luminance weights.
+(GL 4.2), ``REFERENCE`` is the supersampled reference's texture filter. Every source
+sees ``const vec3 LUMA``, the Rec. 709 luminance weights.
 """
 
 from __future__ import annotations
@@ -64,6 +65,51 @@ void main() {
 COLOR_FRAG = """
 uniform sampler2D u_tex;
 uniform sampler2DShadow u_shadow;
+uniform int u_max_aniso;     // REFERENCE: most taps of its texture filter
+// Texture filtering in the shader, the same arithmetic on every OpenGL implementation
+// (a driver's anisotropic filtering and mip-level arithmetic are its own, and
+// llvmpipe's anisotropic filtering stalls), after the EXT_texture_filter_anisotropic
+// recipe: the pixel's footprint in texels from the explicit (fine, per 2x2 quad) uv
+// derivatives; n = ceil(major / minor) taps along the major axis (1 where the texture
+// is magnified), each at the mip level of major / n, spread evenly over the footprint
+// and averaged. Mip levels are picked here (integer lods: the textures' LINEAR_
+// MIPMAP_NEAREST filter then only does bilinear filtering within that level).
+// Default: at most 2 taps, each bilinear in the nearest level (the cost of a trilinear
+// tap on llvmpipe; docs/performance.md, "Image formation"). REFERENCE (the supersampled
+// reference): up to u_max_aniso taps, each trilinear.
+#ifndef GL_ARB_derivative_control
+#define dFdxFine dFdx
+#define dFdyFine dFdy
+#endif
+vec3 trilinear(vec2 p, float lod) {
+    float l = max(lod, 0.0);
+    float l0 = floor(l);
+    return mix(textureLod(u_tex, p, l0).rgb, textureLod(u_tex, p, l0 + 1.0).rgb, l - l0);
+}
+vec3 tex_filtered(vec2 uv) {
+    vec2 size = vec2(textureSize(u_tex, 0));
+    vec2 gx = dFdxFine(uv), gy = dFdyFine(uv);
+    float lx = dot(gx * size, gx * size), ly = dot(gy * size, gy * size);
+    vec2 major = lx >= ly ? gx : gy;
+    float lmaj = sqrt(max(lx, ly)), lmin = sqrt(min(lx, ly));
+#ifdef REFERENCE
+    float n = clamp(ceil(min(lmaj / max(lmin, 1e-20), lmaj)), 1.0, float(u_max_aniso));
+    float lod = log2(max(lmaj / n, 1e-20));
+    int taps = int(n);
+    vec3 acc = vec3(0.0);
+    for (int i = 0; i < taps; ++i) {
+        acc += trilinear(uv + major * ((float(i) + 0.5) / n - 0.5), lod);
+    }
+    return acc / n;
+#else
+    // n = min(ceil(major / minor), 2), unrolled (a loop costs llvmpipe more)
+    bool two = lmaj > lmin && lmaj > 1.0;
+    float lod = max(floor(log2(max(lmaj, 1e-20)) - (two ? 1.0 : 0.0) + 0.5), 0.0);
+    if (!two) return textureLod(u_tex, uv, lod).rgb;
+    vec2 off = 0.25 * major;
+    return 0.5 * (textureLod(u_tex, uv - off, lod).rgb + textureLod(u_tex, uv + off, lod).rgb);
+#endif
+}
 in vec2 v_uv;
 uniform float u_ambient;
 in vec3 v_albedo;
@@ -81,7 +127,7 @@ layout(location = 0) out vec4 o_color;
 #endif
 void main() {
     float lit = texture(u_shadow, v_light);  // bilinear PCF (compare + LINEAR)
-    vec3 c = clamp(texture(u_tex, v_uv).rgb * v_albedo * (u_ambient + v_sun * lit), 0.0, 1.0);
+    vec3 c = clamp(tex_filtered(v_uv) * v_albedo * (u_ambient + v_sun * lit), 0.0, 1.0);
     // optical z at the pixel centre (non-centroid), even for partially covered pixels
     float invz = 1.0 / max(v_z, 1e-6);
 #ifdef LUM
@@ -209,7 +255,7 @@ void main() {
     vec4 tn = FETCH(ivec2(p.x, min(p.y + 1, hi.y)));
     // Over a plane 1/z is affine in the image, so its second differences vanish: they
     // are non-zero only at silhouettes and creases, the edges that rasterization
-    // aliases (texture detail lies on planes and is mip-mapped already).
+    // aliases (texture detail lies on planes and is filtered already).
     // On the image border the clamped neighbour equals this pixel, which would make a
     // plane's one-sided slope look like a crease: that axis's difference is not used there.
     float zm = tm[ZCH];
@@ -233,10 +279,15 @@ void main() {
         // sub-pixel coverage estimate from the neighbourhood
         float sub = clamp(abs(0.25 * (n + s + e + w) - m) / max(range, 1e-6), 0.0, 1.0);
         sub = smoothstep(0.0, 1.0, sub);
-        // resample linearly across the edge, from this pixel's centre: the bilinear
-        // sample at an offset along one axis, from the texels already loaded (llvmpipe
-        // runs a sampler call in a branch for every pixel of a mixed SIMD group)
-        c = mix(tm, t, max(sub * sub * 0.75, 0.25));
+        // blend in the neighbour across the edge by its estimated coverage of this
+        // pixel: at least 1/8, the mean over edge positions (a straight edge between two
+        // pixel centres, at a uniform offset d in [0, 1), covers max(0, 1/2 - d) of one of
+        // them and max(0, d - 1/2) of the other), up to 3/8 by the sub-pixel estimate.
+        // Measured against the supersampled reference (docs/performance.md, "Image
+        // formation"): FXAA's 1/4 floor blurred edges and lost 7 % of the events. The
+        // blend uses the texels already loaded (llvmpipe runs a sampler call in a branch
+        // for every pixel of a mixed SIMD group).
+        c = mix(tm, t, max(sub * sub * 0.375, 0.125));
     }
 #ifdef LUM
     o_color = c.r;
@@ -247,14 +298,20 @@ void main() {
 """
 
 
-def source(body: str, *, lum: bool, depth: bool, image: bool = False) -> str:
+def source(
+    body: str, *, lum: bool, depth: bool, image: bool = False, reference: bool = False
+) -> str:
     """``body`` with the ``#version`` line, the variant defines and ``LUMA`` prepended."""
     defs = ["#version 420" if image else "#version 410"]
+    # explicit fine derivatives (core in GL 4.5; llvmpipe and the GPU drivers have it)
+    defs.append("#extension GL_ARB_derivative_control : enable")
     if image:
         defs.append("#define IMAGE")
     if lum:
         defs.append("#define LUM")
     if depth:
         defs.append("#define DEPTH")
+    if reference:
+        defs.append("#define REFERENCE")
     defs.append("const vec3 LUMA = vec3({:.4f}, {:.4f}, {:.4f});".format(*REC709_LUMA))
     return "\n".join(defs) + "\n" + body

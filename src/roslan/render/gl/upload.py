@@ -12,12 +12,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from roslan.render.gl.context import gl_mat
+from roslan.render.gl.mipmaps import mip_chain
 from roslan.scene.mesh import closed_solid
 
 if TYPE_CHECKING:
     from roslan.scene.model import Scene, SceneObject
 
-__all__ = ["CLUSTER_CELLS", "SOFTWARE_SHADOW_MAP", "SceneBuffers", "ShadowMap", "merge_runs"]
+__all__ = ["CLUSTER_CELLS", "SHADOW_MAP_MAX", "SceneBuffers", "ShadowMap", "merge_runs"]
 
 F32 = NDArray[np.float32]
 F64 = NDArray[np.float64]
@@ -27,8 +28,9 @@ CLUSTER_CELLS = 12
 """Culling granularity: an object's triangles are split by a grid of cubic cells of
 ``max(scene diagonal / CLUSTER_CELLS, 1 m)``."""
 
-SOFTWARE_SHADOW_MAP = 2048
-"""Largest shadow map (texels per side) on llvmpipe (4096 on a GPU)."""
+SHADOW_MAP_MAX = 2048
+"""Largest shadow map (texels per side), on every OpenGL implementation (llvmpipe's
+lookups are memory bound; one size everywhere keeps the shadows' edges the same)."""
 
 _GL_SRGB8 = 0x8C41
 _GL_SRGB8_ALPHA8 = 0x8C43
@@ -44,18 +46,25 @@ def _vertex_attrs(o: SceneObject) -> F32:
     return attrs
 
 
-def _texture(ctx: Any, img: NDArray[np.uint8], anisotropy: float) -> Any:
-    """A mip-mapped, repeating sRGB texture of an (H, W, 3+) uint8 image."""
+def _texture(ctx: Any, img: NDArray[np.uint8]) -> Any:
+    """A mip-mapped, repeating sRGB texture of an (H, W, 3+) uint8 image: the levels are
+    computed by :func:`~roslan.render.gl.mipmaps.mip_chain` (the same on every OpenGL
+    implementation); no hardware anisotropic filtering (the colour shader filters
+    anisotropically itself, see :mod:`roslan.render.gl.shaders`)."""
     h, w = img.shape[:2]
     # RGBA: 4-byte texels sample ~10 % faster than RGB on llvmpipe.
     # GL's first texture row is v = 0: flip so v = 0 is the image's bottom
     # (the usual glTF/OBJ convention for UVs).
     rgba = np.full((h, w, 4), 255, dtype=np.uint8)
     rgba[..., :3] = img[::-1, :, :3]
-    tex = ctx.texture((w, h), 4, rgba.tobytes(), internal_format=_GL_SRGB8_ALPHA8)
-    tex.build_mipmaps()
-    tex.filter = (ctx.LINEAR_MIPMAP_LINEAR, ctx.LINEAR)
-    tex.anisotropy = anisotropy
+    levels = mip_chain(rgba)
+    tex = ctx.texture((w, h), 4, levels[0].tobytes(), internal_format=_GL_SRGB8_ALPHA8)
+    tex.build_mipmaps()  # allocates every level; each is overwritten below
+    for k, lvl in enumerate(levels[1:], start=1):
+        tex.write(lvl.tobytes(), level=k)
+    # the shader picks integer mip levels (and blends two for trilinear filtering)
+    tex.filter = (ctx.LINEAR_MIPMAP_NEAREST, ctx.LINEAR)
+    tex.anisotropy = 1.0
     tex.repeat_x = tex.repeat_y = True
     return tex
 
@@ -126,13 +135,12 @@ class SceneBuffers:
         scene: Scene,
         *,
         cell: float,
-        anisotropy: float,
         prog_depth: Any,
         prog_shadow: Any,
     ) -> None:
         self.group_tex: list[Any] = []
         self.textures: list[Any] = []  # owned (released with the buffers)
-        acc = self._fill(ctx, scene, _Clusters(cell), anisotropy)
+        acc = self._fill(ctx, scene, _Clusters(cell))
         self.c_first = np.asarray(acc.first, dtype=np.int64)
         self.c_count = np.asarray(acc.count, dtype=np.int64)
         self.c_group = np.asarray(acc.group, dtype=np.int64)
@@ -164,7 +172,7 @@ class SceneBuffers:
         )
         self.n_index = int(idx.size)
 
-    def _fill(self, ctx: Any, scene: Scene, acc: _Clusters, anisotropy: float) -> _Clusters:
+    def _fill(self, ctx: Any, scene: Scene, acc: _Clusters) -> _Clusters:
         """Add the objects group by group (one group per texture) and make the textures."""
         groups: dict[int, list[int]] = {}
         images: dict[int, NDArray[np.uint8] | None] = {0: None}
@@ -175,7 +183,6 @@ class SceneBuffers:
             groups.setdefault(key, []).append(i)
         white = ctx.texture((1, 1), 3, bytes([255, 255, 255]), internal_format=_GL_SRGB8)
         self.textures.append(white)
-        aniso = float(min(anisotropy, ctx.max_anisotropy))
         first = 0
         for key, members in groups.items():
             g = len(self.group_tex)
@@ -190,7 +197,7 @@ class SceneBuffers:
             if img is None:
                 tex = white
             else:
-                tex = _texture(ctx, img, aniso)
+                tex = _texture(ctx, img)
                 self.textures.append(tex)
             self.group_tex.append(tex)
             first += count
@@ -270,16 +277,15 @@ class ShadowMap:
         buffers: SceneBuffers,
         prog_shadow: Any,
         *,
-        software: bool,
         max_size: int,
     ) -> None:
         lo, hi = scene.bounds
         centre = 0.5 * (lo + hi)
         radius = max(0.5 * float(np.linalg.norm(hi - lo)), 1e-3)
-        # ~1 cm texels where affordable, 1024..4096 texels (2048 on llvmpipe: its
-        # lookups are memory bound)
-        cap = SOFTWARE_SHADOW_MAP if software else 4096
-        size = int(np.clip(2 ** math.ceil(math.log2(max(2 * radius / 0.01, 1.0))), 1024, cap))
+        # ~1 cm texels where affordable, 1024..SHADOW_MAP_MAX texels
+        size = int(
+            np.clip(2 ** math.ceil(math.log2(max(2 * radius / 0.01, 1.0))), 1024, SHADOW_MAP_MAX)
+        )
         size = min(size, max_size)
         L = _light_matrix(np.asarray(scene.lights.sun_direction, dtype=np.float64), centre, radius)
         to_unit = np.array(

@@ -52,6 +52,13 @@ class CameraIntrinsics(StrictModel):
     are not drawn. The clearance check refuses a run in which scene geometry comes
     closer than this to any corner of the near-clipping rectangle."""
 
+    supersampling: Annotated[int, Field(ge=1, le=8)] = 1
+    """N > 1: the reference image formation, N x N samples per pixel on a regular grid,
+    box-filtered (textures filtered over each sample's own footprint), converging to
+    the area average of the true image as N grows; N^2 times the render cost. 1
+    (default): one sample per pixel, the edge filter and the shader's anisotropic
+    texture filter (docs/design.md, "Image formation")."""
+
     @field_validator("calibration", mode="after")
     @classmethod
     def _resolve(cls, v: Path | None, info: ValidationInfo) -> Path | None:

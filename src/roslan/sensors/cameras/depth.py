@@ -94,6 +94,7 @@ class DepthCamera(CameraBase):
             color=False,
             depth=True,
             near=self.config.near_clip,
+            supersampling=self.config.supersampling,
         ).depth
         assert z is not None
         if e.plan.identity:

@@ -208,6 +208,7 @@ class EventCamera:
             depth=need_depth,
             luminance=True,
             near=self.config.near_clip,
+            supersampling=self.config.supersampling,
         )
         assert res.luminance is not None
         lum = cam.remap(res.luminance)

@@ -347,6 +347,7 @@ class _ImagingCamera(CameraBase):
                 luminance=mono,
                 out=acc if i == 0 else e.buffer("sub", shape),
                 near=self.config.near_clip,
+                supersampling=self.config.supersampling,
             )
             if i > 0:
                 acc += e.scratch["sub"]
