@@ -71,8 +71,8 @@ class AutoExposure(StrictModel):
     ``target``: ``E_{k+1} = clip(E_k * (target / m_k) ** a, min_exposure, max_exposure)``
     with ``a = 1 - exp(-1 / (rate * time_constant))``. In an unsaturated scene the log
     error then decays as ``exp(-t / time_constant)``: after a step of scene brightness
-    the level is back within ``exp(-1)`` (37 %) of its initial log error after one time
-    constant, within 5 % after three.
+    the log error ``ln(m / target)`` is ``exp(-1)`` (37 %) of its value at the step after
+    one time constant, ``exp(-n)`` after ``n``.
     """
 
     target: Annotated[FiniteFloat, Field(gt=0, lt=1)] = 0.18
