@@ -326,7 +326,8 @@ def test_default_job_flaps_in_the_imu_pitch_rate() -> None:
 
     cfg, _ = load_config(None)
     flap = cfg.trajectory.flapping
-    assert flap.frequency > 0 and flap.pitch > 0
+    assert flap.frequency > 0
+    assert flap.pitch > 0
     traj = TauTrajectory(base_link_trajectory(cfg.trajectory, cfg.vehicle), warn=False)
     imu = next(s for s in cfg.sensors if s.type == "imu")
     rate = float(imu.rate)

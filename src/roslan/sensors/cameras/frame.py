@@ -1,7 +1,8 @@
 """Frame and stereo cameras rendered with the shared OpenGL rasterizer.
 
 Every frame: the closed-form trajectory gives the body pose at the stamp (or at
-``exposure_samples`` instants spread over the exposure, averaged: motion blur);
+``exposure_samples`` instants spread over the shutter window, averaged per row: motion
+blur and rolling shutter, :mod:`.shutter`);
 ``T_world_optical = T_world_body @ T_body_sensor @ T_sensor_optical``; the renderer
 draws a pinhole view (larger than the image when the lens distorts: see
 :meth:`CameraModel.render_plan`) that ``cv2.remap`` turns into the distorted image.
@@ -14,7 +15,9 @@ Stereo: ``<topic>/left/...`` and ``<topic>/right/...`` in ``<frame>_left_optical
 ``<frame>_right_optical``; the right camera sits ``baseline`` metres along the left
 camera's optical x axis (its CameraInfo ``P[0, 3] = -fx * baseline``, ROS convention).
 
-Image stamps are the middle of the exposure.
+Image stamps are the middle of the shutter window (the middle row's exposure; global
+shutter: the middle of the exposure). With ``exposure_time`` > 0 each frame's exposure
+is written to ``exposures.txt`` next to ``images.txt``.
 
 Dataset files:
 
