@@ -270,3 +270,72 @@ def test_recorded_exposure_is_the_one_used(tmp_path: Path) -> None:
     assert auto[-1].mean() / 255.0 == pytest.approx(0.3, rel=0.15)
     fixed_ex = np.loadtxt(tmp_path / "exposures.txt")
     np.testing.assert_allclose(fixed_ex[:, 1], 0.004)
+
+
+class _Descent:
+    """A trajectory stand-in: the body (= camera link) looking straight down from
+    ``z0 - v t`` above the origin."""
+
+    def __init__(self, z0: float, v: float) -> None:
+        self.z0, self.v = z0, v
+
+    def state(self, t: np.ndarray) -> Any:
+        from types import SimpleNamespace
+
+        t = np.asarray(t, dtype=np.float64)
+        R = np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]])  # x forward -> down
+        pos = np.zeros((t.size, 3))
+        pos[:, 2] = self.z0 - self.v * t
+        return SimpleNamespace(R_world_body=np.tile(R, (t.size, 1, 1)), position=pos)
+
+
+def test_depth_camera_rows_see_their_own_instants() -> None:
+    """A depth camera descending onto a plane at 2 m/s with a 40 ms readout: the centre
+    column's depth in row r is the height at the instant of the render whose cell holds
+    the row's readout instant (8 renders), and a global shutter sees the stamp's height."""
+    from roslan.sensors.cameras import DepthCamera, DepthCameraConfig
+
+    scene = Scene(
+        "floor",
+        (
+            SceneObject(
+                "floor",
+                np.array([[-20, -20, 0], [20, -20, 0], [20, 20, 0], [-20, 20, 0]], np.float32),
+                np.tile(np.array([0, 0, 1], np.float32), (4, 1)),
+                np.zeros((4, 2), np.float32),
+                np.array([[0, 1, 2], [0, 2, 3]], np.int32),
+                Material(color=(0.5, 0.5, 0.5)),
+            ),
+        ),
+        Lights(),
+    )
+    z0, v, readout, n = 3.0, 2.0, 0.04, 8
+    keys = {"type": "depth_camera", "name": "d", "rate": 10.0, "topic": "/d"}
+    cam = DepthCamera(
+        DepthCameraConfig.model_validate(
+            keys | {"resolution": [40, 30], "fx": 30.0, "readout_time": readout}
+        )
+    )
+
+    class Ctx(_Ctx):
+        trajectory = _Descent(z0, v)
+
+    ctx = Ctx(gl.get_renderer(scene))
+    cam._plans(ctx)  # type: ignore[arg-type]
+    e = cam._eyes[0]
+    stamp = 100_000_000
+    z = cam.rolling_depth(ctx, ctx.renderer(), e, stamp)  # type: ignore[arg-type]
+    plan = shutter_plan(stamp, 0.0, readout, n, 30)
+    # the render instant of each row's cell, independently: the cell holding t_r
+    span = readout * 29 / 30
+    t_r = np.arange(30) * readout / 30  # after t_start
+    cell = np.minimum((t_r // (span / n)).astype(int), n - 1)
+    expected = z0 - v * plan.instants_ns[cell] * 1e-9
+    np.testing.assert_allclose(z[:, 20], expected, rtol=1e-4)
+    assert np.ptp(z[:, 20]) > 0.05  # the rows do differ
+    glob = DepthCamera(
+        DepthCameraConfig.model_validate(keys | {"resolution": [40, 30], "fx": 30.0})
+    )
+    glob._plans(ctx)  # type: ignore[arg-type]
+    zg = glob.rolling_depth(ctx, ctx.renderer(), glob._eyes[0], stamp)  # type: ignore[arg-type]
+    np.testing.assert_allclose(zg[:, 20], z0 - v * 0.1, rtol=1e-4)
