@@ -122,7 +122,7 @@ def _draw(p: ShutterPanels, out: Path) -> Path:
         h0, w0 = img.shape[:2]
         h1, w1 = events.shape[:2]
         width = 7.0
-        height = width * max(h0 / w0, h1 / w1) / 2.0 + 0.55
+        height = width * max(h0 / w0, h1 / w1) / 2.0 + 0.45
         fig = figure(width, height)
         ax = fig.add_subplot(1, 2, 1)
         ax.imshow(img, cmap="gray" if img.ndim == 2 else None, vmin=0, vmax=255)
