@@ -61,12 +61,12 @@ from roslan.sensors.cameras.config import CameraIntrinsics, intrinsics_model
 from roslan.sensors.cameras.encoding import encode_image, srgb_lut
 from roslan.sensors.cameras.model import T_LINK_OPTICAL, CameraModel, RenderPlan
 from roslan.sensors.cameras.shutter import (
-    METER_DOWNSCALE,
     AutoExposure,
     RollingShutterKeys,
     ShutterPlan,
     auto_exposure_sequence,
     meter_level,
+    meter_view,
     render_rolling,
     shutter_plan,
 )
@@ -453,21 +453,15 @@ class _ImagingCamera(CameraBase):
     def exposures(self, ctx: SimContext, stamps: NDArray[np.int64]) -> F64:
         """Exposure (s) of each frame: ``exposure_time``, or the auto-exposure sequence
         fixed up front by a metering pass (:mod:`.shutter`): the first eye's linear
-        luminance at each stamp, rendered at 1/:data:`METER_DOWNSCALE` resolution."""
+        luminance at each stamp over the central part of its view
+        (:func:`~.shutter.meter_view`)."""
         c = self.config
         ae = c.auto_exposure
         if ae is None or stamps.size == 0:
             return np.full(stamps.size, c.exposure_time)
         renderer = ctx.renderer()
         e = self._eyes[0]
-        p = e.plan
-        assert p is not None
-        w, h = max(1, p.width // METER_DOWNSCALE), max(1, p.height // METER_DOWNSCALE)
-        K = p.K.copy()
-        K[0] *= w / p.width
-        K[1] *= h / p.height
-        K[0, 2] += 0.5 * w / p.width - 0.5  # pixel centres at integer coordinates
-        K[1, 2] += 0.5 * h / p.height - 0.5
+        K, w, h = meter_view(e.model.K, e.model.width, e.model.height)
         T_opt = pose_matrices(ctx, stamps) @ self._T_body_sensor @ e.T_sensor_optical
         scale = c.gain / c.exposure_time
 
