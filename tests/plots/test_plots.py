@@ -597,3 +597,45 @@ def test_bad_trajectory_csv_is_a_clear_error(tmp_path: Path) -> None:
     (tmp_path / "trajectory.csv").write_text("t,x\n0.0,1.0\n")
     with pytest.raises(PlotError, match=r"trajectory.csv: 2 columns"):
         plot_trajectory(tmp_path)
+
+
+def test_plot_shutter_window_and_events(tmp_path: Path) -> None:
+    """A frame camera (rolling shutter, per-frame exposures) beside the run's events: the
+    event panel holds exactly the events of the frame's shutter window, computed here from
+    events.txt, and the window is centred on the stamp."""
+    import cv2
+
+    from roslan.plots.shutter import plot_shutter, shutter_panels
+
+    out = write_synthetic_outdir(tmp_path / "run", events="txt")
+    (out / "cam" / "images").mkdir(parents=True)
+    stamps = np.arange(0.1, 1.0, 0.1)
+    exposures = 0.002 + 0.001 * np.arange(stamps.size)
+    lines = []
+    for i, t in enumerate(stamps):
+        cv2.imwrite(str(out / "cam" / "images" / f"{i:08d}.png"), np.full((24, 32), 90, np.uint8))
+        lines.append(f"{t:.9f} images/{i:08d}.png")
+    (out / "cam" / "images.txt").write_text("\n".join(lines) + "\n")
+    np.savetxt(out / "cam" / "exposures.txt", np.column_stack([stamps, exposures]), fmt="%.9f")
+    run = json.loads((out / "run.json").read_text())
+    run["config"]["sensors"].append(
+        {"type": "camera", "name": "cam", "rate": 10.0, "topic": "/cam", "readout_time": 0.03}
+    )
+    (out / "run.json").write_text(json.dumps(run))
+    p = shutter_panels(out, time=0.52)
+    assert p.stamp_ns == 500_000_000
+    assert p.exposure == pytest.approx(exposures[4])
+    span = 0.03 * 23 / 24 + exposures[4]
+    assert p.window[0] == pytest.approx(0.5e9 - span * 5e8, abs=1)
+    assert p.window[1] == pytest.approx(0.5e9 + span * 5e8, abs=1)
+    t = np.loadtxt(out / "events.txt", usecols=0)
+    t_ns = np.rint(t * 1e9)
+    expected = int(((t_ns >= p.window[0]) & (t_ns < p.window[1])).sum())
+    assert expected > 0
+    assert p.count == expected
+    assert p.image.shape[:2] == (24, 32)
+    png = plot_shutter(out)  # default frame: the largest pitch rate
+    _assert_figure(_png(png), 600, 200)
+    assert main(["plot", "shutter", str(out), "-o", str(tmp_path / "s.png")]) == 0
+    with pytest.raises(PlotError, match="no frame-camera images"):
+        shutter_panels(write_synthetic_outdir(tmp_path / "nocam", events="txt"))

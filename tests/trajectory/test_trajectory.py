@@ -313,3 +313,37 @@ def test_state_ns_matches_seconds() -> None:
     a = tr.state_ns(t_ns)
     b = tr.state(t_ns * 1e-9)
     np.testing.assert_array_equal(a.position, b.position)
+
+
+def test_default_job_flaps_in_the_imu_pitch_rate() -> None:
+    """The packaged default job flaps: the IMU's pitch rate (noise-free readings of its
+    mount plus the configured white gyro noise) has a spectral peak at the flapping
+    frequency at least 10x the spectrum around it (0.5 f .. 1.5 f, the peak's own +-1 Hz
+    excluded); its frame camera exposes for a positive time."""
+    from roslan.cli.simulate import load_config
+    from roslan.sensors.imu import imu_measurements
+    from roslan.vehicle import base_link_trajectory
+
+    cfg, _ = load_config(None)
+    flap = cfg.trajectory.flapping
+    assert flap.frequency > 0
+    assert flap.pitch > 0
+    traj = TauTrajectory(base_link_trajectory(cfg.trajectory, cfg.vehicle), warn=False)
+    imu = next(s for s in cfg.sensors if s.type == "imu")
+    rate = float(imu.rate)
+    t_ns = np.arange(0, int(traj.T * 1e9), int(1e9 / rate), dtype=np.int64)
+    _, gyro, _ = imu_measurements(traj, t_ns, imu.pose.matrix(), imu.gravity)
+    rng = np.random.default_rng(0)
+    sigma = imu.gyroscope_noise_density * np.sqrt(rate)  # discrete white-noise std
+    q = gyro[:, 1] + rng.normal(0.0, sigma, t_ns.size)  # pitch rate: the IMU's y axis
+    spec = np.abs(np.fft.rfft((q - q.mean()) * np.hanning(q.size)))
+    f = np.fft.rfftfreq(q.size, 1.0 / rate)
+    f0 = flap.frequency
+    near = np.abs(f - f0) <= 0.5
+    peak_f = f[near][np.argmax(spec[near])]
+    assert abs(peak_f - f0) <= 0.25
+    hood = (f >= 0.5 * f0) & (f <= 1.5 * f0) & (np.abs(f - f0) > 1.0)
+    assert spec[near].max() >= 10.0 * np.median(spec[hood])
+    assert spec[near].max() >= 10.0 * spec[hood].max() / 3.0  # no rival line nearby
+    cam = next(s for s in cfg.sensors if s.type == "camera")
+    assert cam.exposure_time > 0

@@ -12,7 +12,7 @@ from typing import Any
 
 from roslan.cli.common import add_outdir_command
 from roslan.errors import OutputError
-from roslan.plots import events, imu, lidar, overview, tau_family, trajectory
+from roslan.plots import events, imu, lidar, overview, shutter, tau_family, trajectory
 from roslan.rundir.readers import find_imu_files, missing_input
 
 __all__ = ["register"]
@@ -192,9 +192,34 @@ def _register_overview(sub: Any) -> None:
     p.set_defaults(func=_overview)
 
 
+def _shutter(args: argparse.Namespace) -> int:
+    print(shutter.plot_shutter(Path(args.outdir), args.output, time=args.time))
+    return 0
+
+
+def _register_shutter(sub: Any) -> None:
+    """Add ``shutter`` to the ``roslan plot`` subcommands."""
+    p = add_outdir_command(
+        sub,
+        "shutter",
+        "a frame-camera image (blur, rolling shutter) beside the events of its exposure",
+        shutter.__doc__,
+        "PNG to write (default OUTDIR/plots/shutter.png)",
+    )
+    p.add_argument(
+        "--time",
+        type=float,
+        default=None,
+        metavar="T",
+        help="the frame nearest T s (default: the largest pitch rate of the flight)",
+    )
+    p.set_defaults(func=_shutter)
+
+
 FIGURES = (
     _register_tau_family,
     _register_events,
+    _register_shutter,
     _register_trajectory,
     _register_lidar,
     _register_imu,

@@ -29,7 +29,13 @@ _ROOT_FILES: tuple[tuple[str, str], ...] = (
     (
         "images.txt",
         "`t path`: one frame per line, t in s since the trajectory start "
-        "(middle of the exposure), path relative to this folder (`images/NNNNNNNN.png`).",
+        "(middle of the shutter window: of the middle row's exposure), path relative to "
+        "this folder (`images/NNNNNNNN.png`).",
+    ),
+    (
+        "exposures.txt",
+        "`t exposure`: the exposure (s) of each frame of `images.txt` (same t), "
+        "auto-exposure's choice or the fixed `exposure_time`.",
     ),
     (
         "calib.txt",
@@ -147,7 +153,15 @@ def outdir_readme(outdir: Path, root_camera: str | None) -> str:
     for d in sorted(p for p in outdir.iterdir() if p.is_dir() and (p / "images.txt").is_file()):
         files = ", ".join(
             f"`{f}`"
-            for f in ("images.txt", "calib.txt", "events.txt", "events.h5", "depth.h5", "flow")
+            for f in (
+                "images.txt",
+                "exposures.txt",
+                "calib.txt",
+                "events.txt",
+                "events.h5",
+                "depth.h5",
+                "flow",
+            )
             if (d / f).exists()
         )
         lines.append(f"| `{d.name}/` | camera `{d.name}`: {files}, `images/` (as at the root) |")

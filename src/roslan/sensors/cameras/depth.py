@@ -19,6 +19,7 @@ from roslan.sensors.base import Message, SensorConfig, SimContext
 from roslan.sensors.cameras.config import CameraIntrinsics
 from roslan.sensors.cameras.frame import CameraBase, Eye, pose_matrices
 from roslan.sensors.cameras.model import T_LINK_OPTICAL
+from roslan.sensors.cameras.shutter import RollingShutterKeys, shutter_plan
 
 __all__ = ["DepthCamera", "DepthCameraConfig"]
 
@@ -29,8 +30,11 @@ Positive = Annotated[FiniteFloat, Field(gt=0)]
 NonNegative = Annotated[FiniteFloat, Field(ge=0)]
 
 
-class DepthCameraConfig(SensorConfig, CameraIntrinsics):
-    """``type: depth_camera``: 32FC1 z-depth in metres, NaN where nothing is measured (REP 118)."""
+class DepthCameraConfig(SensorConfig, CameraIntrinsics, RollingShutterKeys):
+    """``type: depth_camera``: 32FC1 z-depth in metres, NaN where nothing is measured (REP 118).
+
+    With ``readout_time`` > 0 (a rolling shutter) ``readout_samples`` renders spread over
+    the readout, each row taking the depth of the render nearest its instant."""
 
     type: Literal["depth_camera"] = "depth_camera"
     min_range: NonNegative = 0.0
@@ -43,9 +47,12 @@ class DepthCameraConfig(SensorConfig, CameraIntrinsics):
     """Extra noise standard deviation per m^2 of depth (structured-light/stereo-like)."""
     write_images: bool = True
     """Write ``depth/<name>/NNNNNNNN.png`` (16-bit mm) and ``depth_<name>.txt``."""
+    readout_samples: Annotated[int, Field(ge=1, le=64)] = 8
+    """Renders per frame over the rolling shutter's readout (unused without one)."""
 
     @model_validator(mode="after")
     def _ranges(self) -> DepthCameraConfig:
+        self._check_readout(self.rate)
         if self.max_range is not None and self.max_range <= self.min_range:
             msg = f"max_range = {self.max_range}: must be greater than min_range = {self.min_range}"
             raise ValueError(msg)
@@ -127,6 +134,21 @@ class DepthCamera(CameraBase):
             out: F32 = np.reciprocal(lin)
         return out
 
+    def rolling_depth(self, ctx: SimContext, renderer: FrameRenderer, e: Eye, t_ns: int) -> F32:
+        """The depth frame stamped ``t_ns``: one render at the stamp (global shutter),
+        else each row from the render whose cell holds its instant (:mod:`.shutter`)."""
+        c = self.config
+        plan = shutter_plan(t_ns, 0.0, c.readout_time, c.readout_samples, e.model.height)
+        T_wb = pose_matrices(ctx, plan.instants_ns)
+        if plan.global_shutter:
+            return self.render_depth(renderer, e, T_wb[0])
+        z = np.empty((e.model.height, e.model.width), dtype=np.float32)
+        for k, T in enumerate(T_wb):
+            r0, r1 = (int(v) for v in plan.rows[k])
+            if r1 > r0:
+                z[r0:r1] = self.render_depth(renderer, e, T)[r0:r1]
+        return z
+
     def messages(self, ctx: SimContext) -> Iterator[Message]:
         c = self.config
         rng = ctx.rng(f"depth_camera/{c.name}")
@@ -135,8 +157,7 @@ class DepthCamera(CameraBase):
         if c.write_images:
             self._open_index(ctx, e, "depth")
         for i, t in enumerate(self._stamps(ctx).tolist()):
-            T_wb = pose_matrices(ctx, np.array([t], dtype=np.int64))[0]
-            z = self.render_depth(renderer, e, T_wb)
+            z = self.rolling_depth(ctx, renderer, e, t)
             if c.noise_std > 0 or c.noise_quadratic > 0:
                 sigma = c.noise_std + c.noise_quadratic * np.where(np.isfinite(z), z, 0.0) ** 2
                 z = (z + rng.normal(0.0, 1.0, size=z.shape) * sigma).astype(np.float32)

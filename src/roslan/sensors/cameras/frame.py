@@ -1,7 +1,8 @@
 """Frame and stereo cameras rendered with the shared OpenGL rasterizer.
 
 Every frame: the closed-form trajectory gives the body pose at the stamp (or at
-``exposure_samples`` instants spread over the exposure, averaged: motion blur);
+``exposure_samples`` instants spread over the shutter window, averaged per row: motion
+blur and rolling shutter, :mod:`.shutter`);
 ``T_world_optical = T_world_body @ T_body_sensor @ T_sensor_optical``; the renderer
 draws a pinhole view (larger than the image when the lens distorts: see
 :meth:`CameraModel.render_plan`) that ``cv2.remap`` turns into the distorted image.
@@ -14,7 +15,9 @@ Stereo: ``<topic>/left/...`` and ``<topic>/right/...`` in ``<frame>_left_optical
 ``<frame>_right_optical``; the right camera sits ``baseline`` metres along the left
 camera's optical x axis (its CameraInfo ``P[0, 3] = -fx * baseline``, ROS convention).
 
-Image stamps are the middle of the exposure.
+Image stamps are the middle of the shutter window (the middle row's exposure; global
+shutter: the middle of the exposure). With ``exposure_time`` > 0 each frame's exposure
+is written to ``exposures.txt`` next to ``images.txt``.
 
 Dataset files:
 
@@ -57,6 +60,16 @@ from roslan.sensors.cameras.calibration import CalibCamera, load_calibration
 from roslan.sensors.cameras.config import CameraIntrinsics, intrinsics_model
 from roslan.sensors.cameras.encoding import encode_image, srgb_lut
 from roslan.sensors.cameras.model import T_LINK_OPTICAL, CameraModel, RenderPlan
+from roslan.sensors.cameras.shutter import (
+    AutoExposure,
+    RollingShutterKeys,
+    ShutterPlan,
+    auto_exposure_sequence,
+    meter_level,
+    meter_view,
+    render_rolling,
+    shutter_plan,
+)
 
 __all__ = [
     "Camera",
@@ -80,13 +93,19 @@ NonNegative = Annotated[FiniteFloat, Field(ge=0)]
 
 
 # --------------------------------------------------------------------- configs
-class _ImagingConfig(SensorConfig, CameraIntrinsics):
+class _ImagingConfig(SensorConfig, CameraIntrinsics, RollingShutterKeys):
     """Keys shared by the colour cameras."""
 
     encoding: Literal["mono8", "rgb8", "bgr8"] = "rgb8"
     exposure_time: NonNegative = 0.0
-    """Exposure (s); > 0 averages ``exposure_samples`` renders over it (motion blur)."""
+    """Exposure (s); > 0 averages ``exposure_samples`` renders over it (motion blur).
+    With ``auto_exposure``: the initial exposure, and the one at which ``gain`` maps the
+    radiance 1:1 (an exposure ``E`` scales the image by ``E / exposure_time``)."""
     exposure_samples: Annotated[int, Field(ge=1, le=64)] = 8
+    """Renders per frame, spread over the shutter window (exposure plus readout)."""
+    auto_exposure: AutoExposure | None = None
+    """Auto-exposure (:class:`~roslan.sensors.cameras.shutter.AutoExposure`); each
+    frame's exposure is written to ``exposures.txt`` next to ``images.txt``."""
     gain: NonNegative = 1.0
     """Multiplies the linear radiance before noise and encoding."""
     gamma: Literal["srgb"] | Positive = "srgb"
@@ -102,6 +121,30 @@ class _ImagingConfig(SensorConfig, CameraIntrinsics):
     camera's (1 = the image centre's sampling density everywhere: sharpest, 1.59x the
     pixels of a 640x480 k1 = -0.2 lens); None = as many render pixels as output pixels
     (:meth:`CameraModel.render_plan`). Ignored for pinhole cameras."""
+
+    @model_validator(mode="after")
+    def _shutter(self) -> _ImagingConfig:
+        self._check_readout(self.rate)
+        ae = self.auto_exposure
+        if ae is not None:
+            if self.exposure_time <= 0:
+                msg = (
+                    f"exposure_time = {self.exposure_time}: auto_exposure needs an initial "
+                    "exposure > 0 (s), the one at which gain maps the radiance 1:1"
+                )
+                raise ValueError(msg)
+            if ae.max_exposure > 1.0 / self.rate:
+                msg = (
+                    f"auto_exposure.max_exposure = {ae.max_exposure}: must not exceed the "
+                    f"frame period 1 / rate = {1.0 / self.rate:.6g} s"
+                )
+                raise ValueError(msg)
+        return self
+
+    def max_exposure(self) -> float:
+        """The longest exposure a frame may get (s)."""
+        ae = self.auto_exposure
+        return self.exposure_time if ae is None else ae.max_exposure
 
 
 class CameraConfig(_ImagingConfig):
@@ -186,6 +229,7 @@ class Eye:
     plan: RenderPlan | None = None
     files: str = ""  # PNG folder: images, <name>/images or depth/<name>
     index_fh: IO[str] | None = None
+    exposure_fh: IO[str] | None = None  # exposures.txt: t exposure
     scratch: dict[str, F32] = field(default_factory=dict)  # per-frame float buffers
 
     def buffer(self, key: str, shape: tuple[int, ...]) -> F32:
@@ -251,16 +295,23 @@ class CameraBase:
         return renderer
 
     def _stamps(self, ctx: SimContext) -> NDArray[np.int64]:
-        """Image stamps every ``1 / rate`` from 0 whose whole exposure lies within the
-        run (the ground truth covers every rendered instant)."""
+        """Image stamps every ``1 / rate`` from 0 whose every rendered instant (the
+        longest shutter window's) lies within the run (the ground truth covers them)."""
         end = int(ctx.trajectory.duration_ns)
         stamps = sample_times_ns(self.config.rate, end)
-        sub = getattr(self, "_sub_times", None)
-        if sub is None or stamps.size == 0:
+        offs = self._window_offsets()
+        if stamps.size == 0:
             return stamps
-        offs = sub(0)
         keep = (stamps + int(offs.min()) >= 0) & (stamps + int(offs.max()) <= end)
         return stamps[keep]
+
+    def _window_offsets(self) -> NDArray[np.int64]:
+        """Render instants of the longest shutter window, relative to the stamp (ns)."""
+        c = self.config
+        exposure = c.max_exposure() if hasattr(c, "max_exposure") else 0.0
+        samples = int(getattr(c, "exposure_samples", getattr(c, "readout_samples", 1)))
+        height = self._eyes[0].model.height
+        return shutter_plan(0, exposure, c.readout_time, samples, height).instants_ns
 
     def _open_index(self, ctx: SimContext, e: Eye, kind: str) -> None:
         if kind == "depth":
@@ -273,6 +324,10 @@ class CameraBase:
         folder = camera_folder(ctx.root_camera, name)  # '' at the OUTDIR root, else '<name>/'
         e.files = f"{folder}images"
         e.index_fh = ctx.path(f"{folder}images.txt").open("w", encoding="utf-8", newline="\n")
+        if getattr(self.config, "exposure_time", 0.0) > 0:
+            e.exposure_fh = ctx.path(f"{folder}exposures.txt").open(
+                "w", encoding="utf-8", newline="\n"
+            )
 
     def _write_png(self, ctx: SimContext, e: Eye, index: int, t_ns: int, img: NDArray[Any]) -> None:
         rel = f"{e.files}/{index:08d}.png"
@@ -286,8 +341,9 @@ class CameraBase:
 
     def close(self, ctx: SimContext) -> None:
         for e in self._eyes:
-            if e.index_fh is not None and not e.index_fh.closed:
-                e.index_fh.close()
+            for fh in (e.index_fh, e.exposure_fh):
+                if fh is not None and not fh.closed:
+                    fh.close()
 
     def _messages(
         self, ctx: SimContext, t_ns: int, seq: int, e: Eye, data: NDArray[Any], encoding: str
@@ -315,24 +371,35 @@ class _ImagingCamera(CameraBase):
     def _init_imaging(self) -> None:
         self._lut = srgb_lut(self.config.gamma)
 
-    def _sub_times(self, t_ns: int) -> NDArray[np.int64]:
-        c = self.config
-        if c.exposure_time <= 0:
-            return np.array([t_ns], dtype=np.int64)
-        n = c.exposure_samples
-        exp_ns = c.exposure_time * 1e9
-        offs = ((np.arange(n) + 0.5) / n - 0.5) * exp_ns
-        return (t_ns + np.round(offs)).astype(np.int64)
-
-    def render_linear(self, renderer: FrameRenderer, e: Eye, T_world_body: F64) -> F32:
+    def render_linear(
+        self,
+        renderer: FrameRenderer,
+        e: Eye,
+        T_world_body: F64,
+        shutter: ShutterPlan | None = None,
+    ) -> F32:
         """Linear radiance of eye ``e`` averaged over the body poses (N, 4, 4): (H, W, 3),
         or (H, W) Rec. 709 luminance for ``mono8`` (the renderer's one-channel path).
+        With a rolling ``shutter`` (N renders at its instants), each row averages the
+        poses with its own weights, rendering only the rows each pose serves.
 
         The array is one of ``e``'s work buffers: valid (and modifiable) until the next
         call for ``e``."""
         p = e.plan
         assert p is not None
         mono = self.config.encoding == "mono8"
+        if shutter is not None and not shutter.global_shutter:
+            T_opt = T_world_body @ self._T_body_sensor @ e.T_sensor_optical
+            out_shape = (e.model.height, e.model.width, *(() if mono else (3,)))
+            return render_rolling(
+                renderer,
+                p,
+                T_opt,
+                shutter,
+                e.buffer("rolling", out_shape),
+                mono,
+                self.config.near_clip,
+            )
         shape = (p.height, p.width) if mono else (p.height, p.width, 3)
         acc = e.buffer("render", shape)
         for i, T_wb in enumerate(T_world_body):
@@ -362,13 +429,16 @@ class _ImagingCamera(CameraBase):
         cv2.remap(acc, p.map1, p.map2, cv2.INTER_LINEAR, dst=out, borderMode=cv2.BORDER_REPLICATE)
         return out
 
-    def finish_image(self, lin: F32, rng: np.random.Generator) -> U8:
+    def finish_image(self, lin: F32, rng: np.random.Generator, exposure: float | None = None) -> U8:
         """Gain, noise and encoding of a linear image (H, W, 3) or luminance (H, W) ->
-        uint8 (H, W[, 3])."""
+        uint8 (H, W[, 3]). With auto-exposure, ``exposure`` (s) scales the radiance by
+        ``exposure / exposure_time``."""
         c = self.config
         if c.encoding == "mono8" and lin.ndim == 3:
             lin = lin @ _LUMA
         gain = c.gain
+        if exposure is not None and c.auto_exposure is not None:
+            gain *= exposure / c.exposure_time
         noisy = c.full_well is not None or c.noise_std > 0
         if noisy and gain != 1.0:
             lin *= np.float32(gain)  # before the noise
@@ -381,17 +451,54 @@ class _ImagingCamera(CameraBase):
         # gain (noise-free), clip, sRGB/gamma codes and bgr order in one pass
         return encode_image(lin, self._lut, gain=gain, reverse=c.encoding == "bgr8")
 
+    def exposures(self, ctx: SimContext, stamps: NDArray[np.int64]) -> F64:
+        """Exposure (s) of each frame: ``exposure_time``, or the auto-exposure sequence
+        fixed up front by a metering pass (:mod:`.shutter`): the first eye's linear
+        luminance at each stamp over the central part of its view
+        (:func:`~.shutter.meter_view`)."""
+        c = self.config
+        ae = c.auto_exposure
+        if ae is None or stamps.size == 0:
+            return np.full(stamps.size, c.exposure_time)
+        renderer = ctx.renderer()
+        e = self._eyes[0]
+        K, w, h = meter_view(e.model.K, e.model.width, e.model.height)
+        T_opt = pose_matrices(ctx, stamps) @ self._T_body_sensor @ e.T_sensor_optical
+        scale = c.gain / c.exposure_time
+
+        def meter(k: int, exposure: float) -> float:
+            res = renderer.render(
+                T_opt[k], K, w, h, color=False, depth=False, luminance=True, near=c.near_clip
+            )
+            assert res.luminance is not None
+            return meter_level(res.luminance, scale * exposure)
+
+        return auto_exposure_sequence(meter, int(stamps.size), c.exposure_time, ae, c.rate)
+
+    def eye_poses(
+        self, ctx: SimContext, e: Eye, t_ns: int, exposure: float
+    ) -> tuple[ShutterPlan, F64]:
+        """The shutter plan of eye ``e``'s frame stamped ``t_ns`` and the body poses
+        (N, 4, 4) at its render instants."""
+        c = self.config
+        plan = shutter_plan(t_ns, exposure, c.readout_time, c.exposure_samples, e.model.height)
+        return plan, pose_matrices(ctx, plan.instants_ns)
+
     def _stream(
-        self, ctx: SimContext, per_frame: Callable[[int, int, Any, F64], list[Message]]
+        self, ctx: SimContext, per_frame: Callable[[int, int, Any, float], list[Message]]
     ) -> Iterator[Message]:
         renderer = self._plans(ctx)
         stamps = self._stamps(ctx)
+        exposures = self.exposures(ctx, stamps)
         if self.config.write_images:
             for e in self._eyes:
                 self._open_index(ctx, e, "image")
         for i, t in enumerate(stamps.tolist()):
-            T_wb = pose_matrices(ctx, self._sub_times(t))
-            yield from per_frame(i, t, renderer, T_wb)
+            exposure = float(exposures[i])
+            for e in self._eyes:
+                if e.exposure_fh is not None:
+                    e.exposure_fh.write(f"{format_seconds(np.array([t]))[0]} {exposure:.9f}\n")
+            yield from per_frame(i, t, renderer, exposure)
 
 
 class Camera(_ImagingCamera):
@@ -409,8 +516,10 @@ class Camera(_ImagingCamera):
         e = self._eyes[0]
         enc = self.config.encoding
 
-        def frame(i: int, t: int, renderer: FrameRenderer, T_wb: F64) -> list[Message]:
-            img = self.finish_image(self.render_linear(renderer, e, T_wb), rng)
+        def frame(i: int, t: int, renderer: FrameRenderer, exposure: float) -> list[Message]:
+            plan, T_wb = self.eye_poses(ctx, e, t, exposure)
+            lin = self.render_linear(renderer, e, T_wb, plan)
+            img = self.finish_image(lin, rng, exposure)
             if self.config.write_images:
                 self._write_png(ctx, e, i, t, img)
             return self._messages(ctx, t, i, e, img, enc)
@@ -452,10 +561,12 @@ class StereoCamera(_ImagingCamera):
         rng = ctx.rng(f"stereo_camera/{self.config.name}")
         enc = self.config.encoding
 
-        def frame(i: int, t: int, renderer: FrameRenderer, T_wb: F64) -> list[Message]:
+        def frame(i: int, t: int, renderer: FrameRenderer, exposure: float) -> list[Message]:
             out: list[Message] = []
             for e in self._eyes:
-                img = self.finish_image(self.render_linear(renderer, e, T_wb), rng)
+                plan, T_wb = self.eye_poses(ctx, e, t, exposure)
+                lin = self.render_linear(renderer, e, T_wb, plan)
+                img = self.finish_image(lin, rng, exposure)
                 if self.config.write_images:
                     self._write_png(ctx, e, i, t, img)
                 out += self._messages(ctx, t, i, e, img, enc)
