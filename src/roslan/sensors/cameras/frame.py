@@ -399,6 +399,7 @@ class _ImagingCamera(CameraBase):
                 e.buffer("rolling", out_shape),
                 mono,
                 self.config.near_clip,
+                self.config.supersampling,
             )
         shape = (p.height, p.width) if mono else (p.height, p.width, 3)
         acc = e.buffer("render", shape)

@@ -254,6 +254,7 @@ def render_rolling(
     out: F32,
     mono: bool,
     near: float,
+    supersampling: int = 1,
 ) -> F32:
     """A rolling-shutter frame into ``out`` ((H, W) luminance or (H, W, 3) linear RGB at
     the output size): render ``k`` (optical pose ``T_world_optical[k]``) covers only the
@@ -265,7 +266,7 @@ def render_rolling(
         r0, r1 = (int(v) for v in shutter.rows[k])
         if r1 <= r0:
             continue
-        band = _render_band(renderer, plan, T, r0, r1, mono, near)
+        band = _render_band(renderer, plan, T, r0, r1, mono, near, supersampling)
         w = shutter.weights[r0:r1, k]
         out[r0:r1] += band * (w[:, None] if mono else w[:, None, None])
     return out
@@ -279,6 +280,7 @@ def _render_band(
     r1: int,
     mono: bool,
     near: float,
+    supersampling: int = 1,
 ) -> F32:
     """Output rows ``[r0, r1)`` of the view from optical pose ``T``: a band of the virtual
     pinhole render (principal point moved up by the band's first row), remapped."""
@@ -290,7 +292,15 @@ def _render_band(
     K = plan.K.copy()
     K[1, 2] -= a
     res = renderer.render(
-        T, K, plan.width, b - a, color=not mono, depth=False, luminance=mono, near=near
+        T,
+        K,
+        plan.width,
+        b - a,
+        color=not mono,
+        depth=False,
+        luminance=mono,
+        near=near,
+        supersampling=supersampling,
     )
     img = res.luminance if mono else res.color
     assert img is not None
