@@ -13,7 +13,8 @@ import re
 import reprlib
 import types
 import typing
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Annotated, Any, Literal, TypeVar, Union, get_args, get_origin
 
@@ -31,6 +32,7 @@ from roslan.errors import ConfigError
 
 __all__ = [
     "FiniteFloat",
+    "ModelFor",
     "Pose",
     "StrictModel",
     "Vec3",
@@ -159,12 +161,27 @@ def _closest(word: Any, allowed: list[str]) -> str:
     return "; did you mean " + " or ".join(repr(c) for c in close) + "?"
 
 
+@dataclass(frozen=True)
+class ModelFor:
+    """``Annotated`` metadata of a field whose mappings validate with a model chosen by
+    their content (a sensor's config class by its ``type``): ``resolve(mapping)`` returns
+    that model or None. Error messages use it to list the keys the right model allows."""
+
+    resolve: Callable[[Mapping[str, Any]], type[BaseModel] | None]
+
+
 def _model_of(annotation: Any, data: Any) -> type[BaseModel] | None:
     """The pydantic model a field annotation validates ``data`` with (Optional, lists,
-    Annotated unwrapped; a sensor mapping resolves to its type's config class)."""
+    Annotated unwrapped; a mapping under :class:`ModelFor` resolves to its model)."""
     origin = typing.get_origin(annotation)
     if origin is Annotated:
-        return _model_of(typing.get_args(annotation)[0], data)
+        base, *meta = typing.get_args(annotation)
+        for m in meta:
+            if isinstance(m, ModelFor) and isinstance(data, Mapping):
+                found = m.resolve(data)
+                if found is not None:
+                    return found
+        return _model_of(base, data)
     if origin in (typing.Union, types.UnionType):
         for arg in typing.get_args(annotation):
             found = _model_of(arg, data)
@@ -172,10 +189,6 @@ def _model_of(annotation: Any, data: Any) -> type[BaseModel] | None:
                 return found
         return None
     if isinstance(annotation, type) and issubclass(annotation, BaseModel):
-        resolve = getattr(annotation, "config_class_for", None)
-        if resolve is not None and isinstance(data, Mapping):
-            sub: type[BaseModel] | None = resolve(data)
-            return sub or annotation
         return annotation
     return None
 

@@ -15,10 +15,10 @@ from pydantic import (
     model_validator,
 )
 
-from roslan.config.base import FiniteFloat, StrictModel
+from roslan.config.base import FiniteFloat, ModelFor, StrictModel
 from roslan.limits import MAX_RATE_HZ, MAX_SEED
 from roslan.sensors.base import SensorConfig
-from roslan.sensors.registry import SENSOR_TYPES, config_class
+from roslan.sensors.registry import SENSOR_TYPES, config_class, config_class_for
 from roslan.trajectory.config import TrajectoryConfig
 from roslan.vehicle import VehicleConfig
 
@@ -90,7 +90,11 @@ class SimConfig(StrictModel):
     trajectory: TrajectoryConfig = TrajectoryConfig()
     scene: str | None = None
     """A built-in scene name (``warehouse``, ``refinery``, ``empty``) or a scene YAML path."""
-    sensors: list[Annotated[SerializeAsAny[SensorConfig], BeforeValidator(_sensor)]] = Field(
+    sensors: list[
+        Annotated[
+            SerializeAsAny[SensorConfig], BeforeValidator(_sensor), ModelFor(config_class_for)
+        ]
+    ] = Field(
         default_factory=list
     )
     seed: Annotated[int, Field(ge=0, le=MAX_SEED)] = 0

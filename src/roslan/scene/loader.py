@@ -279,7 +279,7 @@ def _object(spec: ObjectSpec, i: int, base: Path, allow: bool, src: str) -> Scen
         return m.place(spec.name, local, mat, T, spec.scale, source=spec.mesh)
     assert spec.primitive is not None
     mat = _material(spec.material, spec.name, base, allow, where, None)
-    return m.place(
+    obj = m.place(
         spec.name,
         primitive_mesh(spec.primitive),
         mat,
@@ -287,6 +287,32 @@ def _object(spec: ObjectSpec, i: int, base: Path, allow: bool, src: str) -> Scen
         spec.scale,
         source=f"primitive:{spec.primitive.type}",
     )
+    _check_not_degenerate(obj, spec, where)
+    return obj
+
+
+def _check_not_degenerate(obj: SceneObject, spec: ObjectSpec, where: str) -> None:
+    """Every primitive's triangles must keep a non-zero area once placed in the world in
+    float32 (a dimension x scale too small for the object's distance from the origin
+    collapses them; the dimensions alone are bounded by MIN_SIZE_M in the spec)."""
+    v = obj.vertices.astype(np.float64)
+    f = obj.faces
+    area2 = np.linalg.norm(np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]]), axis=1)
+    n_zero = int(np.count_nonzero(area2 == 0.0))
+    if n_zero == 0:
+        return
+    assert spec.primitive is not None
+    dims = spec.primitive.model_dump(exclude={"type", "segments"})
+    shown = ", ".join(f"{k} {v!r}" for k, v in dims.items())
+    reach = float(np.abs(obj.vertices).max(initial=0.0))
+    least = float(np.spacing(np.float32(max(reach, 1.0)))) * 1e3
+    msg = (
+        f"{where}.primitive = {{type: {spec.primitive.type}, {shown}}} with scale "
+        f"{list(spec.scale)}: {n_zero} of its {f.shape[0]} triangles have zero area in "
+        f"float32 at {reach:.6g} m from the origin; allowed: every dimension x scale at "
+        f"least {least:.3g} m there"
+    )
+    raise SceneError(msg)
 
 
 def build_scene(
