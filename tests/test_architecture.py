@@ -1,7 +1,7 @@
 """The layout rules of the README's "Architecture" section, checked on the source tree:
-no import cycles between modules (deferred imports inside functions included), no module over 600 lines, no function over 120 lines,
-every package re-exports its public names with ``__all__``, and no reference to a file
-outside the repository."""
+no import cycles between modules (deferred imports inside functions included), no module
+over 600 lines, no function over 120 lines, every package re-exports its public names
+with ``__all__``, and no reference to a file outside the repository."""
 
 from __future__ import annotations
 

@@ -69,9 +69,19 @@ def _run(args: argparse.Namespace, config: SimConfig, path: Path | None) -> int:
     from roslan.pipeline import run_simulation
 
     formats = bag_formats(args.format)
-    if args.dry_run:
+    if args.dry_run:  # the run's own checks, nothing written, then the estimate
         from roslan.cli.dryrun import print_run_estimate
+        from roslan.pipeline import check_run
 
+        check_run(
+            config,
+            args.outdir,
+            overwrite=args.overwrite,
+            formats=formats,
+            config_path=path,
+            allow_collision=args.allow_collision,
+            workers=args.workers,
+        )
         return print_run_estimate(config, args.outdir, formats)
     run = run_simulation(
         config,
@@ -124,7 +134,8 @@ def register(subparsers: Any) -> None:
     p.add_argument(
         "--dry-run",
         action="store_true",
-        help="print the estimated disk use and run time, simulate nothing",
+        help="make every check of the run (config, OUTDIR, free space, scene, clearance) "
+        "and print the estimated disk use and run time; simulate and write nothing",
     )
     p.add_argument(
         "--workers",

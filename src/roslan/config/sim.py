@@ -94,9 +94,7 @@ class SimConfig(StrictModel):
         Annotated[
             SerializeAsAny[SensorConfig], BeforeValidator(_sensor), ModelFor(config_class_for)
         ]
-    ] = Field(
-        default_factory=list
-    )
+    ] = Field(default_factory=list)
     seed: Annotated[int, Field(ge=0, le=MAX_SEED)] = 0
     vehicle: VehicleConfig = VehicleConfig()
     """Body shape and contact points in base_link (:mod:`roslan.vehicle`)."""
