@@ -13,6 +13,7 @@ import re
 import reprlib
 import types
 import typing
+import warnings
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -28,13 +29,17 @@ from pydantic import (
     model_validator,
 )
 
+from roslan.config.units import RADIANS, unit_slips
 from roslan.errors import ConfigError
 
 __all__ = [
+    "Angle",
+    "Angles3",
     "FiniteFloat",
     "ModelFor",
     "Pose",
     "StrictModel",
+    "UnitWarning",
     "Vec3",
     "allowed_keys",
     "format_validation_error",
@@ -62,6 +67,10 @@ MAX_COORD = 1e6
 Coord = Annotated[FiniteFloat, Field(ge=-MAX_COORD, le=MAX_COORD)]
 Vec3 = tuple[Coord, Coord, Coord]
 """Three finite floats within +-1e6, e.g. a position in metres or roll/pitch/yaw in radians."""
+Angles3 = Annotated[Vec3, RADIANS]
+"""Three angles in radians (roll, pitch, yaw): beyond +-2 pi is warned as a unit slip."""
+Angle = Annotated[FiniteFloat, RADIANS]
+"""An angle in radians: beyond +-2 pi is warned as a unit slip."""
 
 
 def _leaves(ann: Any) -> list[Any]:
@@ -126,7 +135,7 @@ class Pose(StrictModel):
     """A rigid pose: position (m) and roll/pitch/yaw (rad), R = Rz(yaw) Ry(pitch) Rx(roll)."""
 
     position: Vec3 = (0.0, 0.0, 0.0)
-    rpy: Vec3 = (0.0, 0.0, 0.0)
+    rpy: Angles3 = (0.0, 0.0, 0.0)
 
     def matrix(self) -> np.ndarray:
         """4x4 homogeneous transform ``T_parent_child`` (float64)."""
@@ -314,10 +323,18 @@ def validate_model(
         msg = f"{where}: expected a mapping of keys at the top level, got {type(data).__name__}"
         raise ConfigError(msg)
     try:
-        return model.model_validate(data, context=dict(context or {}))
+        validated = model.model_validate(data, context=dict(context or {}))
     except ValidationError as err:
         text = format_validation_error(err, source, model=model, data=data)
         raise ConfigError(text) from None
+    where = source or "<config>"
+    for slip in unit_slips(validated):
+        warnings.warn(f"{where}: {slip}", UnitWarning, stacklevel=2)
+    return validated
+
+
+class UnitWarning(UserWarning):
+    """A valid value that is probably in the wrong unit (e.g. degrees for radians)."""
 
 
 def load_yaml_model(model: type[M], path: str | Path) -> M:
