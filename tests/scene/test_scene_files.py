@@ -439,3 +439,23 @@ def test_preview_renders_the_goal_at_the_centre_of_the_approach_view(
         pv.write_preview(scene, png, dpi=40)
     with Image.open(png) as im:
         assert im.size == (9 * 40, 7 * 40)
+
+
+def test_object_rpy_in_degrees_warned_by_key(folder: Path) -> None:
+    """A pose's rpy beyond +-2 pi (45 meant as degrees) loads but warns, naming the file
+    and the key; a radian rpy does not warn."""
+    from roslan.config.base import UnitWarning
+
+    d = _with(5, pose={"position": [0, -3, 2], "rpy": [0.0, 0.0, 45.0]})
+    path = _write(folder / "deg.yaml", d)
+    with pytest.warns(UnitWarning) as rec:
+        load_scene(str(path))
+    assert [str(w.message) for w in rec] == [
+        f"{path}: objects[5].pose.rpy = [0, 0, 45]: beyond +-2 pi; angles are in radians "
+        "(if 45 means degrees, write 0.7854)"
+    ]
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", UnitWarning)
+        load_scene(str(_write(folder / "rad.yaml", _doc())))

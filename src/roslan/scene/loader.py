@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import re
+import warnings
 from collections.abc import Callable
 from functools import lru_cache
 from pathlib import Path
@@ -12,7 +13,8 @@ import numpy as np
 from numpy.typing import NDArray
 from pydantic import ValidationError
 
-from roslan.config.base import format_validation_error, load_yaml
+from roslan.config.base import UnitWarning, format_validation_error, load_yaml
+from roslan.config.units import unit_slips
 from roslan.errors import ConfigError, SceneError
 from roslan.scene import mesh as m
 from roslan.scene.model import Lights, Material, Scene, SceneObject
@@ -95,7 +97,7 @@ def parse_scene_file(path: Path) -> SceneFile:
         )
         raise SceneError(msg)
     try:
-        return SceneFile.model_validate(data)
+        spec = SceneFile.model_validate(data)
     except ValidationError as err:
         text = format_validation_error(err, path, model=SceneFile, data=data)
         objs = data.get("objects")
@@ -112,6 +114,9 @@ def parse_scene_file(path: Path) -> SceneFile:
             return mt.group(0)
 
         raise SceneError(_OBJ_RE.sub(_named, text)) from None
+    for slip in unit_slips(spec):  # probable degrees in a pose's rpy
+        warnings.warn(f"{path}: {slip}", UnitWarning, stacklevel=2)
+    return spec
 
 
 def _resolve(raw: str, base: Path, allow: bool, where: str) -> Path:
