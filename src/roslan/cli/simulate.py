@@ -1,4 +1,5 @@
-"""``roslan simulate [CONFIG] -o OUTDIR``: run a simulation job into an output folder."""
+"""``roslan simulate [CONFIG] -o OUTDIR``: run a simulation job into an output folder
+(``-o``/``--output`` like every command; ``--outdir`` is kept as an alias)."""
 
 from __future__ import annotations
 
@@ -116,7 +117,14 @@ def register(subparsers: Any) -> None:
     )
     p.add_argument("config", nargs="?", type=Path, default=None, metavar="CONFIG", help="job YAML")
     p.add_argument(
-        "-o", "--outdir", type=Path, required=True, metavar="OUTDIR", help="output folder"
+        "-o",
+        "--output",
+        "--outdir",  # the earlier spelling, kept so that scripts keep working
+        dest="outdir",
+        type=Path,
+        required=True,
+        metavar="OUTDIR",
+        help="output folder (-o/--output, as in every roslan command; --outdir also works)",
     )
     p.add_argument("--seed", type=seed_arg, default=None, help="override the config's seed (>= 0)")
     p.add_argument("--format", choices=FORMAT_CHOICES, default=None, help="bag format(s)")

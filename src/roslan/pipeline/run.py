@@ -367,10 +367,9 @@ class _Run:
             "setup_s": ticks["stream"] - ticks["setup"],
             "stream_s": stream_s,
             # real-time factor = simulation wall time / trajectory time (<= 1: faster
-            # than real time); speedup is its inverse.
+            # than real time)
             "real_time_factor": wall / duration,
             "stream_real_time_factor": stream_s / duration,
-            "speedup": duration / wall if wall > 0 else None,
             "workers": len(plan.groups),
             "worker_sensors": [[plan.sensors[i].config.name for i in g] for g in plan.groups],
         }
