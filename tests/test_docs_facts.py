@@ -5,7 +5,10 @@ every command."""
 from __future__ import annotations
 
 import argparse
+import os
 import re
+import shutil
+import subprocess
 from pathlib import Path
 
 import pytest
@@ -110,3 +113,54 @@ def test_simulate_accepts_output_and_the_old_outdir(flag: str) -> None:
 def test_readme_speed_name() -> None:
     assert "real-time factor" in README
     assert not re.search(r"\bspeedup\b|\bR = trajectory", README)
+
+
+def _make_n(target: str, venv: Path) -> str:
+    if shutil.which("make") is None:
+        pytest.skip("no make")
+    proc = subprocess.run(
+        ["make", "-n", target, f"VENV={venv}"], cwd=ROOT, capture_output=True, text=True,
+        check=True,
+    )  # fmt: skip
+    return proc.stdout
+
+
+def test_make_demo_installs_no_dev_extras_and_make_test_does(tmp_path: Path) -> None:
+    """From a fresh clone (no venv): the demo installs the runtime only, the tests the
+    dev extras too; once installed, ``make demo`` only simulates."""
+    venv = tmp_path / "venv"
+    demo, test = _make_n("demo", venv), _make_n("test", venv)
+    assert f"-m venv {venv}" in demo
+    assert "pip install -e .\n" in demo
+    assert "[dev]" not in demo
+    assert demo.strip().endswith("roslan simulate -o out --overwrite")
+    assert "pip install -e .\n" in test
+    assert "pip install -e '.[dev]'" in test
+    assert test.strip().endswith("pytest -n 2 tests")
+    (venv / "bin").mkdir(parents=True)
+    for name in ("bin/python", ".installed", ".installed-dev"):  # oldest first
+        (venv / name).touch()
+        stamp = (venv / name).stat().st_mtime_ns + 10**9
+        os.utime(venv / name, ns=(stamp, stamp))
+    assert "pip" not in _make_n("demo", venv)
+    assert "pip" not in _make_n("test", venv)
+
+
+def test_readme_install_facts() -> None:
+    """The Install section names the prerequisites .ci/run installs, how to reach roslan
+    afterwards, a runtime-only install and what ``make test`` costs."""
+    install = README.split("## Install", 1)[1].split("\n## ", 1)[0]
+    ci = (ROOT / ".ci" / "run").read_text(encoding="utf-8")
+    pkgs = re.search(r'SYS_PKGS="([^"]+)"', ci)
+    assert pkgs is not None
+    flat = " ".join(install.split())
+    for pkg in pkgs.group(1).split():
+        assert pkg in flat, pkg
+    for fact in ("Python >= 3.11", ".venv/bin/roslan --help", "source .venv/bin/activate",
+                 "python3 -m pip install .", "3-4 min", "pip install -e '.[dev]'"):  # fmt: skip
+        assert fact in install, fact
+    quick = README.split("## Quick start", 1)[1].split("```bash\n", 1)[1].split("```", 1)[0]
+    assert [ln.split("#")[0].strip() for ln in quick.splitlines()] == ["make demo", "make test"]
+    requires = re.search(r'requires-python = ">=([\d.]+)"', (ROOT / "pyproject.toml").read_text())
+    assert requires is not None
+    assert f"Python >= {requires.group(1)}" in install
