@@ -209,3 +209,18 @@ def test_unit_warning_is_one_cli_line(tmp_path: Path, capsys: pytest.CaptureFixt
         f"warning: {path}: trajectory.initial.rpy = [0, 20, 0]: beyond +-2 pi; angles are "
         "in radians (if 20 means degrees, write 0.3491)"
     ]
+
+
+def test_a_sweep_warns_a_unit_slip_once(tmp_path: Path, recwarn: pytest.WarningsRecorder) -> None:
+    """Every task of a sweep carries the base's slip: one warning for all of them."""
+    from roslan.batch.tasks import make_tasks
+
+    base = {"trajectory": {"initial": {"position": [-1.0, 0.5, 1.0], "rpy": [0, 20, 0],
+                                       "descent_rate": 1.0}}}  # fmt: skip
+    configs = [{**base, "seed": s} for s in range(3)]
+    tasks = make_tasks(configs, tmp_path, source="sweep.yaml")
+    assert all(t.error is None for t in tasks)
+    assert [str(w.message) for w in recwarn] == [
+        "sweep.yaml (3 tasks): trajectory.initial.rpy = [0, 20, 0]: beyond +-2 pi; angles "
+        "are in radians (if 20 means degrees, write 0.3491)"
+    ]

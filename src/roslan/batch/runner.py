@@ -13,13 +13,14 @@ import os
 import shutil
 import time
 import traceback
+import warnings
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 from roslan.batch.report import BatchJournal, BatchReport, TaskProgress, TaskResult
 from roslan.batch.tasks import Task, config_fingerprint
-from roslan.config.base import validate_model
+from roslan.config.base import UnitWarning, validate_model
 from roslan.errors import ConfigError, RoslanError
 from roslan.rundir.manifest import read_manifest, run_duration, run_messages
 
@@ -64,7 +65,9 @@ def _execute(
     with contextlib.suppress(OSError), marker.open("a", encoding="utf-8") as fh:
         fh.write(f"{os.getpid()}\n")  # one line per attempt, read back by the driver
     try:
-        cfg = validate_model(SimConfig, config, "<task>", context={"base_dir": Path(base_dir)})
+        with warnings.catch_warnings():  # make_tasks reported them, once per sweep
+            warnings.simplefilter("ignore", UnitWarning)
+            cfg = validate_model(SimConfig, config, "<task>", context={"base_dir": Path(base_dir)})
         cfg_path = Path(config_file) if config_file else None
         info = (runner or _default_runner)(cfg, Path(outdir), overwrite, cfg_path)
     except RoslanError as err:
@@ -229,7 +232,11 @@ def dry_check(task: Task, outdir: str | Path, overwrite: bool = False) -> str | 
     if status != "pending":
         return error
     try:
-        cfg = validate_model(SimConfig, task.config, "<task>", context={"base_dir": task.base_dir})
+        with warnings.catch_warnings():  # make_tasks reported them, once per sweep
+            warnings.simplefilter("ignore", UnitWarning)
+            cfg = validate_model(
+                SimConfig, task.config, "<task>", context={"base_dir": task.base_dir}
+            )
         check_run(cfg, out / task.name, overwrite=bool(replace), config_path=task.config_file)
     except RoslanError as err:
         return f"{type(err).__name__}: {err}"
