@@ -259,7 +259,8 @@ def _plan(
                 res.duration_s, res.messages = run_duration(extra), run_messages(extra)
             continue
         todo.append((task, bool(extra)))
-        # So is a hidden partial folder of a killed simulation (SIGKILL skips its cleanup).
+        # A hidden partial folder of a killed simulation is debris too (SIGKILL skips its
+        # cleanup).
         for debris in out.glob(f".{task.name}.partial-*"):
             shutil.rmtree(debris, ignore_errors=True)
     return todo
