@@ -403,6 +403,7 @@ PUBLISHED_ROS1_TYPES = sorted(
         "sensor_msgs/msg/Range",
         "std_msgs/msg/Float64MultiArray",
         "tf2_msgs/msg/TFMessage",
+        "visualization_msgs/msg/MarkerArray",
     }
 )
 

@@ -35,12 +35,7 @@ def no_plot(monkeypatch: pytest.MonkeyPatch) -> None:
     look at it; the contract and determinism tests keep it."""
     import roslan.trajectory.export as export
 
-    real = export.write_trajectory_files
-    monkeypatch.setattr(
-        export,
-        "write_trajectory_files",
-        lambda traj, outdir, plot=True: real(traj, outdir, plot=False),
-    )
+    monkeypatch.setattr(export, "write_trajectory_plot", lambda traj, path: None)
 
 
 @pytest.fixture(scope="module")
@@ -125,6 +120,19 @@ def test_ground_truth_content(out: Path) -> None:
     np.testing.assert_allclose(tau, st.components(), atol=1e-12)
     acc = msgs["/ground_truth/accel"]
     assert acc[0][1].header.frame_id == "base_link"
+    # groundtruth.txt: one row per /ground_truth/pose message (ground_truth_rate = 50 Hz,
+    # not the 10 Hz sample_dt of trajectory.csv), same times and poses
+    pose = msgs["/ground_truth/pose"]
+    bag_t = np.array([s for s, _ in pose]) - cfg.output.start_time
+    bag = np.array([[m.pose.position.x, m.pose.position.y, m.pose.position.z,
+                     m.pose.orientation.x, m.pose.orientation.y, m.pose.orientation.z,
+                     m.pose.orientation.w] for _, m in pose])  # fmt: skip
+    lines = (out / "groundtruth.txt").read_text().splitlines()
+    gt_t = np.array([int(ln.split()[0].replace(".", "")) for ln in lines])  # exact ns
+    gt = np.loadtxt(out / "groundtruth.txt")
+    assert len(pose) == 61  # 50 Hz over [0, 1.2] s inclusive
+    np.testing.assert_array_equal(gt_t, bag_t)
+    np.testing.assert_allclose(gt[:, 1:], bag, atol=1e-9)  # printed with 9 decimals
 
 
 def test_same_seed_byte_identical_different_seed_differs(out: Path, tmp_path: Path) -> None:

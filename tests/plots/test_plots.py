@@ -382,6 +382,44 @@ def test_event_windows_agree_between_txt_and_h5(run_dir: Path, tmp_path: Path) -
         assert ex.size == int(((t_ns >= 0) & (t_ns < 20_000_000)).sum())
 
 
+@pytest.mark.parametrize("kind", ["events.h5", "events.txt"])
+def test_plot_events_spreads_frames_and_rate_over_the_run(
+    run_dir: Path, tmp_path: Path, kind: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """events.h5 holds microseconds (DSEC): the time range, the frames and the rate plot
+    must cover the whole run, as from events.txt (seconds)."""
+    import shutil
+
+    import roslan.plots.events as ev
+
+    d = tmp_path / "run"
+    d.mkdir()
+    shutil.copy(run_dir / kind, d / kind)
+    t, _, _, _ = _ground_truth_events(_traj().duration)
+    with open_events(d, "x") as src:
+        assert src.path.name == kind
+        assert src.time_range_ns() == (0, round(t[-1] * 1e9))
+    spans: list[tuple[int, int]] = []
+    real_rate = ev.event_rate
+
+    def rate(src: object, t0: int, t1: int, bin_ns: int) -> object:
+        spans.append((t0, t1))
+        return real_rate(src, t0, t1, bin_ns)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(ev, "event_rate", rate)
+    ev.plot_events(d, tmp_path / "plots", frames=4)
+    assert spans == [(0, round(t[-1] * 1e9) + 1)]
+    # the square slides right over the run: each frame's ON edge lies further right
+    cols = []
+    for i in range(4):
+        img = iio.imread(tmp_path / "plots" / f"event_frame_{i:02d}.png")[:, :, :3]
+        on = np.argwhere(np.all(img == EVENT_POS_RGB, axis=-1))
+        assert on.size, i
+        cols.append(on[:, 1].mean())
+    assert np.all(np.diff(cols) > 5), cols
+    assert cols[-1] - cols[0] > 0.5 * (W - 20), cols
+
+
 def test_event_frame_colours_net_polarity() -> None:
     from roslan.plots.raster import event_frame
 
@@ -423,9 +461,54 @@ def test_overview_copes_with_missing_sensors(bare_dir: Path) -> None:
     out = write_overview(bare_dir)
     assert out == bare_dir / "overview.png"
     img = _png(out)
-    _assert_figure(img, 1400, 1000, min_ink=0.02)  # three placeholder panels
+    _assert_figure(img, 1400, 600)  # one row: the trajectory and its gaps
     # no event pixels without an event camera
     assert _near(img, EVENT_POS_RGB, 10) == 0
+
+
+def _overview(outdir: Path) -> tuple[list[str], list[str]]:
+    """Panel titles of the overview figure and the legend texts of its trajectory panel."""
+    from roslan.plots.media import RunMedia
+    from roslan.plots.overview import overview_figure
+    from roslan.plots.style import style
+
+    media = RunMedia.open(outdir, "test")
+    try:
+        with style():
+            fig = overview_figure(outdir, media, "test")
+    finally:
+        media.close()
+    titles = [ax.get_title() for ax in fig.axes if ax.get_title()]  # colorbars have none
+    legend = [t.get_text() for t in fig.axes[0].get_legend().get_texts()]
+    return titles, legend
+
+
+def test_overview_draws_only_what_the_run_has(
+    run_dir: Path, bare_dir: Path, tmp_path: Path
+) -> None:
+    import shutil
+
+    # event camera (APS frames at the root), LiDAR, IMU: the media, no IMU panel
+    titles, legend = _overview(run_dir)
+    assert [t.split(" ")[0] for t in titles] == ["Trajectory", "Event", "Events,", "LiDAR"]
+    assert titles[1].startswith("Event camera 'dvs' APS frame, t = ")
+    assert any("(frames shown)" in t for t in legend)
+    # the same run while roslan simulate draws it: no run.json yet, names from calib/
+    d = tmp_path / "nojson"
+    shutil.copytree(run_dir, d)
+    (d / "run.json").unlink()
+    (d / "calib").mkdir(exist_ok=True)
+    (d / "calib" / "extrinsics.yaml").write_text("sensors:\n  dvs: {type: event_camera}\n")
+    assert _overview(d)[0][1].startswith("Event camera 'dvs' APS frame")
+    # IMU only: accelerometer, gyroscope, gaps; no "frames shown" dot
+    imu = write_synthetic_outdir(tmp_path / "imu", camera=False, events=None, lidar=False)
+    titles, legend = _overview(imu)
+    assert [t.split(" ")[0] for t in titles] == ["Trajectory", "IMU", "IMU", "Position"]
+    assert not any("shown" in t for t in legend)
+    # nothing but the trajectory: two panels, no placeholder
+    titles, legend = _overview(bare_dir)
+    assert [t.split(" ")[0] for t in titles] == ["Trajectory", "Position"]
+    assert not any("shown" in t for t in legend)
 
 
 @pytest.mark.parametrize("speed", [1.0, 2.5])

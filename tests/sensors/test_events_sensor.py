@@ -387,6 +387,7 @@ def test_stream_is_ordered_and_complete(run_dir: tuple[Path, Any, list[Any]]) ->
         "/dvs/events",
         "/dvs/camera_info",
         "/dvs/image_raw",
+        "/dvs/event_image",
         "/dvs/optic_flow",
         "/dvs/depthmap",
     }

@@ -148,10 +148,7 @@ def test_stream_conformance_and_determinism(
     # the same job through the pipeline (same seed): identical messages and files
     import roslan.trajectory.export as export
 
-    real = export.write_trajectory_files
-    monkeypatch.setattr(
-        export, "write_trajectory_files", lambda tr, out, plot=True: real(tr, out, plot=False)
-    )
+    monkeypatch.setattr(export, "write_trajectory_plot", lambda traj, path: None)
     sim = SimConfig.model_validate(
         {
             "trajectory": TRAJ,

@@ -43,7 +43,7 @@ def test_round_trip_positions_and_specific_force(
     fb = np.einsum("nji,nj->ni", b.R_world_body, b.acceleration - G)
     rel = np.linalg.norm(fa - fb, axis=1) / np.linalg.norm(fa, axis=1)
     assert rel.max() < 0.01
-    # body rates (RotationSpline, rotated into the body) against the closed form
+    # body rates (RotationSpline's derivative, already in the body) against the closed form
     # (RotationSpline's free end conditions bend the rate near the first sample: 2 %)
     assert np.abs(a.omega_body - b.omega_body).max() < 0.02 * np.abs(a.omega_body).max()
     res = ft.residual()
@@ -219,7 +219,9 @@ def test_cli_from_file_and_simulate_with_file(tmp_path: Path) -> None:
     assert summary["samples"] == t.shape[0]
     assert summary["fit_residual"]["position_max_m"] < 1e-6
     rows = np.loadtxt(tmp_path / "out" / "groundtruth.txt")
-    np.testing.assert_allclose(rows[:, 1:4], st.position, atol=1e-6)
+    # 200 Hz (the default ground_truth_rate): every 4th row is an input pose (50 Hz)
+    np.testing.assert_allclose(rows[::4, 0], t, atol=1e-9)
+    np.testing.assert_allclose(rows[::4, 1:4], st.position, atol=1e-6)
     (tmp_path / "sim.yaml").write_text(
         "trajectory: {file: flight.txt}\n"
         "sensors:\n  - {type: imu, name: imu, rate: 50}\noutput: {formats: [ros2]}\n"

@@ -122,11 +122,17 @@ def _check_outputs(out: Path, traj: Trajectory) -> None:
     body = [ln for ln in gt_lines if not ln.startswith("#")]
     assert all(len(ln.split(" ")) == 8 for ln in body)
     gt = np.loadtxt(out / "groundtruth.txt")
-    np.testing.assert_array_equal(np.round(gt[:, 0] * 1e9).astype(np.int64), expected)
+    # at the ground-truth rate (default 200 Hz, as /ground_truth/pose), not every sample_dt:
+    # every 5 ms from 0, then the end of the run exactly
+    gt_ns = np.round(gt[:, 0] * 1e9).astype(np.int64)
+    end = round(traj.duration * 1e9)
+    every = np.arange(0, end + 1, 5_000_000, dtype=np.int64)
+    np.testing.assert_array_equal(gt_ns, every if every[-1] == end else np.append(every, end))
+    st = traj.state(gt_ns * 1e-9)
     np.testing.assert_allclose(gt[:, 1:4], st.position, atol=1e-9)
     np.testing.assert_allclose(np.linalg.norm(gt[:, 4:], axis=1), 1.0, atol=1e-8)
     np.testing.assert_allclose(quat_xyzw_to_matrix(gt[:, 4:]), st.R_world_body, atol=1e-8)
-    np.testing.assert_allclose(gt[i_T, 1:4], traj.config.goal.position, atol=1e-9)
+    np.testing.assert_allclose(gt[-1, 1:4], traj.config.goal.position, atol=1e-9)
     summary = json.loads((out / "summary.json").read_text())
     assert summary["T"] == pytest.approx(traj.T)
     assert summary["tau0"] == pytest.approx(traj.tau0)
@@ -142,6 +148,12 @@ def test_write_trajectory_files(tmp_path: Path) -> None:
     _check_outputs(tmp_path, traj)
     png = (tmp_path / "trajectory.png").read_bytes()
     assert png[:8] == b"\x89PNG\r\n\x1a\n"
+    # the velocity arrows (dark orange, thick) stand out on the 3-D panel (left half)
+    import imageio.v3 as iio
+
+    img = iio.imread(tmp_path / "trajectory.png")[:, :, :3].astype(int)
+    left = img[:, : img.shape[1] // 2]
+    assert (np.abs(left - [255, 140, 0]).sum(axis=-1) < 60).sum() > 1000
     # deterministic: byte-identical on a second run
     second = tmp_path / "again"
     second.mkdir()
@@ -173,6 +185,23 @@ def test_cli_trajectory(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> N
     assert run_cli("trajectory", str(cfg), "-o", str(out)) == 2
     assert "--overwrite" in capsys.readouterr().err
     assert run_cli("trajectory", str(cfg), "-o", str(out), "--overwrite", "--no-plot") == 0
+
+
+def test_cli_trajectory_follows_the_ground_truth_rate(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """groundtruth.txt of `roslan trajectory CONFIG` is written at the YAML's
+    output.ground_truth_rate, as `roslan simulate` writes it; a bad rate names the key."""
+    cfg = tmp_path / "sim.yaml"
+    cfg.write_text(CONFIG + "output: {ground_truth_rate: 40.0, formats: [ros2]}\n")
+    assert run_cli("trajectory", str(cfg), "-o", str(tmp_path / "out"), "--no-plot") == 0
+    t = np.loadtxt(tmp_path / "out" / "groundtruth.txt")[:, 0]
+    np.testing.assert_allclose(np.diff(t)[:-1], 0.025, atol=1e-9)
+    assert t[-1] == pytest.approx(4.6 + 0.25)  # touchdown plus hold
+    cfg.write_text(CONFIG + "output: {ground_truth_rate: -1}\n")
+    assert run_cli("trajectory", str(cfg), "-o", str(tmp_path / "bad")) == 2
+    assert "ground_truth_rate" in capsys.readouterr().err
+    assert not (tmp_path / "bad").exists()
 
 
 def _yaml(text: str) -> dict[str, dict[str, object]]:

@@ -25,6 +25,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "roslan.cli.plot",
     "roslan.cli.preview",
     "roslan.cli.scene",
+    "roslan.cli.view",
 )
 
 

@@ -14,7 +14,7 @@ from pydantic import ValidationError
 from roslan.config.base import format_validation_error, load_yaml
 from roslan.errors import ConfigError, OutputError
 from roslan.rundir.folder import finalize, make_temp
-from roslan.trajectory.base import Trajectory
+from roslan.trajectory.base import DEFAULT_GROUND_TRUTH_RATE, Trajectory
 from roslan.trajectory.config import TrajectoryConfig
 from roslan.trajectory.export import write_trajectory_files
 from roslan.trajectory.generator import TauTrajectory, TrajectoryWarning
@@ -22,8 +22,15 @@ from roslan.trajectory.generator import TauTrajectory, TrajectoryWarning
 __all__ = ["register", "write_into"]
 
 
-def write_into(traj: Trajectory, outdir: Path, *, overwrite: bool, plot: bool = True) -> None:
-    """Write the trajectory files into ``outdir``.
+def write_into(
+    traj: Trajectory,
+    outdir: Path,
+    *,
+    overwrite: bool,
+    plot: bool = True,
+    ground_truth_rate: float = DEFAULT_GROUND_TRUTH_RATE,
+) -> None:
+    """Write the trajectory files into ``outdir`` (groundtruth.txt at ``ground_truth_rate``).
 
     A new ``outdir`` is filled under a temporary name and renamed at the end, so it
     never appears half-written. An existing one is an :class:`OutputError` unless
@@ -37,11 +44,11 @@ def write_into(traj: Trajectory, outdir: Path, *, overwrite: bool, plot: bool = 
         if not out.is_dir():
             msg = f"{out}: exists and is not a folder"
             raise OutputError(msg)
-        write_trajectory_files(traj, out, plot=plot)
+        write_trajectory_files(traj, out, plot=plot, ground_truth_rate=ground_truth_rate)
         return
     tmp = make_temp(out.absolute())
     try:
-        write_trajectory_files(traj, tmp, plot=plot)
+        write_trajectory_files(traj, tmp, plot=plot, ground_truth_rate=ground_truth_rate)
         finalize(tmp, out.absolute(), overwrite=False)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
@@ -66,6 +73,24 @@ def load_trajectory_block(path: Path) -> TrajectoryConfig:
         text = format_validation_error(
             err, path, ("trajectory",), model=TrajectoryConfig, data=block
         )
+        raise ConfigError(text) from None
+
+
+def load_ground_truth_rate(path: Path) -> float:
+    """``output.ground_truth_rate`` of a simulation YAML (the default 200 Hz without it),
+    so that ``roslan trajectory`` writes the groundtruth.txt ``roslan simulate`` would;
+    no other output key is read."""
+    from roslan.config.sim import OutputConfig
+
+    data = load_yaml(path)
+    block = data.get("output") if isinstance(data, Mapping) else None
+    if not isinstance(block, Mapping) or "ground_truth_rate" not in block:
+        return DEFAULT_GROUND_TRUTH_RATE
+    sub = {"ground_truth_rate": block["ground_truth_rate"]}
+    try:
+        return float(OutputConfig.model_validate(sub).ground_truth_rate)
+    except ValidationError as err:
+        text = format_validation_error(err, path, ("output",), model=OutputConfig, data=sub)
         raise ConfigError(text) from None
 
 
@@ -105,16 +130,24 @@ def _run(args: argparse.Namespace) -> int:
     if args.from_file is not None:
         trajectory = TrajectoryConfig.model_validate({"file": str(args.from_file)})
         base_dir = None
+        gt_rate = DEFAULT_GROUND_TRUTH_RATE
     else:
         trajectory = load_trajectory_block(Path(args.config))
         trajectory = load_vehicle_block(Path(args.config), trajectory)
         base_dir = Path(args.config).parent
+        gt_rate = load_ground_truth_rate(Path(args.config))
     with warnings.catch_warnings():
         # every hard-landing note reaches the user (one "warning: ..." line each, printed
         # by roslan.cli), even if the same text was shown earlier in this process
         warnings.simplefilter("always", TrajectoryWarning)
         traj = make_trajectory(trajectory, base_dir=base_dir)
-    write_into(traj, Path(args.output), overwrite=args.overwrite, plot=not args.no_plot)
+    write_into(
+        traj,
+        Path(args.output),
+        overwrite=args.overwrite,
+        plot=not args.no_plot,
+        ground_truth_rate=gt_rate,
+    )
     files = "trajectory.csv, groundtruth.txt, summary.json"
     if not args.no_plot:
         files += ", trajectory.png"
@@ -133,7 +166,9 @@ def register(subparsers: Any) -> None:
         help="sample a tau-theory landing into CSV/TUM/JSON/PNG",
         description=(
             "Read the 'trajectory:' block of a simulation YAML and write trajectory.csv "
-            "(frame F), groundtruth.txt (TUM, world), summary.json and trajectory.png."
+            "(frame F, every sample_dt), groundtruth.txt (TUM, world, at the YAML's "
+            "output.ground_truth_rate, default 200 Hz, as roslan simulate writes it), "
+            "summary.json and trajectory.png."
         ),
     )
     p.add_argument("config", type=Path, nargs="?", metavar="CONFIG", help="simulation YAML file")

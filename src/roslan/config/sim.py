@@ -19,6 +19,7 @@ from roslan.config.base import FiniteFloat, ModelFor, StrictModel
 from roslan.limits import MAX_RATE_HZ, MAX_SEED
 from roslan.sensors.base import SensorConfig
 from roslan.sensors.registry import SENSOR_TYPES, config_class, config_class_for
+from roslan.trajectory.base import DEFAULT_GROUND_TRUTH_RATE
 from roslan.trajectory.config import TrajectoryConfig
 from roslan.vehicle import VehicleConfig
 
@@ -43,7 +44,10 @@ class OutputConfig(StrictModel):
     ros2_compression: Literal["zstd", "lz4", "none"] = "zstd"
     """ROS 2 bag (MCAP) chunk compression; a separate key because the formats support
     different codecs (ROS 1 has no zstd, MCAP no bz2)."""
-    ground_truth_rate: Annotated[FiniteFloat, Field(gt=0, le=MAX_RATE_HZ)] = 200.0
+    ground_truth_rate: Annotated[FiniteFloat, Field(gt=0, le=MAX_RATE_HZ)] = (
+        DEFAULT_GROUND_TRUTH_RATE
+    )
+    """Hz of the ground-truth topics and of groundtruth.txt (same instants)."""
     workers: Literal["auto"] | Annotated[int, Field(ge=0, strict=True)] = "auto"
     """Worker processes for render-heavy sensors: ``auto`` (one per such sensor, at most
     the CPUs; none on one CPU), ``0`` (all in the main process) or N; outputs are the same."""

@@ -151,7 +151,11 @@ def make_plan(
     check_free_space(outdir, estimate_run(config, fmts).bytes, "this run")
     sensors = _sensors(config)
     check_namespace(sensors, source)
-    gt = GroundTruth(config.output.ground_truth_rate, static_transforms(sensors))
+    gt = GroundTruth(
+        config.output.ground_truth_rate,
+        static_transforms(sensors),
+        scene=config.scene is not None,
+    )
     owners, bag_topics = _topics(gt, sensors)
     n_workers = resolve_workers(
         config.output.workers if workers is None else workers, config.sensors

@@ -115,9 +115,9 @@ class Progress:
 
 
 def _draw_trajectory(traj: Trajectory, folder: Path) -> None:
-    from roslan.trajectory.export import write_trajectory_files
+    from roslan.trajectory.export import write_trajectory_plot
 
-    write_trajectory_files(traj, folder, plot=True)
+    write_trajectory_plot(traj, folder / "trajectory.png")
 
 
 def _plot_child(traj: Trajectory, folder: Path) -> None:

@@ -50,6 +50,7 @@ from roslan.pipeline.worker import WorkerJob, WorkerPool, worker_nice
 from roslan.rundir.calibration import root_camera, write_calibration
 from roslan.rundir.extrinsics import write_extrinsics
 from roslan.rundir.folder import clean_stale, finalize, make_temp, outdir_lock
+from roslan.rundir.layouts import write_layouts
 from roslan.rundir.manifest import (
     RUN_FILE,
     TIMING_FILE,
@@ -225,7 +226,9 @@ class _Run:
         self.progress.phase("preparing sensors (the first run compiles kernels, then cached)")
         if self.pool is not None:  # the workers render while this process sets up
             self._send_jobs(self.pool)
-        write_trajectory_files(self.traj, tmp, plot=False)
+        write_trajectory_files(
+            self.traj, tmp, plot=False, ground_truth_rate=config.output.ground_truth_rate
+        )
         self.plot = BackgroundPlot(self.traj, tmp)
         if self.scene is not None:
             import roslan.scene as scene_mod
@@ -354,6 +357,8 @@ class _Run:
         (tmp / "PLAYBACK.md").write_text(
             playback_text(self.traj.duration, wall, plan.formats, counts), encoding="utf-8"
         )
+        if plan.formats:
+            write_layouts(tmp, {t: e["type"] for t, e in topics.items()})
         readme = outdir_readme(tmp, root_camera(self.config.sensors))
         (tmp / "README.md").write_text(readme, encoding="utf-8")
         write_json(tmp / RUN_FILE, manifest)  # last: its presence marks a complete folder

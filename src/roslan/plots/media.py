@@ -35,6 +35,7 @@ class RunMedia:
         traj: trajectory samples (None if trajectory.csv is missing).
         camera: frames for the camera panel (a frame camera's, else the event camera's
             grayscale frames), or None.
+        camera_is_aps: ``camera`` holds an event camera's grayscale (APS) frames.
         aps: grayscale frames under the event panel (the event camera's own frames
             when it writes them, else the camera's), or None.
         events: the event stream, or None.
@@ -48,6 +49,7 @@ class RunMedia:
     events: EventSource | None
     lidar: LidarSequence | None
     problems: list[str]
+    camera_is_aps: bool = False
 
     @classmethod
     def open(cls, outdir: Path, command: str) -> RunMedia:
@@ -57,21 +59,24 @@ class RunMedia:
             traj = load_samples(outdir, command)
         except PlotError as err:
             problems.append(str(err))
-        event_names = [str(c.get("name")) for c in sensor_configs(outdir, "event_camera")]
+        event_names = [
+            str(c.get("name")) for c in sensor_configs(outdir, "event_camera")
+        ] or _calib_names(outdir, "event_camera")
         seqs: list[ImageSequence] = []
         try:
             seqs = find_images(outdir)
         except PlotError as err:
             problems.append(str(err))
 
-        cams = [str(c.get("name")) for c in sensor_configs(outdir, "camera")] or _calib_cameras(
-            outdir
+        cams = [str(c.get("name")) for c in sensor_configs(outdir, "camera")] or _calib_names(
+            outdir, "camera"
         )
-        # without run.json (the overview of a run being written) the root listing is named
-        # "images"; it is an event camera's APS when the events lie at the root too
+        # the root listing is named "images" by its file; it is the first event camera's
+        # APS when the events lie at the root too, else the one camera's
         root_events = (outdir / "events.txt").is_file() or (outdir / "events.h5").is_file()
-        if len(cams) == 1 and not root_events:  # the root images.txt is the one camera's
-            seqs = [replace(s, name=cams[0]) if s.name == "images" else s for s in seqs]
+        root = event_names[:1] if root_events else cams if len(cams) == 1 else []
+        if root:
+            seqs = [replace(s, name=root[0]) if s.name == "images" else s for s in seqs]
 
         def is_event_cam(s: ImageSequence) -> bool:
             return s.name in event_names or (root_events and s.name == "images")
@@ -79,6 +84,7 @@ class RunMedia:
         frame_seqs = [s for s in seqs if not is_event_cam(s)]
         aps_seqs = [s for s in seqs if is_event_cam(s)]
         camera = next(iter(frame_seqs + aps_seqs), None)
+        camera_is_aps = camera is not None and not frame_seqs
         aps = next(iter(aps_seqs + frame_seqs), None)
         events = None
         try:
@@ -92,7 +98,7 @@ class RunMedia:
         except PlotError as err:
             if "add a sensor" not in str(err):
                 problems.append(str(err))
-        return cls(traj, camera, aps, events, lidar, problems)
+        return cls(traj, camera, aps, events, lidar, problems, camera_is_aps)
 
     def close(self) -> None:
         if self.events is not None:
@@ -130,9 +136,9 @@ def render_events(
     return event_frame(x, y, p, w, h, background), int(x.shape[0])
 
 
-def _calib_cameras(outdir: Path) -> list[str]:
-    """Frame-camera names from ``calib/extrinsics.yaml`` (a run without run.json yet:
-    ``roslan simulate`` draws the overview before writing run.json)."""
+def _calib_names(outdir: Path, sensor_type: str) -> list[str]:
+    """Names of the sensors of a type from ``calib/extrinsics.yaml`` (a run without
+    run.json yet: ``roslan simulate`` draws the overview before writing run.json)."""
     import yaml
 
     try:
@@ -146,5 +152,5 @@ def _calib_cameras(outdir: Path) -> list[str]:
     return [
         str(name)
         for name, cfg in sensors.items()
-        if isinstance(cfg, dict) and cfg.get("type") == "camera"
+        if isinstance(cfg, dict) and cfg.get("type") == sensor_type
     ]

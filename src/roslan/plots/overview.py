@@ -2,13 +2,17 @@
 one event frame and one LiDAR scan - written by ``roslan simulate`` at the end of every
 run (:func:`write_overview`) and by ``roslan plot overview``.
 
-Runs without some sensor get a panel saying so ("no camera configured"), or, when the run
-has an IMU, its accelerometer and gyroscope (and the gaps against time) in those panels; an
-input that exists but cannot be read is reported in its panel instead of failing the run.
+Only what the run has is drawn: the trajectory, then the camera frame, the event frame and
+the LiDAR scan of the sensors it has, then - up to four panels - the IMU's accelerometer
+and gyroscope and the position gaps against time (one row for two or three panels, 2 x 2
+for four). A camera panel that shows an event camera's grayscale frames says so; an input
+that exists but cannot be read is reported in its panel instead of failing the run.
 """
 
 from __future__ import annotations
 
+import functools
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -19,7 +23,7 @@ from roslan.plots.media import RunMedia, render_events
 from roslan.plots.style import AXIS_COLORS, GAP_COLORS, MEASURED_ALPHA, figure, save_figure, style
 from roslan.rundir.readers import ImuData, load_imu
 
-__all__ = ["EVENT_WINDOW_NS", "write_overview"]
+__all__ = ["EVENT_WINDOW_NS", "overview_figure", "write_overview"]
 
 COMMAND = "roslan plot overview"
 EVENT_WINDOW_NS = 20_000_000
@@ -55,7 +59,9 @@ def _image(ax: Any, img: np.ndarray, title: str) -> None:
     ax.grid(False)
 
 
-def _trajectory_panel(ax: Any, media: RunMedia, t_ns: int) -> None:
+def _trajectory_panel(ax: Any, media: RunMedia, t_ns: int, shown: str | None) -> None:
+    """The path in F; a red dot marks instant ``t_ns`` of the ``shown`` media (none: no
+    dot)."""
     s = media.traj
     if s is None:
         _placeholder(ax, "Trajectory (frame F)", "no trajectory.csv")
@@ -73,17 +79,18 @@ def _trajectory_panel(ax: Any, media: RunMedia, t_ns: int) -> None:
         linestyle="--",
         label="ground track",
     )
-    now = np.array([np.interp(t_ns * 1e-9, d.t, d.gaps[:, i]) for i in range(3)])
     # line markers: 3-D scatter would fade them with depth (the legend shows them solid)
     ax.plot(*([v] for v in p[0]), "o", color="k", ms=5, label="start", zorder=4)
     ax.plot([0], [0], [0], "*", color="gold", mec="k", ms=10, label="goal")
-    ax.plot(
-        *([v] for v in now),
-        "o",
-        color="tab:red",
-        ms=5,
-        label=f"t = {t_ns * 1e-9:.2f} s (frames shown)",
-    )
+    if shown is not None:
+        now = np.array([np.interp(t_ns * 1e-9, d.t, d.gaps[:, i]) for i in range(3)])
+        ax.plot(
+            *([v] for v in now),
+            "o",
+            color="tab:red",
+            ms=5,
+            label=f"t = {t_ns * 1e-9:.2f} s ({shown} shown)",
+        )
     ax.set_xlabel("x_F [m]")
     ax.set_ylabel("y_F [m]")
     ax.set_zlabel("z_F [m]")
@@ -105,6 +112,51 @@ def _trajectory_panel(ax: Any, media: RunMedia, t_ns: int) -> None:
     ax.set_title(f"Trajectory (frame F), touchdown T = {s.touchdown:.2f} s")
 
 
+Painter = Callable[[Any], None]
+SIZES = {1: (6.0, 5.0), 2: (10.0, 4.4), 3: (15.0, 4.6), 4: (10.0, 7.0)}
+"""Figure size (inches) by panel count: one row up to three panels, else 2 x 2."""
+
+
+def overview_panels(outdir: Path, media: RunMedia, t_ns: int) -> list[tuple[str, Painter]]:
+    """The panels to draw, in order, as (kind, painter): ``trajectory``, then ``camera``,
+    ``events``, ``lidar`` for the media the run has, then ``accelerometer``,
+    ``gyroscope`` (a run with an IMU) and ``gaps`` while fewer than four."""
+    media_kinds = [
+        ("camera", media.camera, _camera_panel),
+        ("events", media.events, _event_panel),
+        ("lidar", media.lidar, _lidar_panel),
+    ]
+    present = [(k, draw) for k, m, draw in media_kinds if m is not None]
+    kinds = {k for k, _ in present}
+    shown = "frames" if kinds & {"camera", "events"} else "scan" if "lidar" in kinds else None
+    panels: list[tuple[str, Painter]] = [
+        ("trajectory", lambda ax: _trajectory_panel(ax, media, t_ns, shown))
+    ]
+    panels += [(k, functools.partial(draw, media=media, t_ns=t_ns)) for k, draw in present]
+    for kind, painter in _imu_fillers(outdir, media):
+        if len(panels) >= 4:
+            break
+        panels.append((kind, painter))
+    return panels
+
+
+def overview_figure(outdir: Path, media: RunMedia, title: str) -> Any:
+    """The overview as a matplotlib Figure (drawn, not saved)."""
+    if media.traj is not None:
+        t_ns = round(media.traj.touchdown * 0.5e9)
+    else:
+        t_ns = media.duration_ns() // 2
+    panels = overview_panels(outdir, media, t_ns)
+    n = len(panels)
+    rows, cols = (2, 2) if n == 4 else (1, n)
+    fig = figure(*SIZES[n])
+    for i, (kind, paint) in enumerate(panels):
+        projection = "3d" if kind == "trajectory" else None
+        paint(fig.add_subplot(rows, cols, i + 1, projection=projection))
+    fig.suptitle(title, fontsize=11)
+    return fig
+
+
 def write_overview(outdir: Path, out: Path | None = None, *, title: str | None = None) -> Path:
     """Write ``OUTDIR/overview.png`` (or ``out``) for the run in ``outdir``; returns its path.
 
@@ -112,7 +164,7 @@ def write_overview(outdir: Path, out: Path | None = None, *, title: str | None =
     not depend on the folder, so identical runs give identical files.
 
     Frames are taken at the middle of the landing (half the touchdown time), where
-    the robot moves; missing sensors get a "no ... configured" panel.
+    the robot moves; only the panels of what the run recorded are drawn.
     """
     outdir = Path(outdir)
     if not outdir.is_dir():
@@ -121,47 +173,30 @@ def write_overview(outdir: Path, out: Path | None = None, *, title: str | None =
     out = Path(out) if out is not None else outdir / "overview.png"
     media = RunMedia.open(outdir, COMMAND)
     try:
-        if media.traj is not None:
-            t_ns = round(media.traj.touchdown * 0.5e9)
-        else:
-            t_ns = media.duration_ns() // 2
         with style():
-            fig = figure(10.0, 7.0)
-            ax_t = fig.add_subplot(2, 2, 1, projection="3d")
-            ax_c = fig.add_subplot(2, 2, 2)
-            ax_e = fig.add_subplot(2, 2, 3)
-            ax_l = fig.add_subplot(2, 2, 4)
-            _trajectory_panel(ax_t, media, t_ns)
-            # panels of absent sensors show the IMU instead, when the run has one
-            spare = _imu_fillers(outdir, media)
-            panels = (
-                (ax_c, media.camera, _camera_panel),
-                (ax_e, media.events, _event_panel),
-                (ax_l, media.lidar, _lidar_panel),
+            fig = overview_figure(
+                outdir, media, title if title is not None else f"roslan run: {outdir.name}"
             )
-            for ax, present, draw in panels:
-                if present is None and spare:
-                    spare.pop(0)(ax)
-                else:
-                    draw(ax, media, t_ns)
-            fig.suptitle(title if title is not None else f"roslan run: {outdir.name}", fontsize=11)
             return save_figure(fig, out)
     finally:
         media.close()
 
 
-def _imu_fillers(outdir: Path, media: RunMedia) -> list[Any]:
-    """Panel painters for a run with an IMU: accelerometer, gyroscope, gaps vs time."""
+def _imu_fillers(outdir: Path, media: RunMedia) -> list[tuple[str, Painter]]:
+    """Panels that fill the figure: the IMU's accelerometer and gyroscope (a run with an
+    IMU), the position gaps against time (a run with a trajectory)."""
+    out: list[tuple[str, Painter]] = []
     try:
         data = load_imu(outdir, COMMAND)
     except PlotError:
-        return []
-    out: list[Any] = [
-        lambda ax: _imu_panel(ax, data, "accelerometer"),
-        lambda ax: _imu_panel(ax, data, "gyroscope"),
-    ]
+        pass
+    else:
+        out += [
+            ("accelerometer", lambda ax: _imu_panel(ax, data, "accelerometer")),
+            ("gyroscope", lambda ax: _imu_panel(ax, data, "gyroscope")),
+        ]
     if media.traj is not None:
-        out.append(lambda ax: _gaps_panel(ax, media))
+        out.append(("gaps", lambda ax: _gaps_panel(ax, media)))
     return out
 
 
@@ -207,7 +242,9 @@ def _camera_panel(ax: Any, media: RunMedia, t_ns: int) -> None:
         _placeholder(ax, "Camera", f"cannot read: {err}")
         return
     t = media.camera.t_ns[i] * 1e-9
-    _image(ax, img, f"Camera '{media.camera.name}', t = {t:.3f} s")
+    what = "Event camera" if media.camera_is_aps else "Camera"
+    frame = " APS frame" if media.camera_is_aps else ""
+    _image(ax, img, f"{what} '{media.camera.name}'{frame}, t = {t:.3f} s")
 
 
 def _event_panel(ax: Any, media: RunMedia, t_ns: int) -> None:

@@ -6,6 +6,7 @@ pyplot state), so plotting is safe in worker processes and never opens a window.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -25,6 +26,7 @@ __all__ = [
     "figure",
     "save_figure",
     "style",
+    "velocity_arrows",
 ]
 
 DPI = 150
@@ -100,3 +102,42 @@ def colormap_lut(name: str) -> NDArray[np.uint8]:
 
     cmap = mpl.colormaps[name]
     return (np.asarray(cmap(np.linspace(0.0, 1.0, 256)))[:, :3] * 255.0 + 0.5).astype(np.uint8)
+
+
+def nice_step(x: float) -> float:
+    """Round ``x`` > 0 down to 1, 2 or 5 x 10^k (0 for 0, negative or non-finite)."""
+    if x <= 0 or not math.isfinite(x):
+        return 0.0
+    mag = 10 ** math.floor(math.log10(x))
+    for m in (5, 2, 1):
+        if m * mag <= x:
+            return float(m * mag)
+    return float(mag)
+
+
+def velocity_arrows(ax: Any, p: NDArray[np.float64], v: NDArray[np.float64], n: int = 12) -> None:
+    """Velocity vectors on a 3-D path (the paper's Fig. 3): ``n`` arrows at evenly spaced
+    samples of the path ``p`` (M, 3) with velocities ``v`` (M, 3), each the displacement
+    of a round number of seconds at that velocity, the fastest about 0.3 of the path's
+    extent, drawn thick in orange over the path (labelled with that time)."""
+    if p.shape[0] < 2:
+        return
+    span = max(float(np.max(np.ptp(p, axis=0))), 1e-3)
+    iv = np.unique(np.linspace(0, p.shape[0] - 1, n).round().astype(int))[:-1]
+    vi = v[iv]
+    vmax = float(np.max(np.linalg.norm(vi, axis=1), initial=0.0))
+    dt = nice_step(0.3 * span / vmax) if vmax > 0 else 0.0
+    if dt <= 0:
+        return
+    ax.quiver(
+        p[iv, 0],
+        p[iv, 1],
+        p[iv, 2],
+        vi[:, 0] * dt,
+        vi[:, 1] * dt,
+        vi[:, 2] * dt,
+        color="darkorange",
+        linewidth=2.0,
+        arrow_length_ratio=0.25,
+        label=f"velocity, max {vmax:.2f} m/s\n(arrow = {dt:g} s of travel)",
+    )

@@ -17,7 +17,14 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from roslan.plots.style import AXIS_COLORS, GAP_COLORS, figure, save_figure, style
+from roslan.plots.style import (
+    AXIS_COLORS,
+    GAP_COLORS,
+    figure,
+    save_figure,
+    style,
+    velocity_arrows,
+)
 from roslan.rundir.readers import (
     TrajectoryTable,
     load_run,
@@ -135,24 +142,8 @@ def _draw_3d(ax: Any, s: TrajectorySamples, n_vel: int = 12, n_triads: int = 7) 
     ax.add_collection3d(lc)
     cbar = ax.figure.colorbar(lc, ax=ax, shrink=0.45, pad=0.0, location="left", aspect=25)
     cbar.set_label("trajectory time t [s]")
-    # velocity vectors: arrow = displacement in `vel_dt` seconds at the current velocity
-    iv = np.unique(np.linspace(0, p.shape[0] - 1, n_vel).round().astype(int))[:-1]
-    v = d.rates[land][iv, :3]
-    vmax = float(np.max(np.linalg.norm(v, axis=1), initial=0.0))
-    vel_dt = _nice(0.3 * span / vmax) if vmax > 0 else 0.0
-    if vel_dt > 0:
-        ax.quiver(
-            p[iv, 0],
-            p[iv, 1],
-            p[iv, 2],
-            v[:, 0] * vel_dt,
-            v[:, 1] * vel_dt,
-            v[:, 2] * vel_dt,
-            color="darkorange",
-            linewidth=1.5,
-            arrow_length_ratio=0.2,
-            label=f"velocity (arrow = {vel_dt:g} s of travel)",
-        )
+    # velocity vectors: arrow = displacement in a round number of seconds
+    velocity_arrows(ax, p, d.rates[land][:, :3], n_vel)
     # orientation triads of base_link (x red, y green, z blue)
     it = np.unique(np.linspace(0, p.shape[0] - 1, n_triads).round().astype(int))
     R = rpy_matrices(d.gaps[land][it, 3:])
@@ -209,17 +200,6 @@ def _draw_3d(ax: Any, s: TrajectorySamples, n_vel: int = 12, n_triads: int = 7) 
     ax.view_init(elev=22, azim=-60)
     ax.legend(loc="upper left", fontsize=7, framealpha=0.85)
     ax.set_title("Landing path in the goal frame F")
-
-
-def _nice(x: float) -> float:
-    """Round ``x`` > 0 down to 1, 2 or 5 x 10^k."""
-    if x <= 0 or not math.isfinite(x):
-        return 0.0
-    mag = 10 ** math.floor(math.log10(x))
-    for m in (5, 2, 1):
-        if m * mag <= x:
-            return float(m * mag)
-    return float(mag)
 
 
 def _draw_gaps(ax_pos: Any, ax_ang: Any, ax_tau: Any, s: TrajectorySamples) -> None:

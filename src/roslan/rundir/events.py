@@ -77,12 +77,16 @@ class EventSource:
         self.close()
 
     # -- HDF5
+    def _h5_time_ns(self, i: int) -> int:
+        """Time of event ``i`` in ns (``events/t_ns``, or DSEC's ``events/t`` in us)."""
+        return int(self._t[i]) * self._t_scale
+
     def _h5_search(self, t_ns: int) -> int:
         """First index with t >= t_ns (bisection reading single elements: O(log N) reads)."""
         lo, hi = 0, int(self._t.shape[0])
         while lo < hi:
             mid = (lo + hi) // 2
-            if int(self._t[mid]) * self._t_scale < t_ns:
+            if self._h5_time_ns(mid) < t_ns:
                 lo = mid + 1
             else:
                 hi = mid
@@ -145,7 +149,7 @@ class EventSource:
         """(first, last) event time, or None without events. Reads the text file fully."""
         if self._h5 is not None:
             n = int(self._t.shape[0])
-            return None if n == 0 else (int(self._t[0]), int(self._t[n - 1]))
+            return None if n == 0 else (self._h5_time_ns(0), self._h5_time_ns(n - 1))
         first = last = None
         with self.path.open() as fh:
             for line in fh:

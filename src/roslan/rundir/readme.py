@@ -44,7 +44,8 @@ _ROOT_FILES: tuple[tuple[str, str], ...] = (
     (
         "groundtruth.txt",
         "`t px py pz qx qy qz qw` (TUM): pose of base_link in the world "
-        "frame, m and unit quaternion; t in s since the trajectory start.",
+        "frame, m and unit quaternion; t in s since the trajectory start; one row per "
+        "`/ground_truth/pose` message (`output.ground_truth_rate`, plus the end of the run).",
     ),
     (
         "trajectory.csv",
@@ -52,6 +53,27 @@ _ROOT_FILES: tuple[tuple[str, str], ...] = (
         "components (gaps, rates, accelerations) in the goal frame F.",
     ),
     ("landing.bag", "ROS 1 bag (v2.0, chunked); `rosbag info landing.bag`."),
+    (
+        "depth.h5",
+        "MVSEC layout: `davis/left/depth_image_raw` (N, H, W) float32 depth of the root event "
+        "camera in m along the optical axis (NaN: nothing hit), `davis/left/depth_image_raw_ts` "
+        "(N,) float64 absolute s (bag stamps), `davis/left/depth_image_raw_t_ns` (N,) int64 ns "
+        "since the trajectory start; the same images as `<topic>/depthmap`.",
+    ),
+    (
+        "flow",
+        "DSEC optical-flow layout of the root event camera: `flow/forward/NNNNNN.png` 16-bit "
+        "RGB, R = flow_x * 128 + 2^15, G = flow_y * 128 + 2^15, B = valid (1/0); decode "
+        "`flow = (png[..., :2] - 2**15) / 128`: the displacement (px) from `from_timestamp_us` "
+        "to `to_timestamp_us` of `flow/forward_timestamps.txt` (header line, then "
+        "`from, to` absolute microseconds per PNG), the instantaneous motion field of "
+        "`<topic>/optic_flow` (px/s) times that interval.",
+    ),
+    ("landing.rviz", "RViz layout of the bag's topics: `rviz -d landing.rviz`."),
+    (
+        "landing.foxglove.json",
+        "Foxglove layout of the bag's topics (Layouts > Import from file).",
+    ),
     (
         "landing_ros2",
         "ROS 2 bag (MCAP, compressed chunks) and metadata.yaml; `ros2 bag info landing_ros2`.",
@@ -66,7 +88,10 @@ _ROOT_FILES: tuple[tuple[str, str], ...] = (
         "`calib/<camera>.yaml` (ROS camera_info), `camchain.yaml` (Kalibr), "
         "`imu.yaml` (Kalibr IMU noise), `extrinsics.yaml` (every `T_base_link_sensor`).",
     ),
-    ("scene", "the scene's models and poses."),
+    (
+        "scene",
+        "the scene's models and poses (also in both bags: the latched `/scene` MarkerArray).",
+    ),
     ("run.json", "resolved config, seed, versions, messages per topic."),
     ("timing.json", "wall time and real-time factor of this run."),
     ("PLAYBACK.md", "how to play the bags."),
@@ -122,8 +147,8 @@ def outdir_readme(outdir: Path, root_camera: str | None) -> str:
     for d in sorted(p for p in outdir.iterdir() if p.is_dir() and (p / "images.txt").is_file()):
         files = ", ".join(
             f"`{f}`"
-            for f in ("images.txt", "calib.txt", "events.txt", "events.h5")
-            if (d / f).is_file()
+            for f in ("images.txt", "calib.txt", "events.txt", "events.h5", "depth.h5", "flow")
+            if (d / f).exists()
         )
         lines.append(f"| `{d.name}/` | camera `{d.name}`: {files}, `images/` (as at the root) |")
     return "\n".join(lines) + "\n"

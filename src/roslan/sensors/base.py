@@ -33,6 +33,7 @@ from pydantic import AfterValidator, Field, model_validator
 
 from roslan.config.base import FiniteFloat, Pose, StrictModel
 from roslan.limits import MAX_RATE_HZ
+from roslan.trajectory.base import sample_times_ns
 
 if TYPE_CHECKING:
     from roslan.io.messages import MessageStore
@@ -194,12 +195,3 @@ class Sensor(Protocol):
     def close(self, ctx: SimContext) -> None:
         """Finish dataset files (flush, close). Called after the stream ends."""
         ...
-
-
-def sample_times_ns(rate_hz: float, duration_ns: int, offset_ns: int = 0) -> NDArray[np.int64]:
-    """Instants ``offset + i / rate`` (integer ns, no float drift) within [0, duration]."""
-    if duration_ns < offset_ns:
-        return np.zeros(0, dtype=np.int64)
-    n = int(np.floor((duration_ns - offset_ns) * rate_hz / 1e9 + 1e-9)) + 1
-    i = np.arange(n, dtype=np.float64)
-    return offset_ns + np.round(i * (1e9 / rate_hz)).astype(np.int64)

@@ -9,6 +9,9 @@ topic                       type                            content
 ``/tf_static`` (latched)    tf2_msgs/TFMessage              ``base_link -> <sensor frame>`` (from
                                                             each sensor's ``pose``) and each
                                                             sensor's own extra transforms
+``/scene`` (latched)        visualization_msgs/MarkerArray  the scene's triangles in ``world``
+                                                            (one message at t = 0, runs with a
+                                                            scene; :mod:`roslan.scene.markers`)
 ``/ground_truth/pose``      geometry_msgs/PoseStamped       base_link pose in ``world``
 ``/ground_truth/odometry``  nav_msgs/Odometry               pose in ``world``, twist in
                                                             ``base_link`` (child frame)
@@ -37,8 +40,20 @@ from numpy.typing import NDArray
 
 from roslan.io.messages import MessageStore
 from roslan.io.packing import FixedLayout, Leaf, PackedBatch
-from roslan.sensors.base import Message, SimContext, StaticTransform, TopicSpec, sample_times_ns
-from roslan.trajectory.base import COMPONENTS, GAPS
+from roslan.scene.markers import (
+    SCENE_MSGTYPE,
+    SCENE_TOPIC,
+    SceneMesh,
+    scene_marker_bytes,
+    scene_mesh,
+)
+from roslan.sensors.base import Message, SimContext, StaticTransform, TopicSpec
+from roslan.trajectory.base import (
+    COMPONENTS,
+    DEFAULT_GROUND_TRUTH_RATE,
+    GAPS,
+    ground_truth_times_ns,
+)
 from roslan.trajectory.frames import matrix_to_quat_xyzw
 
 __all__ = [
@@ -190,6 +205,7 @@ class GroundTruth:
     Args:
         rate: Hz of the periodic topics.
         static: transforms for /tf_static (one latched message at t = 0).
+        scene: publish the scene as /scene (one latched message at t = 0; the run has a scene).
     """
 
     TOPICS = (
@@ -200,16 +216,24 @@ class GroundTruth:
         TopicSpec("/ground_truth/accel", "geometry_msgs/msg/AccelStamped"),
         TopicSpec("/tau/state", "std_msgs/msg/Float64MultiArray"),
     )
-    LATCHED = frozenset({"/tf_static"})
+    LATCHED = frozenset({"/tf_static", SCENE_TOPIC})
 
-    def __init__(self, rate: float = 200.0, static: Sequence[StaticTransform] = ()) -> None:
+    def __init__(
+        self,
+        rate: float = DEFAULT_GROUND_TRUTH_RATE,
+        static: Sequence[StaticTransform] = (),
+        *,
+        scene: bool = False,
+    ) -> None:
         self.rate = float(rate)
         self.static = list(static)
+        self.scene = scene
         self._layouts: dict[str, _Layouts] = {}
         self.name = "ground_truth"
 
     def topics(self) -> list[TopicSpec]:
-        return list(self.TOPICS)
+        scene = [TopicSpec(SCENE_TOPIC, SCENE_MSGTYPE)] if self.scene else []
+        return [self.TOPICS[0], *scene, *self.TOPICS[1:]]
 
     def static_transforms(self) -> list[StaticTransform]:
         return list(self.static)
@@ -221,7 +245,8 @@ class GroundTruth:
         return self._layouts[key]
 
     def messages(self, ctx: SimContext) -> Iterator[Message]:
-        """/tf_static at 0, then per instant: /tf, pose, odometry, accel, tau state."""
+        """/tf_static (and /scene) at 0, then per instant: /tf, pose, odometry, accel, tau
+        state."""
         static = self.static
         start = ctx.stamp(0)
         yield Message(
@@ -230,10 +255,17 @@ class GroundTruth:
             "tf2_msgs/msg/TFMessage",
             lambda store: static_transform_message(store, start, static),
         )
-        end = int(ctx.trajectory.duration_ns)
-        times = sample_times_ns(self.rate, end)
-        if times[-1] < end:  # the record ends exactly at the end of the run
-            times = np.append(times, np.int64(end))
+        if self.scene:
+            mesh: list[SceneMesh] = []  # simplified once, serialized per flavour
+
+            def scene_msg(store: MessageStore) -> bytes:
+                if not mesh:
+                    mesh.append(scene_mesh(ctx.scene))
+                return scene_marker_bytes(store, start, mesh[0], WORLD_FRAME)
+
+            yield Message(0, SCENE_TOPIC, SCENE_MSGTYPE, scene_msg)
+        # the record ends exactly at the end of the run; groundtruth.txt has the same rows
+        times = ground_truth_times_ns(self.rate, int(ctx.trajectory.duration_ns))
         per_chunk = max(1, round(self.rate * CHUNK_S))
         for i0 in range(0, times.size, per_chunk):
             t = times[i0 : i0 + per_chunk]

@@ -18,7 +18,16 @@ from numpy.typing import ArrayLike, NDArray
 
 from roslan.trajectory.config import TrajectoryConfig
 
-__all__ = ["COMPONENTS", "GAPS", "State", "Trajectory", "check_duration"]
+__all__ = [
+    "COMPONENTS",
+    "DEFAULT_GROUND_TRUTH_RATE",
+    "GAPS",
+    "State",
+    "Trajectory",
+    "check_duration",
+    "ground_truth_times_ns",
+    "sample_times_ns",
+]
 
 F64 = NDArray[np.float64]
 
@@ -31,6 +40,9 @@ COMPONENTS = (
     *(f"a{g}" for g in GAPS),
 )
 """The 18 components in trajectory.csv order: gaps, rates, accelerations."""
+
+DEFAULT_GROUND_TRUTH_RATE = 200.0
+"""Hz of the ground-truth record (``output.ground_truth_rate``'s default)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -85,6 +97,25 @@ def check_duration(duration: float, sample_dt: float, T: float) -> None:
             f"{MAX_TRAJECTORY_SAMPLES} samples; use a larger sample_dt"
         )
         raise TrajectoryError(msg)
+
+
+def sample_times_ns(rate_hz: float, duration_ns: int, offset_ns: int = 0) -> NDArray[np.int64]:
+    """Instants ``offset + i / rate`` (integer ns, no float drift) within [0, duration]."""
+    if duration_ns < offset_ns:
+        return np.zeros(0, dtype=np.int64)
+    n = int(np.floor((duration_ns - offset_ns) * rate_hz / 1e9 + 1e-9)) + 1
+    i = np.arange(n, dtype=np.float64)
+    return offset_ns + np.round(i * (1e9 / rate_hz)).astype(np.int64)
+
+
+def ground_truth_times_ns(rate_hz: float, duration_ns: int) -> NDArray[np.int64]:
+    """Instants of the ground-truth record: every ``1 / rate`` from 0, plus the end of the
+    run exactly (``duration_ns``) where that falls between two samples. The bag's
+    ``/ground_truth/*`` topics and ``groundtruth.txt`` share them."""
+    times = sample_times_ns(rate_hz, duration_ns)
+    if times[-1] < duration_ns:
+        times = np.append(times, np.int64(duration_ns))
+    return times
 
 
 class Trajectory(Protocol):

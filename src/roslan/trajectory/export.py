@@ -5,8 +5,10 @@ Files written into ``outdir`` (each atomically, see :mod:`roslan.io.files`):
 * ``trajectory.csv``: the 18 components in the goal frame F (m, rad, s), one row at
   every instant of :meth:`Trajectory.table_times` (every ``sample_dt`` from 0, the
   last landing row exactly at T, then the hold).
-* ``groundtruth.txt``: TUM ``t px py pz qx qy qz qw`` of base_link in the world frame,
-  same instants.
+* ``groundtruth.txt``: TUM ``t px py pz qx qy qz qw`` of base_link in the world frame
+  at the ground-truth rate (``output.ground_truth_rate``, default 200 Hz): the instants
+  of the bag's ``/ground_truth/pose`` (:func:`~roslan.trajectory.base.ground_truth_times_ns`,
+  every ``1 / rate`` from 0 plus the end of the run), not the table's.
 * ``summary.json``: :meth:`Trajectory.summary`.
 * ``trajectory.png``: 3-D path with velocity vectors (the paper's Fig. 3) and each gap
   against time.
@@ -22,7 +24,13 @@ from numpy.typing import NDArray
 
 from roslan.io.files import atomic_write, atomic_write_text
 from roslan.io.text import write_columns
-from roslan.trajectory.base import COMPONENTS, GAPS, State, Trajectory
+from roslan.trajectory.base import (
+    COMPONENTS,
+    DEFAULT_GROUND_TRUTH_RATE,
+    GAPS,
+    Trajectory,
+    ground_truth_times_ns,
+)
 from roslan.trajectory.generator import TauTrajectory
 
 __all__ = [
@@ -30,7 +38,9 @@ __all__ = [
     "TUM_HEADER",
     "plot_trajectory",
     "table_times_ns",
+    "write_groundtruth",
     "write_trajectory_files",
+    "write_trajectory_plot",
 ]
 
 CSV_HEADER = "t," + ",".join(COMPONENTS)
@@ -48,13 +58,20 @@ def table_times_ns(traj: Trajectory) -> NDArray[np.int64]:
     return np.round(traj.table_times() * 1e9).astype(np.int64)
 
 
-def write_trajectory_files(traj: Trajectory, outdir: Path, *, plot: bool = True) -> None:
+def write_trajectory_files(
+    traj: Trajectory,
+    outdir: Path,
+    *,
+    plot: bool = True,
+    ground_truth_rate: float = DEFAULT_GROUND_TRUTH_RATE,
+) -> None:
     """Write trajectory.csv, groundtruth.txt, summary.json and (if ``plot``) trajectory.png.
 
     Args:
         traj: the trajectory to sample (closed form, evaluated at the table instants).
         outdir: existing folder; files of the same names are replaced atomically.
         plot: also render trajectory.png (matplotlib Agg, deterministic).
+        ground_truth_rate: Hz of groundtruth.txt (``output.ground_truth_rate``).
     """
     outdir = Path(outdir)
     t = traj.table_times()
@@ -64,21 +81,39 @@ def write_trajectory_files(traj: Trajectory, outdir: Path, *, plot: bool = True)
     with atomic_write(outdir / "trajectory.csv") as fh:
         fh.write(CSV_HEADER + "\n")
         write_columns(fh, t_ns, *comps.T, fmt=_FMT, sep=",")
-    with atomic_write(outdir / "groundtruth.txt") as fh:
-        write_columns(fh, t_ns, *st.position.T, *st.quat_xyzw.T, fmt="%.9f", sep=" ")
+    write_groundtruth(traj, outdir / "groundtruth.txt", ground_truth_rate)
     summary = traj.summary()
     atomic_write_text(outdir / "summary.json", json.dumps(summary, indent=2) + "\n")
     if plot:
-        plot_trajectory(traj, st, outdir / "trajectory.png")
+        plot_trajectory(traj, outdir / "trajectory.png")
 
 
-def plot_trajectory(traj: Trajectory, table: State, path: Path) -> None:
-    """Render the 3-D path in F with velocity vectors at the table instants, and the six
-    gaps against time, to a PNG at ``path`` (atomic, deterministic)."""
+def write_groundtruth(traj: Trajectory, path: Path, rate: float) -> None:
+    """TUM ``t px py pz qx qy qz qw`` (t in integer ns of trajectory time) at the
+    ground-truth instants: the rows are the bag's ``/ground_truth/pose`` messages (stamp
+    minus ``output.start_time``), written chunk by chunk (memory bounded)."""
+    times = ground_truth_times_ns(rate, traj.duration_ns)
+    step = max(1, round(rate * 10.0))  # ten seconds of poses per chunk
+    with atomic_write(path) as fh:
+        for i0 in range(0, times.size, step):
+            t = times[i0 : i0 + step]
+            st = traj.state_ns(t)
+            write_columns(fh, t, *st.position.T, *st.quat_xyzw.T, fmt="%.9f", sep=" ")
+
+
+def write_trajectory_plot(traj: Trajectory, path: Path) -> None:
+    """trajectory.png alone (the simulation renders it in a background process)."""
+    plot_trajectory(traj, path)
+
+
+def plot_trajectory(traj: Trajectory, path: Path) -> None:
+    """Render the 3-D path in F with velocity vectors (12 evenly spaced instants of the
+    landing), and the six gaps against time, to a PNG at ``path`` (atomic,
+    deterministic)."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    from roslan.plots.style import DPI, GAP_COLORS
+    from roslan.plots.style import DPI, GAP_COLORS, velocity_arrows
 
     dense = traj.state(np.linspace(0.0, traj.T, 600))
     fig = Figure(figsize=(12.0, 6.0), dpi=DPI)
@@ -86,19 +121,10 @@ def plot_trajectory(traj: Trajectory, table: State, path: Path) -> None:
     grid = fig.add_gridspec(3, 4, width_ratios=[1.0, 1.0, 0.8, 0.8])
     ax3 = fig.add_subplot(grid[:, :2], projection="3d")
     p = dense.gaps[:, :3]
-    ax3.plot(p[:, 0], p[:, 1], p[:, 2], color="0.55", lw=0.8, ls="--", label="path")
-    landing = table.t <= traj.T
-    stride = max(1, int(np.count_nonzero(landing)) // 40)  # at most ~40 arrows
-    q = table.gaps[landing, :3][::stride]
-    v = table.rates[landing, :3][::stride]
-    span = float(np.ptp(p, axis=0).max()) or 1.0
-    vmax = float(np.linalg.norm(v, axis=1).max()) or 1.0
-    # arrows: at each table row, the velocity (length proportional to speed)
-    ax3.quiver(
-        q[:, 0], q[:, 1], q[:, 2], v[:, 0], v[:, 1], v[:, 2],
-        length=0.12 * span / vmax, normalize=False, color="tab:blue", lw=1.0,
-        arrow_length_ratio=0.25, label=f"velocity (max {vmax:.2f} m/s)",
-    )  # fmt: skip
+    ax3.plot(p[:, 0], p[:, 1], p[:, 2], color="tab:blue", lw=1.2, label="path")
+    # arrows at evenly spaced instants of the landing: each the travel of a round number
+    # of seconds at that velocity (the table rows crowd the arrows onto the path)
+    velocity_arrows(ax3, p, dense.rates[:, :3])
     ax3.plot([p[0, 0]], [p[0, 1]], [p[0, 2]], "o", color="k", ms=5, label="start")
     ax3.plot([0.0], [0.0], [0.0], "*", color="gold", mec="k", ms=11, label="goal")
     ax3.set_xlabel("x [m]")
@@ -108,7 +134,7 @@ def plot_trajectory(traj: Trajectory, table: State, path: Path) -> None:
         ax3.set_title(f"path in goal frame F (k = {traj.k:g}, T = {traj.T:.3f} s)")
     else:
         ax3.set_title(f"path relative to the last pose (file, {traj.T:.3f} s)")
-    ax3.legend(loc="upper left", fontsize=8)
+    ax3.legend(loc="upper right", fontsize=8)  # the start is usually upper left
     units = {"x": "m", "y": "m", "z": "m", "roll": "rad", "pitch": "rad", "yaw": "rad"}
     for i, name in enumerate(GAPS):
         ax = fig.add_subplot(grid[i % 3, 2 + i // 3])

@@ -6,8 +6,10 @@ this project's trajectory.csv (gaps ``x y z roll pitch yaw`` in the goal frame F
 poses of base_link in the frame ``trajectory.goal`` (default: the world). Trajectory
 time 0 is the first sample's time.
 Position: a quintic interpolating spline (C^4), or with ``smoothing > 0`` a smoothing
-spline per axis; orientation: :class:`scipy.spatial.transform.RotationSpline` (C^2), which
-gives body rates and angular acceleration. After the last sample the robot rests at the
+spline per axis; orientation: :class:`scipy.spatial.transform.RotationSpline` (C^2), whose
+first and second derivatives are the body angular velocity and acceleration (in
+base_link). Gaps (intervals over 4 median intervals) are first filled with minimum-jerk
+samples (:mod:`roslan.trajectory.gaps`). After the last sample the robot rests at the
 last pose for ``hold`` seconds.
 """
 
@@ -24,6 +26,7 @@ from roslan.errors import TrajectoryError
 from roslan.trajectory.base import State, Trajectory, check_duration
 from roslan.trajectory.config import TrajectoryConfig
 from roslan.trajectory.frames import matrix_to_rpy, rpy_to_matrix
+from roslan.trajectory.gaps import bridge_gaps
 from roslan.trajectory.generator import TauTrajectory
 
 __all__ = ["FileTrajectory", "make_trajectory", "read_pose_file"]
@@ -55,10 +58,13 @@ def read_pose_file(path: Path, max_gap: float) -> tuple[F64, F64, F64]:
     raw = read_bytes(path, MAX_FILE_BYTES, TrajectoryError)
     rows: list[list[float]] = []
     lines: list[int] = []
+    stamps: list[str] = []  # the time column as written (for messages)
     ns_stamps = False
     table = False
     width, what = 8, "t x y z qx qy qz qw"
-    for lineno, line in enumerate(raw.decode("utf-8", errors="replace").splitlines(), 1):
+    # utf-8-sig: a leading byte-order mark (spreadsheet exports) is not part of the data
+    text = raw.decode("utf-8-sig", errors="replace")
+    for lineno, line in enumerate(text.splitlines(), 1):
         s = line.strip()
         if not s or s.startswith("#"):
             continue
@@ -83,6 +89,7 @@ def read_pose_file(path: Path, max_gap: float) -> tuple[F64, F64, F64]:
             ns_stamps = True
         rows.append(vals)
         lines.append(lineno)
+        stamps.append(parts[0])
     if len(rows) < ORDER + 1:
         msg = f"{path}: {len(rows)} poses; the spline needs at least {ORDER + 1}"
         raise TrajectoryError(msg)
@@ -93,8 +100,8 @@ def read_pose_file(path: Path, max_gap: float) -> tuple[F64, F64, F64]:
     if bad.size:
         i = int(bad[0]) + 1
         msg = (
-            f"{path}:{lines[i]}: time {a[i, 0]!r} is not after the previous line's; "
-            "times must strictly increase"
+            f"{path}:{lines[i]}: time {stamps[i]} is not after the previous line's "
+            f"({stamps[i - 1]}); times must strictly increase"
         )
         raise TrajectoryError(msg)
     big = np.flatnonzero(dt > max_gap)
@@ -141,12 +148,15 @@ class FileTrajectory(Trajectory):
             p = p @ R_goal.T + np.asarray(config.goal.position, dtype=np.float64)
             q = (Rotation.from_matrix(R_goal) * Rotation.from_quat(q)).as_quat()
         self.samples_t, self.samples_p, self.samples_q = t, p, q
+        # gaps are bridged by minimum-jerk samples (trajectory/gaps.py); the splines pass
+        # through the poses and those samples
+        tf, pf, qf, self.gaps = bridge_gaps(t, p, q)
         lam = float(config.smoothing)
         if lam > 0:
-            self._pos = [make_smoothing_spline(t, p[:, i], lam=lam) for i in range(3)]
+            self._pos = [make_smoothing_spline(tf, pf[:, i], lam=lam) for i in range(3)]
         else:
-            self._pos = [make_interp_spline(t, p[:, i], k=ORDER) for i in range(3)]
-        self._rot = RotationSpline(t, Rotation.from_quat(q))
+            self._pos = [make_interp_spline(tf, pf[:, i], k=ORDER) for i in range(3)]
+        self._rot = RotationSpline(tf, Rotation.from_quat(qf))
         self.T = float(t[-1])
         self.hold = float(config.hold)
         self.duration = self.T + self.hold
@@ -200,6 +210,7 @@ class FileTrajectory(Trajectory):
             "tau0": None,
             "k": None,
             "fit_residual": self.residual(),
+            "gaps": [list(g) for g in self.gaps],
             "initial_speed": float(speed[0]),
             "peak_speed": float(speed.max()),
             "peak_acceleration_norm": float(np.linalg.norm(st.acceleration, axis=1).max()),
@@ -215,13 +226,12 @@ class FileTrajectory(Trajectory):
         velocity = np.column_stack([s(tc, 1) for s in self._pos]) * moving
         acceleration = np.column_stack([s(tc, 2) for s in self._pos]) * moving
         rot = self._rot(tc)
-        # RotationSpline's rates are in the world frame: rotate into the body
-        omega_w = self._rot(tc, 1) * moving
-        alpha_w = self._rot(tc, 2) * moving
+        # RotationSpline's first and second derivatives are already the body angular
+        # velocity and acceleration (in base_link; checked against closed forms in
+        # tests/trajectory/test_file_imu.py): no rotation by R^T
+        omega = self._rot(tc, 1) * moving
+        alpha = self._rot(tc, 2) * moving
         R = rot.as_matrix()
-        Rt = np.swapaxes(R, 1, 2)
-        omega = np.einsum("nij,nj->ni", Rt, omega_w)
-        alpha = np.einsum("nij,nj->ni", Rt, alpha_w)
         quat = rot.as_quat()
         quat = np.where(quat[:, 3:4] < 0, -quat, quat)
         rpy = matrix_to_rpy(R).reshape(-1, 3)

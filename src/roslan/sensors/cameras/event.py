@@ -10,8 +10,11 @@ from depth + camera twist), feeds the frames to the vectorized pixel model
   ``packet_events`` events), stamped with their last event (as rpg_dvs_ros does),
   packed with NumPy straight to wire bytes;
 * ``<topic>/camera_info`` at ``rate``; ``<topic>/image_raw`` APS frames (mono8) at
-  ``rate`` when ``aps``; ``<topic>/optic_flow`` (32FC2, px/s) and ``<topic>/depthmap``
-  (32FC1, m) at ``ground_truth_rate`` when enabled;
+  ``rate`` when ``aps``; ``<topic>/event_image`` (rgb8 event frames for bag viewers,
+  :mod:`roslan.sensors.cameras.event_image`) at ``rate`` when ``event_image``;
+  ``<topic>/optic_flow`` (32FC2, px/s) and ``<topic>/depthmap``
+  (32FC1, m) at ``ground_truth_rate`` when enabled, also as files: DSEC optical-flow PNGs
+  in ``flow/`` and an MVSEC-style ``depth.h5`` (:mod:`roslan.sensors.cameras.event_truth`);
 * dataset files (Event Camera Dataset layout): the first event camera's at the OUTDIR
   root, every other one's in ``<name>/``: ``events.txt``, ``events.h5``, APS frames in
   ``images.txt`` + ``images/NNNNNNNN.png``; the run writes its ``calib.txt``,
@@ -54,6 +57,8 @@ from roslan.sensors.base import (
 )
 from roslan.sensors.cameras.encoding import srgb_curve
 from roslan.sensors.cameras.event_config import EventCameraConfig
+from roslan.sensors.cameras.event_image import RecentEvents
+from roslan.sensors.cameras.event_truth import DepthH5Writer, FlowPngWriter
 from roslan.sensors.cameras.model import T_LINK_OPTICAL, CameraModel, RenderPlan
 
 __all__ = ["EventCamera"]
@@ -146,6 +151,9 @@ class EventCamera:
         self._images_fh: IO[str] | None = None
         self._folder = ""  # '' (OUTDIR root) or '<name>/'
         self._sink: BackgroundSink | None = None
+        self._truth: list[FlowPngWriter | DepthH5Writer] = []
+        self._flow_file: FlowPngWriter | None = None
+        self._depth_file: DepthH5Writer | None = None
         self.stats: dict[str, float] = {}
 
     # -------------------------------------------------------------- interface
@@ -161,6 +169,8 @@ class EventCamera:
         ]
         if c.has_aps:
             out.append(TopicSpec(f"{t}/image_raw", "sensor_msgs/msg/Image"))
+        if c.event_image:
+            out.append(TopicSpec(f"{t}/event_image", "sensor_msgs/msg/Image"))
         if c.optic_flow:
             out.append(TopicSpec(f"{t}/optic_flow", "sensor_msgs/msg/Image"))
         if c.depthmap:
@@ -230,24 +240,8 @@ class EventCamera:
         )
         gen = EventGenerator(W, H, self.params, ctx.rng(f"{c.name}/pixels"))
         tick = c.timestamp_resolution_ns
-        prefix = self._folder = self._prefix(ctx)
-        stem = "events" if not prefix else f"{prefix}events"
-        if c.write_txt:
-            self._writers.append(EventTextWriter(ctx.path(f"{stem}.txt")))
-        if c.write_h5:
-            self._writers.append(
-                EventH5Writer(
-                    ctx.path(f"{stem}.h5"),
-                    W,
-                    H,
-                    t_offset_ns=ctx.start_time_ns,
-                    exact_ns=c.sub_microsecond_times,
-                )
-            )
-        if c.has_aps:
-            self._images_fh = ctx.path(f"{prefix}images.txt").open(
-                "w", encoding="utf-8", newline="\n"
-            )
+        self._open_files(ctx)
+        recent = RecentEvents(W, H, round(c.event_image_window * 1e9)) if c.event_image else None
         # dataset files are written beside the rendering, in order (io/background.py)
         sink = self._sink = BackgroundSink(f"{c.name}-files")
         need_depth = c.sampling == "optical_flow" or c.optic_flow or c.depthmap
@@ -273,6 +267,8 @@ class EventCamera:
                 if self._writers:
                     sink.submit(self._write_events, batch)
                 buf.append(batch)
+            if recent is not None:
+                recent.add(batch, t)
             flow = None
             speed = 0.0  # max |flow|, px/s (optical_flow sampling)
             if depth is not None and c.optic_flow and t in gt_set:
@@ -284,17 +280,15 @@ class EventCamera:
             out: list[Message] = []
             if t in info_set:
                 out.append(self._camera_info_msg(ctx, t))
+                if recent is not None:
+                    out.append(self._image_msg(ctx, t, recent.frame(t), "rgb8"))
                 if c.has_aps:
                     aps = _srgb8(lum)
                     out.append(self._image_msg(ctx, t, aps, "mono8"))
                     sink.submit(self._write_image, ctx, t, aps, image_index)
                     image_index += 1
             if t in gt_set:
-                if c.optic_flow and flow is not None:
-                    out.append(self._image_msg(ctx, t, flow, "32FC2"))
-                if c.depthmap and depth is not None:
-                    d = np.where(np.isfinite(depth), depth, np.float32(np.nan)).astype(np.float32)
-                    out.append(self._image_msg(ctx, t, d, "32FC1"))
+                out += self._truth_msgs(ctx, t, flow, depth, gt_times, gt_rate)
             buf, ready = packets.split(buf, t, final=False)
             for m in (*ready, *out):
                 heapq.heappush(pending, (m.t_ns, next(counter), m))
@@ -332,6 +326,68 @@ class EventCamera:
             "duration_s": end * 1e-9,
         }
 
+    def _open_files(self, ctx: SimContext) -> None:
+        """Open the dataset files: events, APS listing, ground truth."""
+        c, W, H = self.config, self.camera.width, self.camera.height
+        prefix = self._folder = self._prefix(ctx)
+        stem = "events" if not prefix else f"{prefix}events"
+        if c.write_txt:
+            self._writers.append(EventTextWriter(ctx.path(f"{stem}.txt")))
+        if c.write_h5:
+            self._writers.append(
+                EventH5Writer(
+                    ctx.path(f"{stem}.h5"),
+                    W,
+                    H,
+                    t_offset_ns=ctx.start_time_ns,
+                    exact_ns=c.sub_microsecond_times,
+                )
+            )
+        if c.has_aps:
+            self._images_fh = ctx.path(f"{prefix}images.txt").open(
+                "w", encoding="utf-8", newline="\n"
+            )
+        self._truth_writers(ctx, prefix)
+
+    def _truth_writers(self, ctx: SimContext, prefix: str) -> None:
+        """Open the ground-truth file writers this camera's config asks for."""
+        c, cam = self.config, self.camera
+        self._flow_file = self._depth_file = None
+        if c.optic_flow:
+            flow_dir = ctx.path(f"{prefix}flow/forward_timestamps.txt").parent
+            self._flow_file = FlowPngWriter(flow_dir, ctx.start_time_ns)
+            self._truth.append(self._flow_file)
+        if c.depthmap:
+            path = ctx.path(f"{prefix}depth.h5")
+            self._depth_file = DepthH5Writer(path, cam.width, cam.height, ctx.start_time_ns)
+            self._truth.append(self._depth_file)
+
+    def _truth_msgs(
+        self,
+        ctx: SimContext,
+        t: int,
+        flow: F32 | None,
+        depth: F32 | None,
+        gt_times: NDArray[np.int64],
+        gt_rate: float,
+    ) -> list[Message]:
+        """The optic-flow / depth messages of ground-truth instant ``t``; their files are
+        written by the background sink (the flow as the displacement to the next instant)."""
+        c, sink, out = self.config, self._sink, []
+        assert sink is not None
+        if c.optic_flow and flow is not None:
+            out.append(self._image_msg(ctx, t, flow, "32FC2"))
+            if self._flow_file is not None:
+                i = int(np.searchsorted(gt_times, t, side="right"))
+                t_next = int(gt_times[i]) if i < gt_times.size else t + round(1e9 / gt_rate)
+                sink.submit(self._flow_file.write, t, t_next, flow)
+        if c.depthmap and depth is not None:
+            d = np.where(np.isfinite(depth), depth, np.float32(np.nan)).astype(np.float32)
+            out.append(self._image_msg(ctx, t, d, "32FC1"))
+            if self._depth_file is not None:
+                sink.submit(self._depth_file.write, t, d)
+        return out
+
     # -------------------------------------------------------------- messages
     def _camera_info_msg(self, ctx: SimContext, t_ns: int) -> Message:
         model, frame, stamp = self.camera.model, self.optical_frame, ctx.stamp(t_ns)
@@ -344,7 +400,12 @@ class EventCamera:
         )
 
     def _image_msg(self, ctx: SimContext, t_ns: int, data: NDArray[Any], encoding: str) -> Message:
-        topic = {"mono8": "image_raw", "32FC2": "optic_flow", "32FC1": "depthmap"}[encoding]
+        topic = {
+            "mono8": "image_raw",
+            "rgb8": "event_image",
+            "32FC2": "optic_flow",
+            "32FC1": "depthmap",
+        }[encoding]
         frame, stamp = self.optical_frame, ctx.stamp(t_ns)
 
         def build(store: MessageStore) -> bytes:
@@ -370,6 +431,9 @@ class EventCamera:
         for wr in self._writers:
             wr.close()
         self._writers = []
+        for tw in self._truth:
+            tw.close()
+        self._truth = []
         if self._images_fh is not None and not self._images_fh.closed:
             self._images_fh.close()
 

@@ -109,6 +109,11 @@ class EventCameraConfig(SensorConfig, CameraIntrinsics):
     """Events per EventArray instead of a duration."""
     aps: bool | None = None
     """APS frames on ``<topic>/image_raw`` at ``rate`` (default: the sensor has them)."""
+    event_image: bool = True
+    """rgb8 event frames on ``<topic>/event_image`` at ``rate`` (bag viewers cannot draw
+    EventArray): the events of the last ``event_image_window``, ON blue, OFF red."""
+    event_image_window: Annotated[FiniteFloat, Field(gt=0, le=1.0)] = 0.01
+    """s of events in each event_image frame."""
     optic_flow: bool = False
     depthmap: bool = False
     ground_truth_rate: Annotated[FiniteFloat, Field(gt=0, le=MAX_RATE_HZ)] | None = None
