@@ -25,6 +25,7 @@ __all__ = [
     "MAX_TRAJECTORY_SAMPLES",
     "MAX_WORKING_BYTES",
     "MIN_SAMPLE_DT_S",
+    "MIN_SIZE_M",
     "ROS1_MAX_TIME_NS",
     "check_seed",
     "format_bytes",
@@ -47,6 +48,9 @@ MAX_COORD_M = 1e6
 """Largest absolute position coordinate of a pose, a goal or a mesh vertex (m)."""
 MAX_SIZE_M = 1e5
 """Largest primitive size, radius, scale or texture scale in a scene."""
+MIN_SIZE_M = 1e-4
+"""Smallest dimension of a scene primitive (box/plane size, radius, height; perch length
+and radius), m: thinner shapes collapse into zero-area triangles in float32."""
 MAX_FRAME_PIXELS = 8192 * 8192
 """Largest camera or event-camera image (width x height)."""
 MAX_MESSAGES = 50_000_000

@@ -199,5 +199,8 @@ def test_tiny_dataset_end_to_end(tmp_path: Path, capsys: pytest.CaptureFixture[s
     batch = json.loads((out / "batch.json").read_text())
     assert batch["counts"] == {"skipped": 6}
     capsys.readouterr()
-    assert main(["dataset", "-o", str(out), "--scenes", "empty", "--dry-run"]) == 0
+    assert main([*args, "--dry-run"]) == 0  # the same dataset: done, nothing refused
     assert "empty_06" in capsys.readouterr().out
+    # the default sensor suite into the same folder: the run would refuse every task
+    assert main(["dataset", "-o", str(out), "--scenes", "empty", "--dry-run"]) == 1
+    assert "0 valid, 6 invalid" in capsys.readouterr().out

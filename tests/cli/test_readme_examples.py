@@ -35,6 +35,10 @@ _NAMED = re.compile(r"^# ([\w.]+\.yaml)\b")
 
 NOT_RUN: dict[str, str] = {
     "make ": "creates a virtual environment and pip-installs (the suite runs inside one)",
+    "sudo apt-get": "installs system packages (needs root; .ci/run installs them)",
+    "python3 -m pip install .": "installs roslan (the suite runs inside an installed one)",
+    ".venv/bin/roslan": "the clone's .venv (here `roslan` on PATH runs every example)",
+    "source .venv/bin/activate": "the clone's .venv (a shell builtin of bash, not sh)",
     "rosbag info": "needs a ROS 1 installation (tests/io/test_bags.py reads the bags instead)",
     "roslan dataset -o paper_ds ": "12 full landings take minutes (its --dry-run runs here)",
     "roslan batch sweep.yaml -o sweep_out --workers": "64 landings (the --dry-run runs here)",

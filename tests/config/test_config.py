@@ -5,6 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
+import yaml
 
 from roslan.config.base import load_yaml_model, validate_model
 from roslan.config.sim import SimConfig
@@ -138,3 +139,88 @@ def test_resolved_config_validates_again(data: dict[str, object]) -> None:
     dumped = first.model_dump(mode="json")
     again = validate_model(SimConfig, dumped)
     assert again.model_dump(mode="json") == dumped
+
+
+@pytest.mark.parametrize(
+    ("rate", "exposure", "ok"),
+    [(30.0, 5.0, False), (30.0, 0.034, False), (30.0, 1 / 30, True), (30.0, 0.005, True)],
+)
+def test_exposure_longer_than_the_frame_period_refused_by_name(
+    tmp_path: Path, rate: float, exposure: float, ok: bool
+) -> None:
+    """``exposure_time: 5`` (meant 5 ms) on a 30 Hz camera is impossible: refused with
+    the file, the key, the value and what is allowed (up to 1 / rate)."""
+    sensor = {"type": "camera", "name": "cam", "rate": rate, "exposure_time": exposure}
+    path = tmp_path / "job.yaml"
+    path.write_text(yaml.safe_dump({"scene": "empty", "sensors": [sensor]}), encoding="utf-8")
+    if ok:
+        assert load_yaml_model(SimConfig, path).sensors[0].exposure_time == exposure  # type: ignore[attr-defined]
+        return
+    with pytest.raises(ConfigError) as err:
+        load_yaml_model(SimConfig, path)
+    text = str(err.value)
+    assert text.startswith(f"{path}: sensors[0].exposure_time = {exposure:g}")
+    assert f"allowed: 0 to {1 / rate:.6g} s" in text
+    stereo = {**sensor, "type": "stereo_camera"}  # the same rule for both frame cameras
+    with pytest.raises(ConfigError, match=r"sensors\[0\]\.exposure_time"):
+        validate_model(SimConfig, {"scene": "empty", "sensors": [stereo]}, "x.yaml")
+
+
+def test_angles_beyond_two_pi_warned_by_key(
+    tmp_path: Path, recwarn: pytest.WarningsRecorder
+) -> None:
+    """Probable degrees in radian fields: one warning per key, naming file, key, value;
+    angles within +-2 pi, and non-angle keys (positions, rates), are not warned."""
+    import math
+
+    doc = {
+        "trajectory": {
+            "initial": {"position": [-8.0, 2.0, 7.0], "rpy": [0.0, 20.0, 0.0], "descent_rate": 1.0},
+            "goal": {"rpy": [0.0, 0.0, -2 * math.pi]},  # exactly one turn: fine
+            "flapping": {"frequency": 5.0, "pitch": 10.0},
+        },
+        "scene": "empty",
+        "sensors": [{"type": "imu", "name": "imu", "rate": 100.0, "pose": {"rpy": [0, 0, 90]}}],
+    }  # fmt: skip
+    path = tmp_path / "job.yaml"
+    path.write_text(yaml.safe_dump(doc), encoding="utf-8")
+    load_yaml_model(SimConfig, path)
+    lines = sorted(str(w.message) for w in recwarn)
+    assert lines == [
+        f"{path}: sensors[0].pose.rpy = [0, 0, 90]: beyond +-2 pi; angles are in radians "
+        "(if 90 means degrees, write 1.571)",
+        f"{path}: trajectory.flapping.pitch = 10: beyond +-2 pi; angles are in radians "
+        "(if 10 means degrees, write 0.1745)",
+        f"{path}: trajectory.initial.rpy = [0, 20, 0]: beyond +-2 pi; angles are in radians "
+        "(if 20 means degrees, write 0.3491)",
+    ]
+
+
+def test_unit_warning_is_one_cli_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from roslan.cli import main
+
+    doc = {"trajectory": {"initial": {"position": [-1.0, 0.5, 1.0], "rpy": [0, 20, 0],
+                                      "descent_rate": 1.0}}}  # fmt: skip
+    path = tmp_path / "job.yaml"
+    path.write_text(yaml.safe_dump(doc), encoding="utf-8")
+    assert main(["simulate", str(path), "-o", str(tmp_path / "o"), "--dry-run"]) == 0
+    err = [line for line in capsys.readouterr().err.splitlines() if "rpy" in line]
+    assert err == [
+        f"warning: {path}: trajectory.initial.rpy = [0, 20, 0]: beyond +-2 pi; angles are "
+        "in radians (if 20 means degrees, write 0.3491)"
+    ]
+
+
+def test_a_sweep_warns_a_unit_slip_once(tmp_path: Path, recwarn: pytest.WarningsRecorder) -> None:
+    """Every task of a sweep carries the base's slip: one warning for all of them."""
+    from roslan.batch.tasks import make_tasks
+
+    base = {"trajectory": {"initial": {"position": [-1.0, 0.5, 1.0], "rpy": [0, 20, 0],
+                                       "descent_rate": 1.0}}}  # fmt: skip
+    configs = [{**base, "seed": s} for s in range(3)]
+    tasks = make_tasks(configs, tmp_path, source="sweep.yaml")
+    assert all(t.error is None for t in tasks)
+    assert [str(w.message) for w in recwarn] == [
+        "sweep.yaml (3 tasks): trajectory.initial.rpy = [0, 20, 0]: beyond +-2 pi; angles "
+        "are in radians (if 20 means degrees, write 0.3491)"
+    ]

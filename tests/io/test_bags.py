@@ -505,3 +505,30 @@ def _defaults(store: MessageStore, msgtype: str) -> dict[str, object]:
             else:
                 out[fname] = []
     return out
+
+
+@pytest.mark.ros1
+def test_rosbag_check_without_dvs_msgs_lists_only_event_array(tmp_path: Path) -> None:
+    """Where ROS 1 lacks dvs_msgs (as the README says), ``rosbag check`` lists exactly one
+    migration: dvs_msgs/EventArray to "Unknown" (the type is unknown there, not
+    mis-written); every other type passes."""
+    py = _debian_python()
+    if subprocess.run([py, "-c", "import dvs_msgs.msg"], capture_output=True).returncode == 0:
+        pytest.skip("dvs_msgs is installed: test_rosbag_check_reports_no_migrations covers it")
+    cli = shutil.which("rosbag", path="/usr/bin")
+    if cli is None:
+        pytest.skip("no rosbag command")
+    topics = [BagTopic(f"/t{i}", name) for i, name in enumerate(PUBLISHED_ROS1_TYPES)]
+    w = MultiBagWriter(tmp_path, ["ros1"], topics)
+    for i, name in enumerate(PUBLISHED_ROS1_TYPES):
+        w.write(f"/t{i}", 10**18 + i, lambda s, n=name: s.new(n, **_defaults(s, n)))
+    w.close()
+    out = subprocess.run(
+        [cli, "check", str(tmp_path / "landing.bag")], capture_output=True, text=True, timeout=60
+    ).stdout
+    froms = sorted({ln.split("From:")[1].split("[")[0].strip() for ln in out.splitlines()
+                    if "From:" in ln})  # fmt: skip
+    assert froms == ["dvs_msgs/EventArray"], out
+    assert "To:   Unknown" in out
+    readme = (Path(__file__).resolve().parents[2] / "README.md").read_text(encoding="utf-8")
+    assert "`dvs_msgs/EventArray`, and `rosbag check` then lists that one type" in readme

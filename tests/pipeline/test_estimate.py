@@ -140,3 +140,39 @@ def test_batch_dry_run_table_summary_and_exit_code(
     path.write_text(yaml.safe_dump(sweep))
     assert main(["batch", str(path), "-o", str(tmp_path / "b"), "--dry-run"]) == 0
     assert "2 valid, 0 invalid" in capsys.readouterr().out
+
+
+def _flow_config(**dvs: Any) -> SimConfig:
+    """The default landing (warehouse, 5.1 s) with its event camera alone, at 160 x 120,
+    rendering at a fixed 25 Hz, no event files and no APS frames."""
+    from roslan.cli.simulate import load_config
+
+    data = load_config(None)[0].model_dump(mode="json")
+    cam = next(s for s in data["sensors"] if s["type"] == "event_camera")
+    cam.update(
+        resolution=[160, 120], fx=100.0, fy=100.0, cx=79.5, cy=59.5, sampling="fixed",
+        min_rate=25.0, max_rate=25.0, aps=False, write_txt=False, write_h5=False, **dvs,
+    )  # fmt: skip
+    return SimConfig.model_validate({**data, "sensors": [cam]})
+
+
+@pytest.mark.slow
+def test_estimate_counts_optic_flow_and_depthmap(tmp_path: Path) -> None:
+    """The event camera's ground-truth images (optic_flow 32FC2, depthmap 32FC1, both
+    bags) dominate this run: the estimate is within a factor 1.3 of the real size, and
+    it grows by the raw image bytes x the measured compression."""
+    pytest.importorskip("roslan.render.gl")
+    cfg = _flow_config(optic_flow=True, depthmap=True)
+    est = estimate_run(cfg)
+    run_simulation(cfg, tmp_path / "out", quiet=True, overview=False, workers=0)
+    real = sum(f.stat().st_size for f in (tmp_path / "out").rglob("*") if f.is_file())
+    assert 1 / 1.3 <= est.bytes / real <= 1.3, (format_bytes(est.bytes), format_bytes(real))
+    # independent count: images at the camera's rate (ground_truth_rate unset) over the
+    # whole run, 8 + 4 bytes per pixel, in two bags compressed to 60-100 %
+    from roslan.trajectory import TauTrajectory
+
+    n = TauTrajectory(cfg.trajectory, warn=False).duration * 25.0
+    raw = n * 160 * 120 * (8 + 4)
+    added = est.bytes - estimate_run(_flow_config()).bytes
+    assert 0.6 * 2 * raw <= added <= 2 * raw
+    assert added > 0.4 * real  # they dominate: leaving them out is a factor > 1.3 off

@@ -187,6 +187,49 @@ def test_scale_not_positive(folder: Path, scale: list[float]) -> None:
     assert "greater than 0" in msg
 
 
+@pytest.mark.parametrize(
+    ("index", "primitive", "key"),
+    [
+        (5, {"type": "sphere", "radius": 1e-300}, "sphere.radius = 1e-300"),  # 0 in float32
+        (0, {"type": "box", "size": [1e-300, 1.0, 1.0]}, "box.size[0] = 1e-300"),
+        (7, {"type": "plane", "size": [1.0, 0.0]}, "plane.size[1] = 0.0"),
+        (4, {"type": "cylinder", "radius": 0.1, "height": 1e-5}, "cylinder.height = 1e-05"),
+        (6, {"type": "capsule", "radius": 5e-5, "height": 1.0}, "capsule.radius = 5e-05"),
+    ],
+)
+def test_degenerate_primitives_refused_by_one_rule(
+    folder: Path, index: int, primitive: dict, key: str
+) -> None:
+    """Every primitive dimension obeys the same bounds [MIN_SIZE_M, MAX_SIZE_M]: the
+    message names the file, the object, the key, the value and what is allowed."""
+    from roslan.limits import MIN_SIZE_M
+
+    d = _doc()
+    d["objects"][index]["primitive"] = primitive
+    name = d["objects"][index]["name"]
+    msg = _err(folder, d)
+    assert "bad.yaml" in msg
+    assert name in msg
+    assert f"(name {name!r}).primitive.{key}: " in msg, msg
+    assert f"greater than or equal to {MIN_SIZE_M}" in msg, msg
+
+
+def test_primitive_too_small_for_its_place_refused(folder: Path) -> None:
+    """A valid radius shrunk by a tiny scale collapses the sphere in float32: refused by
+    name (each of its 528 triangles would have zero area), not rendered silently."""
+    d = _doc()
+    d["objects"][5]["scale"] = [1e-30, 1e-30, 1e-30]
+    msg = _err(folder, d)
+    assert "globe" in msg
+    assert "primitive" in msg
+    assert "radius 0.3" in msg
+    assert "scale [1e-30, 1e-30, 1e-30]" in msg
+    assert "528 of its 528 triangles have zero area" in msg
+    d["objects"][5]["scale"] = [1e-3, 1e-3, 1e-3]  # 0.3 mm: small but a real sphere
+    s = load_scene(str(_write(folder / "ok.yaml", d)))
+    assert s.object("globe").n_triangles == 528
+
+
 @pytest.mark.parametrize("sky", [[0.5, 2.0, 0.1], [0.5, 0.5], [-0.1, 0.2, 0.3]])
 def test_bad_sky(folder: Path, sky: list[float]) -> None:
     d = _doc()
@@ -396,3 +439,23 @@ def test_preview_renders_the_goal_at_the_centre_of_the_approach_view(
         pv.write_preview(scene, png, dpi=40)
     with Image.open(png) as im:
         assert im.size == (9 * 40, 7 * 40)
+
+
+def test_object_rpy_in_degrees_warned_by_key(folder: Path) -> None:
+    """A pose's rpy beyond +-2 pi (45 meant as degrees) loads but warns, naming the file
+    and the key; a radian rpy does not warn."""
+    from roslan.config.base import UnitWarning
+
+    d = _with(5, pose={"position": [0, -3, 2], "rpy": [0.0, 0.0, 45.0]})
+    path = _write(folder / "deg.yaml", d)
+    with pytest.warns(UnitWarning) as rec:
+        load_scene(str(path))
+    assert [str(w.message) for w in rec] == [
+        f"{path}: objects[5].pose.rpy = [0, 0, 45]: beyond +-2 pi; angles are in radians "
+        "(if 45 means degrees, write 0.7854)"
+    ]
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", UnitWarning)
+        load_scene(str(_write(folder / "rad.yaml", _doc())))

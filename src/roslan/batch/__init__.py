@@ -17,7 +17,7 @@ from roslan.batch.paper import (
     write_index,
 )
 from roslan.batch.report import BatchReport, TaskResult, iter_errors, print_summary
-from roslan.batch.runner import Runner, run_tasks
+from roslan.batch.runner import Runner, dry_check, run_tasks
 from roslan.batch.sweep import (
     Sweep,
     check_dotted,
@@ -42,6 +42,7 @@ __all__ = [
     "config_fingerprint",
     "dataset_plan",
     "default_sensor_suite",
+    "dry_check",
     "expand_sweep",
     "iter_errors",
     "latin_hypercube",

@@ -13,17 +13,18 @@ import os
 import shutil
 import time
 import traceback
+import warnings
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 from roslan.batch.report import BatchJournal, BatchReport, TaskProgress, TaskResult
 from roslan.batch.tasks import Task, config_fingerprint
-from roslan.config.base import validate_model
+from roslan.config.base import UnitWarning, validate_model
 from roslan.errors import ConfigError, RoslanError
 from roslan.rundir.manifest import read_manifest, run_duration, run_messages
 
-__all__ = ["LOCAL_CLUSTER_CONFIG", "Runner", "run_tasks"]
+__all__ = ["LOCAL_CLUSTER_CONFIG", "Runner", "dry_check", "run_tasks"]
 
 Runner = Callable[[Any, Path, bool, "Path | None"], Mapping[str, Any]]
 """``runner(config: SimConfig, outdir, overwrite, config_path) -> run.json dict``; the
@@ -64,7 +65,9 @@ def _execute(
     with contextlib.suppress(OSError), marker.open("a", encoding="utf-8") as fh:
         fh.write(f"{os.getpid()}\n")  # one line per attempt, read back by the driver
     try:
-        cfg = validate_model(SimConfig, config, "<task>", context={"base_dir": Path(base_dir)})
+        with warnings.catch_warnings():  # make_tasks reported them, once per sweep
+            warnings.simplefilter("ignore", UnitWarning)
+            cfg = validate_model(SimConfig, config, "<task>", context={"base_dir": Path(base_dir)})
         cfg_path = Path(config_file) if config_file else None
         info = (runner or _default_runner)(cfg, Path(outdir), overwrite, cfg_path)
     except RoslanError as err:
@@ -195,6 +198,51 @@ def run_tasks(
     return BatchReport(out, journal.ordered(), time.perf_counter() - journal.t0, n_workers)
 
 
+def _verdict(task: Task, out: Path, overwrite: bool) -> tuple[str, str | None, Any]:
+    """What the batch does with ``task`` (nothing touched): ``("invalid", error, None)``,
+    ``("skipped", None, run.json)`` for a complete run of the same config, ``("failed",
+    error, None)`` for a complete run of another config, else ``("pending", None,
+    replace)`` with whether its folder is replaced (debris of an interrupted run)."""
+    if task.error is not None:
+        return "invalid", task.error, None
+    folder = out / task.name
+    info = read_manifest(folder)
+    if info is not None and not overwrite:
+        if _existing_matches(task, info):
+            return "skipped", None, info
+        error = (
+            f"{folder} holds a complete run of a different config; pass --overwrite to replace it"
+        )
+        return "failed", error, None
+    # A folder without a complete run.json is debris of an interrupted run: replace it.
+    return "pending", None, overwrite or folder.exists()
+
+
+def dry_check(task: Task, outdir: str | Path, overwrite: bool = False) -> str | None:
+    """``--dry-run`` of one task: None when :func:`run_tasks` would run it (or skip it as
+    done), else the error it would report, with the same message: an invalid config, a
+    complete run of another config in its folder, or any check of the simulation
+    (:func:`roslan.pipeline.check_run`: limits, sensors, topics, free space, the scene
+    and the path's clearance). Writes nothing."""
+    from roslan.config.sim import SimConfig
+    from roslan.pipeline import check_run
+
+    out = Path(outdir).resolve()
+    status, error, replace = _verdict(task, out, overwrite)
+    if status != "pending":
+        return error
+    try:
+        with warnings.catch_warnings():  # make_tasks reported them, once per sweep
+            warnings.simplefilter("ignore", UnitWarning)
+            cfg = validate_model(
+                SimConfig, task.config, "<task>", context={"base_dir": task.base_dir}
+            )
+        check_run(cfg, out / task.name, overwrite=bool(replace), config_path=task.config_file)
+    except RoslanError as err:
+        return f"{type(err).__name__}: {err}"
+    return None
+
+
 def _plan(
     tasks: Sequence[Task], out: Path, overwrite: bool, results: dict[str, TaskResult]
 ) -> list[tuple[Task, bool]]:
@@ -204,25 +252,15 @@ def _plan(
     for task in tasks:
         res = TaskResult(task.name, task.index, "pending", overrides=task.overrides)
         results[task.name] = res
-        if task.error is not None:
-            res.status, res.error = "invalid", task.error
+        status, error, extra = _verdict(task, out, overwrite)
+        if status != "pending":
+            res.status, res.error = status, error
+            if status == "skipped":
+                res.duration_s, res.messages = run_duration(extra), run_messages(extra)
             continue
-        folder = out / task.name
-        info = read_manifest(folder)
-        if info is not None and not overwrite:
-            if _existing_matches(task, info):
-                res.status = "skipped"
-                res.duration_s, res.messages = run_duration(info), run_messages(info)
-                continue
-            res.status = "failed"
-            res.error = (
-                f"{folder} holds a complete run of a different config; "
-                "pass --overwrite to replace it"
-            )
-            continue
-        # A folder without a complete run.json is debris of an interrupted run: replace it.
-        todo.append((task, overwrite or folder.exists()))
-        # So is a hidden partial folder of a killed simulation (SIGKILL skips its cleanup).
+        todo.append((task, bool(extra)))
+        # A hidden partial folder of a killed simulation is debris too (SIGKILL skips its
+        # cleanup).
         for debris in out.glob(f".{task.name}.partial-*"):
             shutil.rmtree(debris, ignore_errors=True)
     return todo

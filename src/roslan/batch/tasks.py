@@ -10,13 +10,14 @@ from __future__ import annotations
 import copy
 import hashlib
 import json
+import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from roslan.batch.sweep import Sweep, expand_sweep
-from roslan.config.base import validate_model
+from roslan.config.base import UnitWarning, validate_model
 from roslan.errors import ConfigError, RoslanError
 
 __all__ = ["Task", "config_fingerprint", "make_tasks", "sweep_tasks", "validate_config"]
@@ -49,8 +50,6 @@ def config_fingerprint(config: Any) -> str:
 def validate_config(config: Mapping[str, Any], base_dir: Path, source: str) -> Any:
     """Validate one generated config as ``roslan simulate`` would (SimConfig and the
     trajectory's own checks); ConfigError/RoslanError on failure."""
-    import warnings
-
     from roslan.config.sim import SimConfig
     from roslan.trajectory.spline import make_trajectory
 
@@ -75,6 +74,7 @@ def make_tasks(
     ``config_file`` (optional) is handed to the simulation as the file the config came
     from (relative paths inside resolve against its folder, which must be ``base_dir``)."""
     tasks = []
+    slips: dict[str, list[str]] = {}  # probable unit slips -> the tasks that have them
     for i, config in enumerate(configs):
         name = names[i] if names is not None else f"{i:04d}"
         task = Task(
@@ -85,12 +85,21 @@ def make_tasks(
             base_dir=Path(base_dir).resolve(),
             config_file=config_file,
         )
+        where = f"{source}: task {name}"
         try:
-            cfg = validate_config(config, task.base_dir, f"{source}: task {name}")
+            with warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("always", UnitWarning)
+                cfg = validate_config(config, task.base_dir, where)
+            for w in caught:
+                text = str(w.message).removeprefix(f"{where}: ")
+                slips.setdefault(text, []).append(name)
             task.fingerprint = config_fingerprint(cfg.model_dump(mode="json"))
         except RoslanError as err:
             task.error = str(err)
         tasks.append(task)
+    for text, names_ in slips.items():  # one line per slip, not one per task
+        which = f"task {names_[0]}" if len(names_) == 1 else f"{len(names_)} tasks"
+        warnings.warn(f"{source} ({which}): {text}", UnitWarning, stacklevel=2)
     if len({t.name for t in tasks}) != len(tasks):
         msg = f"{source}: task folder names are not unique"
         raise ConfigError(msg)

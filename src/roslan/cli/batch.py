@@ -52,10 +52,16 @@ def _batch(args: argparse.Namespace) -> int:
     sweep = load_sweep(args.sweep)
     tasks = sweep_tasks(sweep)
     if args.dry_run:
+        from roslan.batch import dry_check
         from roslan.cli.dryrun import PlanRow, print_plan
 
         rows = [
-            PlanRow(t.name, {k: _short(v) for k, v in t.overrides.items()}, t.config, t.error)
+            PlanRow(
+                t.name,
+                {k: _short(v) for k, v in t.overrides.items()},
+                t.config,
+                dry_check(t, args.output, args.overwrite),
+            )
             for t in tasks
         ]
         return print_plan("roslan batch plan", rows, Path(args.output), args.workers)
@@ -86,6 +92,10 @@ def register(subparsers: Any) -> None:
     b.add_argument("sweep", metavar="SWEEP.yaml")
     b.add_argument("-o", "--output", required=True, metavar="DIR", help="batch folder")
     b.add_argument("--overwrite", action="store_true", help="rerun completed simulations too")
-    b.add_argument("--dry-run", action="store_true", help="list the tasks and their validity")
+    b.add_argument(
+        "--dry-run",
+        action="store_true",
+        help="list the tasks and their validity (every check of the run), run nothing",
+    )
     add_cluster_args(b)
     b.set_defaults(func=_batch)

@@ -57,6 +57,7 @@ def _dataset_dry_run(args: argparse.Namespace, sensors: list[dict[str, Any]] | N
     import math
 
     from roslan.batch.paper import dataset_plan
+    from roslan.batch.runner import dry_check
     from roslan.batch.tasks import make_tasks
     from roslan.cli.dryrun import PlanRow, print_plan
 
@@ -80,7 +81,7 @@ def _dataset_dry_run(args: argparse.Namespace, sensors: list[dict[str, Any]] | N
                 "seed": str(r.seed),
             },
             config=r.config,
-            error=t.error,
+            error=dry_check(t, args.output, args.overwrite),
         )
         for r, t in zip(runs, tasks, strict=True)
     ]
@@ -120,6 +121,10 @@ def register(subparsers: Any) -> None:
         help="touchdown time of every landing (scales the start distance; default: 8 m start)",
     )
     p.add_argument("--format", choices=FORMAT_CHOICES, help="bag formats (default both)")
-    p.add_argument("--dry-run", action="store_true", help="print the plan, simulate nothing")
+    p.add_argument(
+        "--dry-run",
+        action="store_true",
+        help="print the plan with every run's checks, simulate nothing",
+    )
     add_cluster_args(p)
     p.set_defaults(func=_dataset)

@@ -1,4 +1,5 @@
-"""``roslan simulate [CONFIG] -o OUTDIR``: run a simulation job into an output folder."""
+"""``roslan simulate [CONFIG] -o OUTDIR``: run a simulation job into an output folder
+(``-o``/``--output`` like every command; ``--outdir`` is kept as an alias)."""
 
 from __future__ import annotations
 
@@ -69,9 +70,19 @@ def _run(args: argparse.Namespace, config: SimConfig, path: Path | None) -> int:
     from roslan.pipeline import run_simulation
 
     formats = bag_formats(args.format)
-    if args.dry_run:
+    if args.dry_run:  # the run's own checks, nothing written, then the estimate
         from roslan.cli.dryrun import print_run_estimate
+        from roslan.pipeline import check_run
 
+        check_run(
+            config,
+            args.outdir,
+            overwrite=args.overwrite,
+            formats=formats,
+            config_path=path,
+            allow_collision=args.allow_collision,
+            workers=args.workers,
+        )
         return print_run_estimate(config, args.outdir, formats)
     run = run_simulation(
         config,
@@ -106,7 +117,14 @@ def register(subparsers: Any) -> None:
     )
     p.add_argument("config", nargs="?", type=Path, default=None, metavar="CONFIG", help="job YAML")
     p.add_argument(
-        "-o", "--outdir", type=Path, required=True, metavar="OUTDIR", help="output folder"
+        "-o",
+        "--output",
+        "--outdir",  # the earlier spelling, kept so that scripts keep working
+        dest="outdir",
+        type=Path,
+        required=True,
+        metavar="OUTDIR",
+        help="output folder (-o/--output, as in every roslan command; --outdir also works)",
     )
     p.add_argument("--seed", type=seed_arg, default=None, help="override the config's seed (>= 0)")
     p.add_argument("--format", choices=FORMAT_CHOICES, default=None, help="bag format(s)")
@@ -124,7 +142,8 @@ def register(subparsers: Any) -> None:
     p.add_argument(
         "--dry-run",
         action="store_true",
-        help="print the estimated disk use and run time, simulate nothing",
+        help="make every check of the run (config, OUTDIR, free space, scene, clearance) "
+        "and print the estimated disk use and run time; simulate and write nothing",
     )
     p.add_argument(
         "--workers",

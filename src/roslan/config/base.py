@@ -13,7 +13,9 @@ import re
 import reprlib
 import types
 import typing
-from collections.abc import Mapping
+import warnings
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Annotated, Any, Literal, TypeVar, Union, get_args, get_origin
 
@@ -27,12 +29,17 @@ from pydantic import (
     model_validator,
 )
 
+from roslan.config.units import RADIANS, unit_slips
 from roslan.errors import ConfigError
 
 __all__ = [
+    "Angle",
+    "Angles3",
     "FiniteFloat",
+    "ModelFor",
     "Pose",
     "StrictModel",
+    "UnitWarning",
     "Vec3",
     "allowed_keys",
     "format_validation_error",
@@ -60,6 +67,10 @@ MAX_COORD = 1e6
 Coord = Annotated[FiniteFloat, Field(ge=-MAX_COORD, le=MAX_COORD)]
 Vec3 = tuple[Coord, Coord, Coord]
 """Three finite floats within +-1e6, e.g. a position in metres or roll/pitch/yaw in radians."""
+Angles3 = Annotated[Vec3, RADIANS]
+"""Three angles in radians (roll, pitch, yaw): beyond +-2 pi is warned as a unit slip."""
+Angle = Annotated[FiniteFloat, RADIANS]
+"""An angle in radians: beyond +-2 pi is warned as a unit slip."""
 
 
 def _leaves(ann: Any) -> list[Any]:
@@ -124,7 +135,7 @@ class Pose(StrictModel):
     """A rigid pose: position (m) and roll/pitch/yaw (rad), R = Rz(yaw) Ry(pitch) Rx(roll)."""
 
     position: Vec3 = (0.0, 0.0, 0.0)
-    rpy: Vec3 = (0.0, 0.0, 0.0)
+    rpy: Angles3 = (0.0, 0.0, 0.0)
 
     def matrix(self) -> np.ndarray:
         """4x4 homogeneous transform ``T_parent_child`` (float64)."""
@@ -159,12 +170,27 @@ def _closest(word: Any, allowed: list[str]) -> str:
     return "; did you mean " + " or ".join(repr(c) for c in close) + "?"
 
 
+@dataclass(frozen=True)
+class ModelFor:
+    """``Annotated`` metadata of a field whose mappings validate with a model chosen by
+    their content (a sensor's config class by its ``type``): ``resolve(mapping)`` returns
+    that model or None. Error messages use it to list the keys the right model allows."""
+
+    resolve: Callable[[Mapping[str, Any]], type[BaseModel] | None]
+
+
 def _model_of(annotation: Any, data: Any) -> type[BaseModel] | None:
     """The pydantic model a field annotation validates ``data`` with (Optional, lists,
-    Annotated unwrapped; a sensor mapping resolves to its type's config class)."""
+    Annotated unwrapped; a mapping under :class:`ModelFor` resolves to its model)."""
     origin = typing.get_origin(annotation)
     if origin is Annotated:
-        return _model_of(typing.get_args(annotation)[0], data)
+        base, *meta = typing.get_args(annotation)
+        for m in meta:
+            if isinstance(m, ModelFor) and isinstance(data, Mapping):
+                found = m.resolve(data)
+                if found is not None:
+                    return found
+        return _model_of(base, data)
     if origin in (typing.Union, types.UnionType):
         for arg in typing.get_args(annotation):
             found = _model_of(arg, data)
@@ -172,10 +198,6 @@ def _model_of(annotation: Any, data: Any) -> type[BaseModel] | None:
                 return found
         return None
     if isinstance(annotation, type) and issubclass(annotation, BaseModel):
-        resolve = getattr(annotation, "config_class_for", None)
-        if resolve is not None and isinstance(data, Mapping):
-            sub: type[BaseModel] | None = resolve(data)
-            return sub or annotation
         return annotation
     return None
 
@@ -301,10 +323,18 @@ def validate_model(
         msg = f"{where}: expected a mapping of keys at the top level, got {type(data).__name__}"
         raise ConfigError(msg)
     try:
-        return model.model_validate(data, context=dict(context or {}))
+        validated = model.model_validate(data, context=dict(context or {}))
     except ValidationError as err:
         text = format_validation_error(err, source, model=model, data=data)
         raise ConfigError(text) from None
+    where = source or "<config>"
+    for slip in unit_slips(validated):
+        warnings.warn(f"{where}: {slip}", UnitWarning, stacklevel=2)
+    return validated
+
+
+class UnitWarning(UserWarning):
+    """A valid value that is probably in the wrong unit (e.g. degrees for radians)."""
 
 
 def load_yaml_model(model: type[M], path: str | Path) -> M:

@@ -15,10 +15,10 @@ from pydantic import (
     model_validator,
 )
 
-from roslan.config.base import FiniteFloat, StrictModel
+from roslan.config.base import FiniteFloat, ModelFor, StrictModel
 from roslan.limits import MAX_RATE_HZ, MAX_SEED
 from roslan.sensors.base import SensorConfig
-from roslan.sensors.registry import SENSOR_TYPES, config_class
+from roslan.sensors.registry import SENSOR_TYPES, config_class, config_class_for
 from roslan.trajectory.base import DEFAULT_GROUND_TRUTH_RATE
 from roslan.trajectory.config import TrajectoryConfig
 from roslan.vehicle import VehicleConfig
@@ -94,9 +94,11 @@ class SimConfig(StrictModel):
     trajectory: TrajectoryConfig = TrajectoryConfig()
     scene: str | None = None
     """A built-in scene name (``warehouse``, ``refinery``, ``empty``) or a scene YAML path."""
-    sensors: list[Annotated[SerializeAsAny[SensorConfig], BeforeValidator(_sensor)]] = Field(
-        default_factory=list
-    )
+    sensors: list[
+        Annotated[
+            SerializeAsAny[SensorConfig], BeforeValidator(_sensor), ModelFor(config_class_for)
+        ]
+    ] = Field(default_factory=list)
     seed: Annotated[int, Field(ge=0, le=MAX_SEED)] = 0
     vehicle: VehicleConfig = VehicleConfig()
     """Body shape and contact points in base_link (:mod:`roslan.vehicle`)."""

@@ -14,15 +14,16 @@ reference expressed as a drift of the signal) which is linear in between:
 * the refractory period drops an event closer than ``refractory`` to the pixel's last
   *emitted* event, but the reference still advances (ESIM);
 * thresholds ``C+``/``C-`` carry a per-pixel mismatch fixed at construction;
-* shot noise (v2e): Poisson events at uniform random instants, ON and OFF each at
+* shot noise (v2e's form, evaluated at ``I`` rather than v2e's ``(DN + 20) / 275``):
+  Poisson events at uniform random instants, ON and OFF each at
   ``shot_noise_rate / 2 * (1 - (1 - f) * clip(I, 0, 1)) * C_nominal / C`` Hz per pixel (``I``
   the photoreceptor's linear intensity, ``f = shot_noise_intensity_factor``: dark pixels
   are the noisiest; a pixel with a low threshold fires more); an event sets the reference
   to the present signal (no follow-up event undoes it);
 * the leak's initial phase (``leak_phase``): ``steady`` starts every reference a uniform
   random fraction of ``C+`` below the signal (the leak's steady state, as if the sensor had
-  been running), ``zero`` at the signal (a global reset at t = 0: no leak event before
-  ``1 / leak_rate``).
+  been running; roslan's choice), ``zero`` at the signal (a global reset at t = 0: no leak
+  event before ``1 / leak_rate``; what v2e does).
 
 docs/event-model.md gives the equations, the defaults, the sources and the tests that
 measure each of them.
@@ -89,7 +90,9 @@ class EventModelParams:
         leak_rate: leak events per pixel, Hz (ON events of a static scene).
         leak_jitter: relative per-pixel std of the leak rate.
         shot_noise_rate: shot-noise events per pixel, Hz (both polarities together) of a
-            pixel at zero intensity and nominal thresholds (v2e's ``shot_noise_rate_hz``).
+            pixel at zero intensity and nominal thresholds (v2e's ``shot_noise_rate_hz``,
+            which v2e evaluates at ``(DN + 20) / 275``: its darkest pixel fires at 0.9455 of
+            it, roslan's black pixel at all of it; docs/event-model.md).
         shot_noise_intensity_factor: the shot-noise rate of a pixel at intensity 1 relative
             to one at 0 (linear in between; v2e's 0.25).
         leak_phase: ``steady`` (references start a uniform random fraction of ``C+`` below

@@ -4,7 +4,15 @@ bags, write the run folder (:func:`run_simulation`)."""
 from __future__ import annotations
 
 from roslan.pipeline.context import Context
-from roslan.pipeline.plan import RunPlan, make_plan, preflight
+from roslan.pipeline.plan import RunPlan, check_run, make_plan, preflight
 from roslan.pipeline.run import RunOptions, run_simulation
 
-__all__ = ["Context", "RunOptions", "RunPlan", "make_plan", "preflight", "run_simulation"]
+__all__ = [
+    "Context",
+    "RunOptions",
+    "RunPlan",
+    "check_run",
+    "make_plan",
+    "preflight",
+    "run_simulation",
+]

@@ -50,7 +50,14 @@ _RATIO: dict[str, dict[str, float]] = {
     "events": {"lz4": 0.66, "bz2": 0.45, "zstd": 0.44, "none": 1.0},
     "cloud": {"lz4": 0.85, "bz2": 0.75, "zstd": 0.68, "none": 1.0},
     "small": {"lz4": 0.35, "bz2": 0.25, "zstd": 0.25, "none": 1.0},
+    # the event camera's ground-truth images (2026-11-26, default landing, DAVIS346 at
+    # 25 Hz; benchmarks/bench_outputs.py: 32FC2 optic_flow 0.89 / 0.79, 32FC1 depthmap
+    # 0.86 / 0.68; bz2 not measured: taken as zstd)
+    "flow": {"lz4": 0.89, "bz2": 0.79, "zstd": 0.79, "none": 1.0},
+    "depth": {"lz4": 0.86, "bz2": 0.68, "zstd": 0.68, "none": 1.0},
 }
+_FLOW_PX = 8  # bytes per pixel of a 32FC2 optic_flow image (vx, vy float32, px/s)
+_DEPTH_PX = 4  # bytes per pixel of a 32FC1 depthmap image (float32, m)
 _PNG_RATIO = {"image": 0.33, "mono": 0.36, "depth": 0.5}
 _EVENT_TXT = 21.5  # bytes per events.txt line
 _EVENT_H5 = {False: 2.9, True: 4.7}  # bytes per event in events.h5 (gzip), with t_ns?
@@ -128,6 +135,11 @@ def estimate_run(config: SimConfig, formats: tuple[str, ...] | None = None) -> R
                 if getattr(s, "write_h5", True):
                     exact = s.sub_microsecond_times  # type: ignore[attr-defined]
                     add("events.h5", events * _EVENT_H5[exact])
+                n_truth = duration * float(s.ground_truth_rate or s.rate)  # type: ignore[attr-defined]
+                if getattr(s, "optic_flow", False):
+                    bag("flow", n_truth * (w * h * _FLOW_PX + 300.0))
+                if getattr(s, "depthmap", False):
+                    bag("depth", n_truth * (w * h * _DEPTH_PX + 300.0))
                 if getattr(s, "aps", None) is not False:
                     bag("mono", n * w * h)
                     add("images", n * w * h * _PNG_RATIO["mono"])

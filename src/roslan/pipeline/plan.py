@@ -5,16 +5,22 @@ trajectory, the bag formats, every sensor constructed from its config, the groun
 with the /tf_static tree, who publishes each topic, and which sensors run in worker
 processes. It refuses (with an error that names the key or sensor) an existing OUTDIR
 without ``overwrite``, resource limits, a sensor that needs a scene without one, a full
-disk, clashing names, frames or topics.
+disk, clashing names, frames or topics. :func:`load_checked_scene` then loads the scene
+and refuses a path on which the vehicle or a sensor enters its geometry.
+
+:func:`check_run` is both steps without writing anything: the verdict of every
+``--dry-run`` (``simulate``, ``batch``, ``dataset``), the same checks, in the same order
+and with the same messages, as :func:`~roslan.pipeline.run.run_simulation`.
 """
 
 from __future__ import annotations
 
 import os
 import sys
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from roslan.config.sim import SimConfig
 from roslan.errors import ConfigError, SensorError
@@ -29,9 +35,23 @@ from roslan.sensors.base import Sensor
 from roslan.sensors.ground_truth import GroundTruth
 from roslan.sensors.registry import sensor_class
 from roslan.trajectory.base import Trajectory
+from roslan.trajectory.config import TrajectoryConfig
+from roslan.trajectory.generator import TauTrajectory
 from roslan.trajectory.spline import make_trajectory
+from roslan.vehicle import base_link_trajectory
 
-__all__ = ["BAG_FORMATS", "RunPlan", "make_plan", "preflight"]
+if TYPE_CHECKING:
+    from roslan.scene.model import Scene
+
+__all__ = [
+    "BAG_FORMATS",
+    "CheckedScene",
+    "RunPlan",
+    "check_run",
+    "load_checked_scene",
+    "make_plan",
+    "preflight",
+]
 
 BAG_FORMATS = ("ros1", "ros2")
 
@@ -157,3 +177,77 @@ def make_plan(
         bag_topics=bag_topics,
         groups=groups,
     )
+
+
+@dataclass
+class CheckedScene:
+    """The scene of a run and base_link's trajectory in it (the goal moved so that the
+    vehicle's contact point, not base_link, meets the surface)."""
+
+    scene: Scene | None
+    traj_config: TrajectoryConfig
+    traj: Trajectory
+
+
+def load_checked_scene(
+    plan: RunPlan, *, allow_collision: bool = False, phase: Callable[[str], None] | None = None
+) -> CheckedScene:
+    """Load the plan's scene and check the path's clearance (unless ``allow_collision``).
+
+    Raises:
+        SceneError: the scene cannot be loaded.
+        ConfigError: the vehicle or a sensor enters the scene's geometry on the way.
+    """
+    config = plan.config
+    say = phase or (lambda text: None)
+    scene: Scene | None = None
+    if config.scene is not None:
+        import roslan.scene as scene_mod
+
+        say(f"loading scene {config.scene!r}")
+        scene = scene_mod.load_scene(config.scene, base_dir=plan.base_dir, seed=config.seed)
+    # the goal is where the vehicle's contact point meets the surface: base_link's
+    # trajectory ends above it (roslan.vehicle); only the goal moves, not the timing
+    traj_config = base_link_trajectory(config.trajectory, config.vehicle, scene)
+    traj = plan.traj
+    if traj_config is not config.trajectory:
+        traj = TauTrajectory(traj_config, warn=False)
+    checked = CheckedScene(scene, traj_config, traj)
+    if scene is None or allow_collision:
+        return checked
+    from roslan.scene.clearance import check_clearance
+
+    say("checking the path's clearance")
+    hit = check_clearance(scene, traj, vehicle=config.vehicle, sensors=config.sensors)
+    if hit is not None:
+        msg = (
+            f"scene {config.scene!r}: {hit}; change the trajectory, the sensor "
+            "mounts or the vehicle block, or pass --allow-collision"
+        )
+        raise ConfigError(msg)
+    return checked
+
+
+def check_run(
+    config: SimConfig,
+    outdir: Path,
+    *,
+    overwrite: bool = False,
+    formats: Sequence[str] | None = None,
+    config_path: Path | None = None,
+    allow_collision: bool = False,
+    workers: int | str | None = None,
+) -> RunPlan:
+    """Every check :func:`~roslan.pipeline.run.run_simulation` makes before it writes,
+    writing nothing (``--dry-run``): :func:`make_plan`, then :func:`load_checked_scene`.
+    Raises what the run would raise, with the same message."""
+    plan = make_plan(
+        config,
+        Path(outdir).absolute(),
+        overwrite=overwrite,
+        formats=formats,
+        config_path=config_path,
+        workers=workers,
+    )
+    load_checked_scene(plan, allow_collision=allow_collision)
+    return plan

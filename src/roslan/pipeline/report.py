@@ -172,12 +172,14 @@ class BackgroundPlot:
 def playback_text(
     duration_s: float, wall_s: float, formats: Sequence[str], topics: dict[str, int]
 ) -> str:
-    rtf = duration_s / wall_s if wall_s > 0 else float("inf")
+    rtf = wall_s / duration_s if duration_s > 0 else float("inf")
+    pace = 1.0 / rtf if rtf > 0 else float("inf")  # the play rate of this run's pace
     lines = [
         "# Playing this landing",
         "",
         f"Trajectory: {duration_s:.3f} s; this simulation took {wall_s:.3f} s of wall time "
-        f"(R = trajectory time / simulation time = {rtf:.2f}).",
+        f"(real-time factor = wall time / trajectory time = {rtf:.2f}; playing at its pace "
+        f"is rate 1 / {rtf:.2f} = {pace:.2f}).",
         "",
     ]
     if "ros1" in formats:
@@ -188,7 +190,7 @@ def playback_text(
             "rosbag info landing.bag",
             "rosparam set use_sim_time true   # stamps = start_time + trajectory time",
             "rosbag play --clock landing.bag             # real time",
-            f"rosbag play --clock landing.bag -r {rtf:.2f}   # at the pace this simulation ran",
+            f"rosbag play --clock landing.bag -r {pace:.2f}   # at the pace this simulation ran",
             "```",
             "",
         ]
@@ -199,7 +201,7 @@ def playback_text(
             "```bash",
             "ros2 bag info landing_ros2",
             "ros2 bag play landing_ros2 --clock",
-            f"ros2 bag play landing_ros2 --clock -r {rtf:.2f}",
+            f"ros2 bag play landing_ros2 --clock -r {pace:.2f}",
             "```",
             "",
         ]

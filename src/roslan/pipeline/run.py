@@ -4,7 +4,9 @@
 
 1. **Plan** (:func:`~roslan.pipeline.plan.make_plan`): every check that can fail before
    anything is written (trajectory, limits, sensors, names, topics, free space, OUTDIR);
-   then the scene is loaded and the path's clearance checked (unless ``allow_collision``).
+   then the scene is loaded and the path's clearance checked (unless ``allow_collision``;
+   :func:`~roslan.pipeline.plan.load_checked_scene`). ``--dry-run`` makes the same
+   checks through :func:`~roslan.pipeline.plan.check_run`, writing nothing.
 2. **Folder**: everything is written into a hidden sibling ``.<OUTDIR>.partial-XXXX``
    (:mod:`roslan.rundir.folder`): trajectory files, the scene export (on a thread of its
    own, beside the streaming), then
@@ -40,13 +42,12 @@ from types import FrameType
 from typing import TYPE_CHECKING, Any
 
 from roslan.config.sim import SimConfig
-from roslan.errors import ConfigError
 from roslan.io.background import BackgroundSink
 from roslan.io.bag import BAG_NAMES, MultiBagWriter
 from roslan.io.messages import Flavor
 from roslan.pipeline.context import Context
 from roslan.pipeline.merge import CheckedStream, MergeItem, pump, tagged
-from roslan.pipeline.plan import RunPlan, make_plan
+from roslan.pipeline.plan import RunPlan, load_checked_scene, make_plan
 from roslan.pipeline.report import BackgroundPlot, Progress, playback_text, print_profile
 from roslan.pipeline.worker import WorkerJob, WorkerPool, worker_nice
 from roslan.rundir.calibration import root_camera, write_calibration
@@ -65,8 +66,6 @@ from roslan.rundir.manifest import (
 from roslan.rundir.readme import outdir_readme
 from roslan.sensors.registry import sensor_spec
 from roslan.trajectory.base import Trajectory
-from roslan.trajectory.generator import TauTrajectory
-from roslan.vehicle import base_link_trajectory
 
 if TYPE_CHECKING:
     from roslan.scene.model import Scene
@@ -209,32 +208,10 @@ class _Run:
 
     # -------------------------------------------------------------------- 1. plan: scene
     def _load_scene(self) -> None:
-        config = self.config
-        if config.scene is not None:
-            import roslan.scene as scene_mod
-
-            self.progress.phase(f"loading scene {config.scene!r}")
-            self.scene = scene_mod.load_scene(
-                config.scene, base_dir=self.plan.base_dir, seed=config.seed
-            )
-        scene = self.scene
-        # the goal is where the vehicle's contact point meets the surface: base_link's
-        # trajectory ends above it (roslan.vehicle); only the goal moves, not the timing
-        self.traj_config = base_link_trajectory(config.trajectory, config.vehicle, scene)
-        if self.traj_config is not config.trajectory:
-            self.traj = TauTrajectory(self.traj_config, warn=False)
-        if scene is None or self.opts.allow_collision:
-            return
-        from roslan.scene.clearance import check_clearance
-
-        self.progress.phase("checking the path's clearance")
-        hit = check_clearance(scene, self.traj, vehicle=config.vehicle, sensors=config.sensors)
-        if hit is not None:
-            msg = (
-                f"scene {config.scene!r}: {hit}; change the trajectory, the sensor "
-                "mounts or the vehicle block, or pass --allow-collision"
-            )
-            raise ConfigError(msg)
+        checked = load_checked_scene(
+            self.plan, allow_collision=self.opts.allow_collision, phase=self.progress.phase
+        )
+        self.scene, self.traj_config, self.traj = checked.scene, checked.traj_config, checked.traj
 
     # ------------------------------------------------------------------- 2. folder: start
     def _start(self) -> None:
@@ -408,10 +385,9 @@ class _Run:
             "stream_start_s": ticks["stream"] - self.wall0,
             "stream_s": stream_s,
             # real-time factor = simulation wall time / trajectory time (<= 1: faster
-            # than real time); speedup is its inverse.
+            # than real time)
             "real_time_factor": wall / duration,
             "stream_real_time_factor": stream_s / duration,
-            "speedup": duration / wall if wall > 0 else None,
             "workers": len(plan.groups),
             "worker_sensors": [[plan.sensors[i].config.name for i in g] for g in plan.groups],
         }

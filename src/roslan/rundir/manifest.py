@@ -78,8 +78,9 @@ class RunManifest(TypedDict):
 
 
 class Timing(TypedDict):
-    """``timing.json``: this run's wall-clock figures (real-time factor <= 1 is faster
-    than real time; ``speedup`` is its inverse)."""
+    """``timing.json``: this run's wall-clock figures. The real-time factor is wall time /
+    trajectory time (<= 1: faster than real time), the one measure of speed roslan
+    reports (progress bar, PLAYBACK.md, docs)."""
 
     wall_time_s: float
     setup_s: float
@@ -88,7 +89,6 @@ class Timing(TypedDict):
     stream_s: float
     real_time_factor: float
     stream_real_time_factor: float
-    speedup: float | None
     workers: int
     worker_sensors: list[list[str]]
     profile: NotRequired[dict[str, Any]]

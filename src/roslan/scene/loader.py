@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import re
+import warnings
 from collections.abc import Callable
 from functools import lru_cache
 from pathlib import Path
@@ -12,7 +13,8 @@ import numpy as np
 from numpy.typing import NDArray
 from pydantic import ValidationError
 
-from roslan.config.base import format_validation_error, load_yaml
+from roslan.config.base import UnitWarning, format_validation_error, load_yaml
+from roslan.config.units import unit_slips
 from roslan.errors import ConfigError, SceneError
 from roslan.scene import mesh as m
 from roslan.scene.model import Lights, Material, Scene, SceneObject
@@ -95,7 +97,7 @@ def parse_scene_file(path: Path) -> SceneFile:
         )
         raise SceneError(msg)
     try:
-        return SceneFile.model_validate(data)
+        spec = SceneFile.model_validate(data)
     except ValidationError as err:
         text = format_validation_error(err, path, model=SceneFile, data=data)
         objs = data.get("objects")
@@ -112,6 +114,9 @@ def parse_scene_file(path: Path) -> SceneFile:
             return mt.group(0)
 
         raise SceneError(_OBJ_RE.sub(_named, text)) from None
+    for slip in unit_slips(spec):  # probable degrees in a pose's rpy
+        warnings.warn(f"{path}: {slip}", UnitWarning, stacklevel=2)
+    return spec
 
 
 def _resolve(raw: str, base: Path, allow: bool, where: str) -> Path:
@@ -279,7 +284,7 @@ def _object(spec: ObjectSpec, i: int, base: Path, allow: bool, src: str) -> Scen
         return m.place(spec.name, local, mat, T, spec.scale, source=spec.mesh)
     assert spec.primitive is not None
     mat = _material(spec.material, spec.name, base, allow, where, None)
-    return m.place(
+    obj = m.place(
         spec.name,
         primitive_mesh(spec.primitive),
         mat,
@@ -287,6 +292,32 @@ def _object(spec: ObjectSpec, i: int, base: Path, allow: bool, src: str) -> Scen
         spec.scale,
         source=f"primitive:{spec.primitive.type}",
     )
+    _check_not_degenerate(obj, spec, where)
+    return obj
+
+
+def _check_not_degenerate(obj: SceneObject, spec: ObjectSpec, where: str) -> None:
+    """Every primitive's triangles must keep a non-zero area once placed in the world in
+    float32 (a dimension x scale too small for the object's distance from the origin
+    collapses them; the dimensions alone are bounded by MIN_SIZE_M in the spec)."""
+    v = obj.vertices.astype(np.float64)
+    f = obj.faces
+    area2 = np.linalg.norm(np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]]), axis=1)
+    n_zero = int(np.count_nonzero(area2 == 0.0))
+    if n_zero == 0:
+        return
+    assert spec.primitive is not None
+    dims = spec.primitive.model_dump(exclude={"type", "segments"})
+    shown = ", ".join(f"{k} {v!r}" for k, v in dims.items())
+    reach = float(np.abs(obj.vertices).max(initial=0.0))
+    least = float(np.spacing(np.float32(max(reach, 1.0)))) * 1e3
+    msg = (
+        f"{where}.primitive = {{type: {spec.primitive.type}, {shown}}} with scale "
+        f"{list(spec.scale)}: {n_zero} of its {f.shape[0]} triangles have zero area in "
+        f"float32 at {reach:.6g} m from the origin; allowed: every dimension x scale at "
+        f"least {least:.3g} m there"
+    )
+    raise SceneError(msg)
 
 
 def build_scene(

@@ -29,7 +29,7 @@ from typing import Annotated, Literal
 from pydantic import Field, model_validator
 
 from roslan.config.base import FiniteFloat, Pose, StrictModel, Vec3
-from roslan.limits import MAX_SIZE_M
+from roslan.limits import MAX_SIZE_M, MIN_SIZE_M
 
 __all__ = [
     "BoxSpec",
@@ -47,6 +47,8 @@ __all__ = [
 ]
 
 Pos = Annotated[FiniteFloat, Field(gt=0, le=MAX_SIZE_M)]
+Size = Annotated[FiniteFloat, Field(ge=MIN_SIZE_M, le=MAX_SIZE_M)]
+"""Every dimension of every primitive (one rule for all): MIN_SIZE_M to MAX_SIZE_M."""
 Unit = Annotated[FiniteFloat, Field(ge=0, le=1)]
 Segments = Annotated[int, Field(ge=3, le=512)]
 Name = Annotated[str, Field(min_length=1, max_length=100, pattern=r"^[A-Za-z0-9_.\-]+$")]
@@ -88,24 +90,24 @@ class MaterialSpec(StrictModel):
 
 class BoxSpec(StrictModel):
     type: Literal["box"]
-    size: tuple[Pos, Pos, Pos]
+    size: tuple[Size, Size, Size]
 
 
 class PlaneSpec(StrictModel):
     type: Literal["plane"]
-    size: tuple[Pos, Pos]
+    size: tuple[Size, Size]
 
 
 class CylinderSpec(StrictModel):
     type: Literal["cylinder"]
-    radius: Pos
-    height: Pos
+    radius: Size
+    height: Size
     segments: Segments = 32
 
 
 class SphereSpec(StrictModel):
     type: Literal["sphere"]
-    radius: Pos
+    radius: Size
     segments: Segments = 24
 
 
@@ -113,8 +115,8 @@ class CapsuleSpec(StrictModel):
     """``height`` is the total length tip to tip (>= 2 radius)."""
 
     type: Literal["capsule"]
-    radius: Pos
-    height: Pos
+    radius: Size
+    height: Size
     segments: Segments = 24
 
     @model_validator(mode="after")
@@ -158,8 +160,8 @@ class PerchSpec(StrictModel):
     side 0.02 m, pipe 0.05 m, branch 0.03 m). ``supports`` adds posts down to z = 0."""
 
     type: Literal["bar", "branch", "pipe"]
-    length: Pos = 1.5
-    radius: Pos | None = None
+    length: Size = 1.5
+    radius: Size | None = None
     pose: Pose | None = None
     supports: bool = True
     name: Name = "perch"

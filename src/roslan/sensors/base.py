@@ -14,7 +14,6 @@ class satisfying :class:`Sensor`) + one :class:`~roslan.sensors.registry.SensorS
 
 from __future__ import annotations
 
-import builtins
 import re
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from pathlib import Path
@@ -103,14 +102,6 @@ class SensorConfig(StrictModel):
                 topic = f"/{name}" if isinstance(name, str) and _NAME.match(name) else "/sensor"
                 data = {**data, "topic": topic}
         return data
-
-    @classmethod
-    def config_class_for(cls, data: Mapping[str, Any]) -> builtins.type[SensorConfig] | None:
-        """The config class of the sensor mapping ``data`` (by its ``type``), or None."""
-        from roslan.sensors.registry import SENSOR_TYPES, config_class
-
-        kind = data.get("type")
-        return config_class(kind) if isinstance(kind, str) and kind in SENSOR_TYPES else None
 
     @property
     def frame(self) -> str:

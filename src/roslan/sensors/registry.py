@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import builtins
 import importlib
+from collections.abc import Mapping
 from dataclasses import dataclass
 from functools import cache
 from typing import Any, Literal
@@ -19,6 +20,7 @@ __all__ = [
     "SENSOR_TYPES",
     "SensorSpec",
     "config_class",
+    "config_class_for",
     "render_cost",
     "sensor_class",
     "sensor_spec",
@@ -163,6 +165,12 @@ def sensor_spec(type_name: str) -> SensorSpec:
 @cache
 def config_class(type_name: str) -> type[SensorConfig]:
     return sensor_spec(type_name).config_class()
+
+
+def config_class_for(data: Mapping[str, Any]) -> type[SensorConfig] | None:
+    """The config class of the sensor mapping ``data`` (by its ``type``), or None."""
+    kind = data.get("type")
+    return config_class(kind) if isinstance(kind, str) and kind in SENSOR_TYPES else None
 
 
 @cache

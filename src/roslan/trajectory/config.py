@@ -7,7 +7,8 @@ from typing import Annotated, Any
 
 from pydantic import Field, field_validator, model_validator
 
-from roslan.config.base import FiniteFloat, Pose, StrictModel, Vec3
+from roslan.config.base import Angle, Angles3, FiniteFloat, Pose, StrictModel, Vec3
+from roslan.config.units import RADIANS
 from roslan.limits import MAX_DURATION_S, MAX_FLAP_HZ, MIN_SAMPLE_DT_S
 
 __all__ = ["Approach", "Flapping", "Initial", "Kappa", "TrajectoryConfig"]
@@ -33,7 +34,7 @@ class Initial(StrictModel):
     """Initial state in the goal frame F, relative to the goal."""
 
     position: Vec3 | None = None
-    rpy: Vec3 = (0.0, 0.0, 0.0)
+    rpy: Angles3 = (0.0, 0.0, 0.0)
     descent_rate: PositiveFloat | None = None
 
     @field_validator("position")
@@ -54,7 +55,7 @@ class Approach(StrictModel):
 
     distance: PositiveFloat
     angle: Annotated[FiniteFloat, Field(gt=0, le=math.pi / 2)]
-    heading: FiniteFloat = 0.0
+    heading: Angle = 0.0
     speed: PositiveFloat
 
 
@@ -64,8 +65,8 @@ class Flapping(StrictModel):
 
     frequency: Annotated[FiniteFloat, Field(ge=0, le=MAX_FLAP_HZ)] = 0.0
     heave: NonNegativeFloat = 0.0
-    pitch: NonNegativeFloat = 0.0
-    phase: FiniteFloat = 0.0
+    pitch: Annotated[NonNegativeFloat, RADIANS] = 0.0
+    phase: Angle = 0.0
 
     @property
     def enabled(self) -> bool:

@@ -39,7 +39,7 @@ from typing import IO, Annotated, Any, Literal
 
 import numpy as np
 from numpy.typing import NDArray
-from pydantic import Field, model_validator
+from pydantic import Field, ValidationInfo, field_validator, model_validator
 
 from roslan.config.base import FiniteFloat
 from roslan.errors import RenderError, SensorError
@@ -145,6 +145,19 @@ class _ImagingConfig(SensorConfig, CameraIntrinsics, RollingShutterKeys):
         """The longest exposure a frame may get (s)."""
         ae = self.auto_exposure
         return self.exposure_time if ae is None else ae.max_exposure
+
+    @field_validator("exposure_time")
+    @classmethod
+    def _within_frame(cls, v: float, info: ValidationInfo) -> float:
+        rate = info.data.get("rate")
+        if isinstance(rate, float | int) and rate > 0 and v > 1.0 / rate:
+            period = 1.0 / rate
+            msg = (
+                f"longer than the frame period 1 / rate = {period:.6g} s (rate {rate:g} Hz); "
+                f"allowed: 0 to {period:.6g} s (seconds: 5 ms is 0.005)"
+            )
+            raise ValueError(msg)
+        return v
 
 
 class CameraConfig(_ImagingConfig):

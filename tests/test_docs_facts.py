@@ -1,0 +1,166 @@
+"""Statements of the docs checked against the code: the tau-dot range, the v2e figures of
+docs/event-model.md, the one name of the simulation's speed, and ``-o`` = ``--output`` in
+every command."""
+
+from __future__ import annotations
+
+import argparse
+import os
+import re
+import shutil
+import subprocess
+from pathlib import Path
+
+import pytest
+
+from roslan.cli.app import build_parser
+from roslan.errors import ConfigError
+
+ROOT = Path(__file__).resolve().parents[1]
+DESIGN = (ROOT / "docs" / "design.md").read_text(encoding="utf-8")
+EVENT_MODEL = (ROOT / "docs" / "event-model.md").read_text(encoding="utf-8")
+README = (ROOT / "README.md").read_text(encoding="utf-8")
+
+
+def _k_valid(k: float) -> bool:
+    from roslan.config.base import validate_model
+    from roslan.trajectory import TrajectoryConfig
+
+    try:
+        validate_model(TrajectoryConfig, {"k": k, "kappa": {"x": 0.4, "y": 0.4, "roll": 0.4,
+                                                            "pitch": 0.4, "yaw": 0.4}})  # fmt: skip
+    except ConfigError:
+        return False
+    return True
+
+
+def test_design_states_the_k_range_the_config_enforces() -> None:
+    """design.md: ``0 < k < 1``, the config accepts ``0.001 <= k < 1`` and refuses k = 1."""
+    assert "tau-dot `0 < k < 1` (the config accepts `0.001 <= k < 1`" in DESIGN
+    assert "`k = 1` | contact at constant speed, a crash: refused by the config" in DESIGN
+    assert "0 < k <= 1" not in DESIGN
+    assert [_k_valid(k) for k in (0.0009, 0.001, 0.5, 0.999, 1.0, 1.2)] == [
+        False, True, True, True, False, False,
+    ]  # fmt: skip
+
+
+def test_event_model_v2e_figures_are_the_arithmetic_of_v2e_and_roslan() -> None:
+    """v2e's darkest 8-bit pixel has inten01 = (0 + 20) / 275; its shot-noise factor is
+    ``(f - 1) inten01 + 1`` with f = 0.25; roslan's black pixel has factor 1."""
+    from roslan.events.model import EventModelParams
+
+    f = EventModelParams().shot_noise_intensity_factor
+    assert f == 0.25
+    v2e_dark = (f - 1.0) * (0 + 20) / 275 + 1.0
+    assert f"{(0 + 20) / 275:.4f}" in EVENT_MODEL  # 0.0727
+    assert f"{v2e_dark:.4f}" in EVENT_MODEL  # 0.9455
+    assert f"{(1 / v2e_dark - 1) * 100:.1f} %" in EVENT_MODEL  # 5.8 %
+    assert "(DN + 20) / 275" in EVENT_MODEL
+    # the statements item 8 of the review found untrue are gone
+    assert "follows current v2e" not in EVENT_MODEL
+    assert "likewise randomises" not in EVENT_MODEL
+    assert "subtraction is commented" in EVENT_MODEL or "commented out" in EVENT_MODEL
+
+
+def test_playback_names_the_real_time_factor_and_plays_at_its_inverse() -> None:
+    from roslan.pipeline.report import playback_text
+
+    text = playback_text(2.0, 8.0, ("ros1", "ros2"), {})
+    assert "real-time factor = wall time / trajectory time = 4.00" in text
+    assert "rosbag play --clock landing.bag -r 0.25" in text
+    assert "ros2 bag play landing_ros2 --clock -r 0.25" in text
+    assert not re.search(r"\bR = |speedup", text)
+
+
+def test_timing_json_has_one_speed_name() -> None:
+    from roslan.rundir.manifest import Timing
+
+    keys = set(Timing.__annotations__)
+    assert {"real_time_factor", "stream_real_time_factor"} <= keys
+    assert not {k for k in keys if "speed" in k}
+    assert "speedup" not in (ROOT / "src" / "roslan" / "pipeline" / "run.py").read_text()
+
+
+def _subparsers(
+    parser: argparse.ArgumentParser, prefix: str = "roslan"
+) -> list[tuple[str, argparse.ArgumentParser]]:
+    out = [(prefix, parser)]
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for name, sub in action.choices.items():
+                out += _subparsers(sub, f"{prefix} {name}")
+    return out
+
+
+def test_every_o_option_is_output() -> None:
+    """``-o`` is ``--output`` in every command (``simulate`` also keeps ``--outdir``)."""
+    seen = []
+    for name, parser in _subparsers(build_parser()):
+        for action in parser._actions:
+            if "-o" in action.option_strings:
+                seen.append(name)
+                assert "--output" in action.option_strings, (name, action.option_strings)
+    assert "roslan simulate" in seen
+    assert len(seen) >= 7
+
+
+@pytest.mark.parametrize("flag", ["-o", "--output", "--outdir"])
+def test_simulate_accepts_output_and_the_old_outdir(flag: str) -> None:
+    args = build_parser().parse_args(["simulate", flag, "somewhere"])
+    assert args.outdir == Path("somewhere")
+
+
+def test_readme_speed_name() -> None:
+    assert "real-time factor" in README
+    assert not re.search(r"\bspeedup\b|\bR = trajectory", README)
+
+
+def _make_n(target: str, venv: Path) -> str:
+    if shutil.which("make") is None:
+        pytest.skip("no make")
+    proc = subprocess.run(
+        ["make", "-n", target, f"VENV={venv}"], cwd=ROOT, capture_output=True, text=True,
+        check=True,
+    )  # fmt: skip
+    return proc.stdout
+
+
+def test_make_demo_installs_no_dev_extras_and_make_test_does(tmp_path: Path) -> None:
+    """From a fresh clone (no venv): the demo installs the runtime only, the tests the
+    dev extras too; once installed, ``make demo`` only simulates."""
+    venv = tmp_path / "venv"
+    demo, test = _make_n("demo", venv), _make_n("test", venv)
+    assert f"-m venv {venv}" in demo
+    assert "pip install -e .\n" in demo
+    assert "[dev]" not in demo
+    assert demo.strip().endswith("roslan simulate -o out --overwrite")
+    assert "pip install -e .\n" in test
+    assert "pip install -e '.[dev]'" in test
+    assert test.strip().endswith("pytest -n 2 tests")
+    (venv / "bin").mkdir(parents=True)
+    for name in ("bin/python", ".installed", ".installed-dev"):  # oldest first
+        (venv / name).touch()
+        stamp = (venv / name).stat().st_mtime_ns + 10**9
+        os.utime(venv / name, ns=(stamp, stamp))
+    assert "pip" not in _make_n("demo", venv)
+    assert "pip" not in _make_n("test", venv)
+
+
+def test_readme_install_facts() -> None:
+    """The Install section names the prerequisites .ci/run installs, how to reach roslan
+    afterwards, a runtime-only install and what ``make test`` costs."""
+    install = README.split("## Install", 1)[1].split("\n## ", 1)[0]
+    ci = (ROOT / ".ci" / "run").read_text(encoding="utf-8")
+    pkgs = re.search(r'SYS_PKGS="([^"]+)"', ci)
+    assert pkgs is not None
+    flat = " ".join(install.split())
+    for pkg in pkgs.group(1).split():
+        assert pkg in flat, pkg
+    for fact in ("Python >= 3.11", ".venv/bin/roslan --help", "source .venv/bin/activate",
+                 "python3 -m pip install .", "3-4 min", "pip install -e '.[dev]'"):  # fmt: skip
+        assert fact in install, fact
+    quick = README.split("## Quick start", 1)[1].split("```bash\n", 1)[1].split("```", 1)[0]
+    assert [ln.split("#")[0].strip() for ln in quick.splitlines()] == ["make demo", "make test"]
+    requires = re.search(r'requires-python = ">=([\d.]+)"', (ROOT / "pyproject.toml").read_text())
+    assert requires is not None
+    assert f"Python >= {requires.group(1)}" in install
