@@ -118,9 +118,12 @@ def test_readme_speed_name() -> None:
 def _make_n(target: str, venv: Path) -> str:
     if shutil.which("make") is None:
         pytest.skip("no make")
+    # under `make test` the environment carries the outer make's MAKEFLAGS and MAKELEVEL
+    # (a sub-make then prints "Entering directory" lines): run it as a fresh clone would
+    env = {k: v for k, v in os.environ.items() if k not in ("MAKEFLAGS", "MAKELEVEL", "MFLAGS")}
     proc = subprocess.run(
-        ["make", "-n", target, f"VENV={venv}"], cwd=ROOT, capture_output=True, text=True,
-        check=True,
+        ["make", "--no-print-directory", "-n", target, f"VENV={venv}"], cwd=ROOT,
+        capture_output=True, text=True, check=True, env=env,
     )  # fmt: skip
     return proc.stdout
 
