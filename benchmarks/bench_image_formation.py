@@ -26,11 +26,12 @@ Three modes:
     formation and with ``--supersampling``, then ``compare`` (limits: total within 2 %,
     every 250 ms window within 3 %, camera frames mean |diff| <= 1 DN).
 
-GPU check (the lead, on a GPU machine)::
+GPU check: ``record`` the same commit on both machines, then ``compare``::
 
+    # on the GPU machine, and again with llvmpipe on a CPU machine (/tmp/if_llvm)
     PYTHONPATH=src:benchmarks python3 benchmarks/bench_image_formation.py record /tmp/if_gpu
     PYTHONPATH=src:benchmarks python3 benchmarks/bench_image_formation.py \\
-        compare /tmp/if_gpu benchmarks/data/image_formation_llvmpipe
+        compare /tmp/if_llvm /tmp/if_gpu
 
 ``record`` works with an older checkout too (it only runs the job and reads its files),
 so today's and the previous image formation can be recorded side by side.
