@@ -17,6 +17,7 @@ For each: CPU seconds (this thread's clock, best of ``--repeat``) and compressed
 from __future__ import annotations
 
 import argparse
+import functools
 import io
 import time
 from collections.abc import Callable
@@ -26,6 +27,7 @@ import lz4.frame
 import numpy as np
 from rosbags.highlevel import AnyReader
 
+from roslan.io.bag import roslz4_compress
 from roslan.io.files import save_npz
 
 _CHUNK = 1 << 20
@@ -47,18 +49,7 @@ def _runs(bag: Path) -> list[bytes]:
 
 
 def _roslz4(level: int) -> Callable[[bytes], bytes]:
-    def compress(data: bytes) -> bytes:
-        out: bytes = lz4.frame.compress(
-            data,
-            compression_level=level,
-            block_size=lz4.frame.BLOCKSIZE_MAX1MB,
-            block_linked=False,
-            content_checksum=True,
-            store_size=False,
-        )
-        return out
-
-    return compress
+    return functools.partial(roslz4_compress, level=level)
 
 
 def _zstd(level: int) -> Callable[[bytes], bytes]:

@@ -28,7 +28,7 @@ import lz4.frame
 from rosbags.highlevel import AnyReader
 
 from roslan.cli.simulate import load_config
-from roslan.io.bag import ZSTD_LEVEL, _roslz4_compatible
+from roslan.io.bag import ZSTD_LEVEL, roslz4_compress
 from roslan.pipeline import run_simulation
 from roslan.pipeline.estimate import estimate_run
 
@@ -53,7 +53,7 @@ def _topic_ratios(bag: Path, codec: str) -> dict[str, tuple[float, float]]:
 
         compress = zstandard.ZstdCompressor(level=ZSTD_LEVEL).compress
     elif codec == "lz4":  # ROS 1: roslz4's frame layout; ROS 2 (MCAP): one lz4 frame
-        compress = _roslz4_compatible if bag.suffix == ".bag" else lz4.frame.compress
+        compress = roslz4_compress if bag.suffix == ".bag" else lz4.frame.compress
     elif codec == "bz2":
         compress = functools.partial(bz2.compress, compresslevel=9)
     else:

@@ -109,10 +109,11 @@ fast mode keeps the default OUTDIR within its budget (docs/performance.md). rosl
 decodes any level."""
 
 
-def _roslz4_compatible(data: bytes) -> bytes:
+def roslz4_compress(data: bytes, level: int = _ROS1_LZ4_LEVEL) -> bytes:
+    """An lz4 frame roslz4 decodes (1 MiB independent blocks, content checksum, no size)."""
     out: bytes = lz4.frame.compress(
         data,
-        compression_level=_ROS1_LZ4_LEVEL,
+        compression_level=level,
         block_size=lz4.frame.BLOCKSIZE_MAX1MB,
         block_linked=False,
         content_checksum=True,
@@ -140,7 +141,7 @@ class _FastRos1Writer(_Ros1Writer):
             # lz4.frame's defaults (content-size field, 64 KiB linked blocks) are rejected by
             # ROS 1's own roslz4 ("malformed data to decompress"); write the frame layout
             # roslz4 itself produces: independent 1 MiB blocks, content checksum, no size.
-            self.compressor = _roslz4_compatible
+            self.compressor = roslz4_compress
 
     def write(self, connection: Connection, timestamp: int, data: bytes | memoryview) -> None:
         try:
