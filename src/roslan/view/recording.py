@@ -256,6 +256,7 @@ def _handlers(log: _Logger) -> dict[str, Callable[[str, int, Any], None]]:
 
 
 def _log_events(log: _Logger, outdir: Path, name: str, entity: str, root: str | None) -> bool:
+    from roslan.plots.raster import event_frame
     from roslan.rundir.calibration import camera_folder
     from roslan.rundir.events import EventSource
 
@@ -274,10 +275,9 @@ def _log_events(log: _Logger, outdir: Path, name: str, entity: str, root: str | 
             return False
         for t0 in range(0, end_ns, log.window_ns):
             x, y, p = src.window(t0, t0 + log.window_ns)
-            bgr = np.full((h, w, 3), 255, np.uint8)
-            bgr[y[p > 0], x[p > 0]] = (255, 0, 0)  # ON blue (BGR)
-            bgr[y[p < 0], x[p < 0]] = (0, 0, 255)  # OFF red
-            ok, buf = cv2.imencode(".png", bgr)  # lossless; sparse frames compress well
+            rgb = event_frame(x, y, p, w, h)  # the plots' picture: ON blue, OFF red on white
+            # lossless; sparse frames compress well
+            ok, buf = cv2.imencode(".png", cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR))
             if ok:
                 rr.set_time(TIMELINE, duration=(t0 + log.window_ns) * 1e-9)
                 rr.log(
