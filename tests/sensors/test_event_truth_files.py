@@ -9,57 +9,17 @@ from typing import Any
 import numpy as np
 import pytest
 
+from event_helpers import START_NS, run_event_camera
 from roslan.io.messages import Flavor, MessageStore
-from roslan.scene.mesh import box, place, plane, pose_matrix
-from roslan.scene.model import Material, Scene
 from roslan.sensors.cameras.event_truth import decode_dsec_flow, encode_dsec_flow
-from roslan.trajectory import TauTrajectory, TrajectoryConfig
-
-START = 1_700_000_000_000_000_000
-
-
-def _scene() -> Scene:
-    from roslan.scene.textures import checker
-
-    floor = place(
-        "floor", plane((10.0, 10.0)), Material(texture=checker(1, 128, 8), texture_scale=0.5)
-    )
-    crate = place(
-        "crate", box((0.6, 0.6, 0.6)), Material(color=(0.8, 0.3, 0.2)), pose_matrix((0.8, 0.5, 0.3))
-    )
-    return Scene("test", (floor, crate))
 
 
 def _run(tmp: Path) -> list[Any]:
-    from roslan.pipeline.context import Context
-    from roslan.sensors.cameras import EventCamera, EventCameraConfig
-
-    traj = TauTrajectory(
-        TrajectoryConfig(
-            initial={"position": (-1.2, 0.3, 0.6), "rpy": (0, 0, 0), "descent_rate": 1.5}
-        ),
-        warn=False,
-    )
-    cfg = EventCameraConfig.model_validate(
-        {
-            "type": "event_camera",
-            "name": "dvs",
-            "rate": 25,
-            "topic": "/dvs",
-            "resolution": (40, 30),
-            # pitched up: part of every image is sky (NaN depth; flow of the rotation only)
-            "pose": {"rpy": (0.0, -0.2, 0.0)},
-            "max_rate": 100,
-            "min_rate": 50,
-            "optic_flow": True,
-            "depthmap": True,
-            "ground_truth_rate": 20,
-        }
-    )
-    ctx = Context(traj, tmp, seed=1, sensors=[cfg], scene=_scene(), start_time_ns=START)
-    sensor = EventCamera(cfg)
-    msgs = list(sensor.messages(ctx))
-    sensor.close(ctx)
+    # pitched up: part of every image is sky (NaN depth; flow of the rotation only)
+    _, msgs = run_event_camera(
+        tmp, 1, pose={"rpy": (0.0, -0.2, 0.0)}, max_rate=100, optic_flow=True,
+        depthmap=True, ground_truth_rate=20,
+    )  # fmt: skip
     return msgs
 
 
@@ -147,7 +107,7 @@ def test_depth_h5_matches_the_bag(truth_run: tuple[Path, list[Any]]) -> None:
     assert img.shape == (len(bag), 30, 40)
     for i, (stamp, d) in enumerate(bag):
         np.testing.assert_array_equal(img[i], d[..., 0])  # NaN where NaN, else identical
-        assert t_ns[i] == stamp - START
+        assert t_ns[i] == stamp - START_NS
         assert ts[i] == pytest.approx(stamp * 1e-9, abs=1e-6)
     assert np.isnan(img).any()
     assert np.isfinite(img).any()
@@ -182,7 +142,7 @@ def test_event_image_shows_the_last_window_of_events(truth_run: tuple[Path, list
     t_ns = np.array([int(v.replace(".", "")) for v in lines[0::4]], dtype=np.int64)
     n_colored = 0
     for stamp, img in frames:
-        t = stamp - START
+        t = stamp - START_NS
         sel = np.flatnonzero((t_ns > t - 10_000_000) & (t_ns <= t))
         expect = np.full((30, 40, 3), 255, np.uint8)
         for i in sel:  # independent: event by event, in time order

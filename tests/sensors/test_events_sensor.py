@@ -9,6 +9,7 @@ from typing import Any
 import numpy as np
 import pytest
 
+from event_helpers import run_event_camera
 from roslan.events import (
     AdaptiveSampler,
     EventBatch,
@@ -20,9 +21,8 @@ from roslan.events.files import format_events_txt
 from roslan.events.ros import EVENT_ARRAY, pack_event_array
 from roslan.io.messages import Flavor, MessageStore
 from roslan.io.text import format_columns
-from roslan.scene.mesh import box, place, plane, pose_matrix
+from roslan.scene.mesh import place, plane, pose_matrix
 from roslan.scene.model import Material, Scene
-from roslan.trajectory import TauTrajectory, TrajectoryConfig
 
 
 def _edge_scene() -> Scene:
@@ -254,49 +254,11 @@ def test_events_h5_is_dsec_and_evlib_reads_both_files(tmp_path: Path) -> None:
 
 
 # ------------------------------------------------------------------ end to end
-def _scene() -> Scene:
-    from roslan.scene.textures import checker
-
-    floor = place(
-        "floor", plane((10.0, 10.0)), Material(texture=checker(1, 128, 8), texture_scale=0.5)
-    )
-    crate = place(
-        "crate", box((0.6, 0.6, 0.6)), Material(color=(0.8, 0.3, 0.2)), pose_matrix((0.8, 0.5, 0.3))
-    )
-    return Scene("test", (floor, crate))
-
-
 def _run(tmp: Path, seed: int, **over: Any) -> tuple[Any, list[Any]]:
-    from roslan.pipeline.context import Context
     from roslan.rundir.calibration import write_calibration
-    from roslan.sensors.cameras import EventCamera, EventCameraConfig
 
-    traj = TauTrajectory(
-        TrajectoryConfig(
-            initial={"position": (-1.2, 0.3, 0.6), "rpy": (0, 0, 0), "descent_rate": 1.5}
-        ),
-        warn=False,
-    )
-    cfg = EventCameraConfig.model_validate(
-        {
-            "type": "event_camera",
-            "name": "dvs",
-            "rate": 25,
-            "topic": "/dvs",
-            "resolution": (40, 30),
-            "pose": {"rpy": (0.0, 0.5, 0.0)},
-            "max_rate": 300,
-            "min_rate": 50,
-            **over,
-        }
-    )
-    ctx = Context(
-        traj, tmp, seed=seed, sensors=[cfg], scene=_scene(), start_time_ns=1_700_000_000_000_000_000
-    )
-    sensor = EventCamera(cfg)
-    msgs = list(sensor.messages(ctx))
-    sensor.close(ctx)
-    write_calibration(tmp, ctx.sensors)  # once per run, as the pipeline does
+    sensor, msgs = run_event_camera(tmp, seed, **over)
+    write_calibration(tmp, [sensor.config])  # once per run, as the pipeline does
     return sensor, msgs
 
 
