@@ -137,16 +137,22 @@ def camera_twist(
         ``T_world_cam`` (4, 4), ``v_cam`` (3,) m/s and ``w_cam`` (3,) rad/s, both in the
         optical frame (velocity of the optical centre relative to the world).
     """
-    st = trajectory.state_ns(np.array([t_ns], dtype=np.int64))
-    R_wb = st.R_world_body[0]
+    fast = getattr(trajectory, "pose_twist_ns", None)
+    if fast is not None:  # one instant without the full State (same values, bit for bit)
+        p_wb, v_wb, R_wb, w_b = fast(t_ns)
+    else:
+        st = trajectory.state_ns(np.array([t_ns], dtype=np.int64))
+        p_wb, v_wb, R_wb, w_b = st.position[0], st.velocity[0], st.R_world_body[0], st.omega_body[0]
     Tbc = np.asarray(T_body_cam, dtype=np.float64)
     R_bc, p_bc = Tbc[:3, :3], Tbc[:3, 3]
-    w_b = st.omega_body[0]
     T_wb = np.eye(4)
     T_wb[:3, :3] = R_wb
-    T_wb[:3, 3] = st.position[0]
+    T_wb[:3, 3] = p_wb
     T_wc = T_wb @ Tbc
-    v_w = st.velocity[0] + R_wb @ np.cross(w_b, p_bc)
+    # w_b x p_bc written out: np.cross's products and differences, without its overhead
+    (a0, a1, a2), (b0, b1, b2) = w_b.tolist(), p_bc.tolist()
+    cross = np.array([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0])
+    v_w = v_wb + R_wb @ cross
     R_wc = T_wc[:3, :3]
     return T_wc, R_wc.T @ v_w, R_bc.T @ w_b
 

@@ -155,6 +155,7 @@ class EventCamera:
         self._flow_file: FlowPngWriter | None = None
         self._depth_file: DepthH5Writer | None = None
         self.stats: dict[str, float] = {}
+        self._T_body_cam: F64 | None = None
 
     # -------------------------------------------------------------- interface
     @property
@@ -197,7 +198,9 @@ class EventCamera:
         cam = self.camera
         renderer = ctx.renderer()
         plan = cam.render_plan(renderer.max_size)
-        T_wc, v, w = camera_twist(ctx.trajectory, t_ns, self.T_body_cam)
+        if self._T_body_cam is None:  # (the property builds it from the config each time)
+            self._T_body_cam = self.T_body_cam
+        T_wc, v, w = camera_twist(ctx.trajectory, t_ns, self._T_body_cam)
         # luminance-only pass: one shaded channel, the cheapest read back (roslan.render.gl)
         res = renderer.render(
             T_wc,
