@@ -17,6 +17,8 @@ def test_max_flow_speed_equals_max_of_motion_field(seed: int) -> None:
         depth = (rng.random((26, 34)) * 10.0 + 0.05).astype(np.float32)
         depth[rng.random(depth.shape) < 0.1] = np.inf  # no hit: rotation only
         depth[rng.random(depth.shape) < 0.05] = np.nan
+        if seed == 0:  # behind the camera, at it, and very near (a huge flow)
+            depth[0, :3] = (-1.0, 0.0, 1e-30)
         v, w = rng.normal(size=3) * 3.0, rng.normal(size=3) * 2.0
         flow = motion_field(depth, K, v, w, rays)
         expected = float(np.max(np.hypot(flow[..., 0], flow[..., 1])))

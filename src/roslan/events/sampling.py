@@ -72,24 +72,40 @@ def motion_field(
 
 
 @kernel
-def _max_flow_speed(d, x, y, fx, fy, vx, vy, vz, wx, wy, wz):  # type: ignore[no-untyped-def]
+def _max_flow_speed(d, xr, yc, fx, fy, vx, vy, vz, wx, wy, wz):  # type: ignore[no-untyped-def]
     # motion_field's float64 operations in the same order, its float32 rounding, then the
-    # float32 hypot of np.hypot on float32 (computed in double: exact before rounding)
-    best = np.float32(0.0)
-    for i in range(d.shape[0]):
-        for j in range(d.shape[1]):
+    # float32 hypot of np.hypot on float32 (computed in double: exact before rounding).
+    # A pinhole ray's x depends on the column only, y on the row only: the products of one
+    # of them alone are made once per column / row (the same products, the same sums).
+    # float32(sqrt(q)) never decreases with q: the largest q gives the largest speed, so
+    # the one sqrt is taken at the end.
+    H, W = d.shape
+    c1 = np.empty(W)
+    c2 = np.empty(W)
+    c3 = np.empty(W)
+    for j in range(W):
+        a = xr[j]
+        c1[j] = -vx + a * vz
+        c2[j] = (1.0 + a * a) * wy
+        c3[j] = a * wz
+    best = 0.0
+    for i in range(H):
+        b = yc[i]
+        r1 = -vy + b * vz
+        r2 = (1.0 + b * b) * wx
+        r3 = b * wz
+        for j in range(W):
             z = np.float64(d[i, j])
             inv_z = 1.0 / z if (np.isfinite(z) and z > 0.0) else 0.0
-            a = x[i, j]
-            b = y[i, j]
-            dx = (-vx + a * vz) * inv_z + a * b * wx - (1.0 + a * a) * wy + b * wz
-            dy = (-vy + b * vz) * inv_z + (1.0 + b * b) * wx - a * b * wy - a * wz
+            ab = xr[j] * b
+            dx = c1[j] * inv_z + ab * wx - c2[j] + r3
+            dy = r1 * inv_z + r2 - ab * wy - c3[j]
             u = np.float64(np.float32(fx * dx))
             v = np.float64(np.float32(fy * dy))
-            s = np.float32(np.sqrt(u * u + v * v))
-            if s > best:
-                best = s
-    return best
+            q = u * u + v * v
+            if q > best:
+                best = q
+    return np.float32(np.sqrt(best))
 
 
 def max_flow_speed(
@@ -100,7 +116,9 @@ def max_flow_speed(
     rays: tuple[F64, F64] | None = None,
 ) -> float:
     """``max |flow|`` over the image, px/s: what the ``optical_flow`` sampling needs, in one
-    pass without the (H, W, 2) field of :func:`motion_field` (same arguments, same value)."""
+    pass without the (H, W, 2) field of :func:`motion_field` (same arguments, same value;
+    ``rays``, when given, are :func:`pixel_rays` of ``K``: only their first row and column
+    are read)."""
     d = np.asarray(depth)
     H, W = d.shape
     x, y = rays if rays is not None else pixel_rays(K, W, H)
@@ -110,8 +128,8 @@ def max_flow_speed(
     return float(
         _max_flow_speed(
             d,
-            np.ascontiguousarray(x),
-            np.ascontiguousarray(y),
+            np.ascontiguousarray(x[0]),
+            np.ascontiguousarray(y[:, 0]),
             float(K[0, 0]),
             float(K[1, 1]),
             vx,
