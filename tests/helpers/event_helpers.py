@@ -26,9 +26,12 @@ def floor_and_crate() -> Scene:
     return Scene("test", (floor, crate))
 
 
-def run_event_camera(tmp: Path, seed: int, **over: Any) -> tuple[Any, list[Any]]:
+def run_event_camera(
+    tmp: Path, seed: int, *, pipelined: bool = True, **over: Any
+) -> tuple[Any, list[Any]]:
     """The sensor and its messages (25 Hz, 40x30, pitched 0.5 rad down unless ``over``
-    says otherwise; ``over`` replaces any config key); its files land in ``tmp``."""
+    says otherwise; ``over`` replaces any config key); its files land in ``tmp``.
+    ``pipelined=False``: ESIM and the messages on the calling thread."""
     from roslan.pipeline.context import Context
     from roslan.sensors.cameras import EventCamera, EventCameraConfig
 
@@ -55,6 +58,7 @@ def run_event_camera(tmp: Path, seed: int, **over: Any) -> tuple[Any, list[Any]]
         traj, tmp, seed=seed, sensors=[cfg], scene=floor_and_crate(), start_time_ns=START_NS
     )
     sensor = EventCamera(cfg)
+    sensor.pipelined = pipelined
     msgs = list(sensor.messages(ctx))
     sensor.close(ctx)
     return sensor, msgs

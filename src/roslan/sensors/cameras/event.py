@@ -26,6 +26,7 @@ Headers are in ``<frame>_optical`` (z forward, x right, y down).
 
 from __future__ import annotations
 
+import collections
 import heapq
 import itertools
 from collections.abc import Iterator
@@ -62,6 +63,10 @@ from roslan.sensors.cameras.event_truth import DepthH5Writer, FlowPngWriter
 from roslan.sensors.cameras.model import T_LINK_OPTICAL, CameraModel, RenderPlan
 
 __all__ = ["EventCamera"]
+
+_STAGE_BACKLOG = 4
+"""Rendered instants waiting for the helper thread at most (bounded memory: a frame and its
+depth, ~0.7 MB for a DAVIS346)."""
 
 F32 = NDArray[np.float32]
 F64 = NDArray[np.float64]
@@ -156,6 +161,10 @@ class EventCamera:
         self._depth_file: DepthH5Writer | None = None
         self.stats: dict[str, float] = {}
         self._T_body_cam: F64 | None = None
+        self._stage: BackgroundSink | None = None
+        self.pipelined = True
+        """Run ESIM, packets and messages on a helper thread beside the renders (False:
+        everything on the calling thread; same stream either way)."""
 
     # -------------------------------------------------------------- interface
     @property
@@ -223,6 +232,9 @@ class EventCamera:
         try:
             yield from self._stream(ctx)
         except BaseException:  # failed or abandoned run: no more writes into its folder
+            if self._stage is not None:
+                stage, self._stage = self._stage, None
+                stage.abort()
             if self._sink is not None:
                 sink, self._sink = self._sink, None
                 sink.abort()
@@ -231,7 +243,6 @@ class EventCamera:
     def _stream(self, ctx: SimContext) -> Iterator[Message]:
         c = self.config
         cam = self.camera
-        W, H = cam.width, cam.height
         end = int(ctx.trajectory.duration_ns)
         info_times = sample_times_ns(c.rate, end)
         gt_rate = c.ground_truth_rate or c.rate
@@ -242,37 +253,25 @@ class EventCamera:
         sampler = AdaptiveSampler(
             c.sampling, c.adaptive_lambda, c.min_rate, c.max_rate, end, forced
         )
-        gen = EventGenerator(W, H, self.params, ctx.rng(f"{c.name}/pixels"))
-        tick = c.timestamp_resolution_ns
         self._open_files(ctx)
-        recent = RecentEvents(W, H, round(c.event_image_window * 1e9)) if c.event_image else None
         # dataset files are written beside the rendering, in order (io/background.py)
-        sink = self._sink = BackgroundSink(f"{c.name}-files")
+        self._sink = BackgroundSink(f"{c.name}-files")
+        post = _AfterRender(self, ctx, info_times, gt_times, gt_rate)
+        # ESIM, packets, messages and file writes of an instant do not feed back into the
+        # next render (but for brightness sampling, which reads ESIM's state): they run
+        # on a helper thread, in order, beside the next render (docs/performance.md)
+        stage = None
+        if self.pipelined and c.sampling != "brightness":
+            stage = self._stage = BackgroundSink(f"{c.name}-esim", backlog=_STAGE_BACKLOG)
         need_depth = c.sampling == "optical_flow" or c.optic_flow or c.depthmap
-        info_set = set(info_times.tolist())
         gt_set = set(gt_times.tolist())
-        pending: list[tuple[int, int, Message]] = []
-        counter = itertools.count()
-        buf: list[EventBatch] = []
-        packets = _Packetizer(self, ctx)
-        n_frames = n_events = n_capped = 0
-        image_index = 0
+        n_frames = n_capped = 0
         t = 0
         prev_L: F64 | None = None
         t_prev = 0
         while True:
             lum, depth, v, w = self.render(ctx, t, need_depth=need_depth)
             n_frames += 1
-            batch = gen.update(lum, t)
-            if batch.size and tick > 1:
-                batch.t[:] -= batch.t % tick  # the sensor's timestamp counter (order kept)
-            if batch.size:
-                n_events += batch.size
-                if self._writers:
-                    sink.submit(self._write_events, batch)
-                buf.append(batch)
-            if recent is not None:
-                recent.add(batch, t)
             flow = None
             speed = 0.0  # max |flow|, px/s (optical_flow sampling)
             if depth is not None and c.optic_flow and t in gt_set:
@@ -280,30 +279,16 @@ class EventCamera:
                 speed = float(np.max(np.hypot(flow[..., 0], flow[..., 1])))
             elif depth is not None and c.sampling == "optical_flow":
                 speed = cam.max_flow_speed(depth, v, w)
-            # messages of this instant
-            out: list[Message] = []
-            if t in info_set:
-                out.append(self._camera_info_msg(ctx, t))
-                if recent is not None:
-                    out.append(self._image_msg(ctx, t, recent.frame(t), "rgb8"))
-                if c.has_aps:
-                    aps = _srgb8(lum)
-                    out.append(self._image_msg(ctx, t, aps, "mono8"))
-                    sink.submit(self._write_image, ctx, t, aps, image_index)
-                    image_index += 1
-            if t in gt_set:
-                out += self._truth_msgs(ctx, t, flow, depth, gt_times, gt_rate)
-            buf, ready = packets.split(buf, t, final=False)
-            for m in (*ready, *out):
-                heapq.heappush(pending, (m.t_ns, next(counter), m))
-            horizon = t if not buf else min(t, int(buf[0].t[0]))
-            while pending and pending[0][0] <= horizon:
-                yield heapq.heappop(pending)[2]
+            if stage is None:
+                post.step(t, lum, depth, flow)
+            else:
+                stage.submit(post.step, t, lum, depth, flow)
+            yield from post.take()
             # next instant: ESIM's lambda / max rate of change
             if c.sampling == "optical_flow":
                 rate = speed
             elif c.sampling == "brightness":
-                L = gen.lp.copy()
+                L = post.gen.lp.copy()
                 if prev_L is None:
                     rate = float("inf")  # no estimate yet: smallest step
                 else:
@@ -317,15 +302,15 @@ class EventCamera:
             if nxt is None:
                 break
             t = nxt
-        buf, ready = packets.split(buf, t, final=True)
-        for m in ready:
-            heapq.heappush(pending, (m.t_ns, next(counter), m))
-        while pending:
-            yield heapq.heappop(pending)[2]
+        if stage is not None:
+            self._stage = None
+            stage.close()  # the instants still queued, and any error of one
+        post.finish(t)
+        yield from post.take()
         self.stats = {
             "frames": n_frames,
-            "events": n_events,
-            "dropped": gen.n_dropped,
+            "events": post.n_events,
+            "dropped": post.gen.n_dropped,
             "capped": n_capped,
             "duration_s": end * 1e-9,
         }
@@ -440,6 +425,94 @@ class EventCamera:
         self._truth = []
         if self._images_fh is not None and not self._images_fh.closed:
             self._images_fh.close()
+
+
+class _AfterRender:
+    """What follows an instant's render and flow: ESIM, event packets, the instant's
+    messages and its dataset-file writes, in time order (one thread at a time).
+
+    :meth:`step` queues the instant's messages; :meth:`take` hands over, in stream order,
+    those whose time no later message can precede."""
+
+    def __init__(
+        self,
+        sensor: EventCamera,
+        ctx: SimContext,
+        info_times: NDArray[np.int64],
+        gt_times: NDArray[np.int64],
+        gt_rate: float,
+    ) -> None:
+        c = sensor.config
+        self.sensor, self.ctx = sensor, ctx
+        W, H = sensor.camera.width, sensor.camera.height
+        self.gen = EventGenerator(W, H, sensor.params, ctx.rng(f"{c.name}/pixels"))
+        self.tick = c.timestamp_resolution_ns
+        self.recent = (
+            RecentEvents(W, H, round(c.event_image_window * 1e9)) if c.event_image else None
+        )
+        self.info_set = set(info_times.tolist())
+        self.gt_set = set(gt_times.tolist())
+        self.gt_times, self.gt_rate = gt_times, gt_rate
+        self.pending: list[tuple[int, int, Message]] = []
+        self.counter = itertools.count()
+        self.buf: list[EventBatch] = []
+        self.packets = _Packetizer(sensor, ctx)
+        self.image_index = 0
+        self.n_events = 0
+        self.ready: collections.deque[Message] = collections.deque()
+
+    def step(self, t: int, lum: F32, depth: F32 | None, flow: F32 | None) -> None:
+        s, c, ctx, sink = self.sensor, self.sensor.config, self.ctx, self.sensor._sink
+        assert sink is not None
+        batch = self.gen.update(lum, t)
+        if batch.size and self.tick > 1:
+            batch.t[:] -= batch.t % self.tick  # the sensor's timestamp counter (order kept)
+        if batch.size:
+            self.n_events += batch.size
+            if s._writers:
+                sink.submit(s._write_events, batch)
+            self.buf.append(batch)
+        recent = self.recent
+        if recent is not None:
+            recent.add(batch, t)
+        out: list[Message] = []
+        if t in self.info_set:
+            out.append(s._camera_info_msg(ctx, t))
+            if recent is not None:
+                out.append(s._image_msg(ctx, t, recent.frame(t), "rgb8"))
+            if c.has_aps:
+                aps = _srgb8(lum)
+                out.append(s._image_msg(ctx, t, aps, "mono8"))
+                sink.submit(s._write_image, ctx, t, aps, self.image_index)
+                self.image_index += 1
+        if t in self.gt_set:
+            out += s._truth_msgs(ctx, t, flow, depth, self.gt_times, self.gt_rate)
+        self.buf, ready = self.packets.split(self.buf, t, final=False)
+        self._push(*ready, *out)
+        horizon = t if not self.buf else min(t, int(self.buf[0].t[0]))
+        self._release(horizon)
+
+    def finish(self, t: int) -> None:
+        """After the last instant ``t``: the last packet, then everything queued."""
+        self.buf, ready = self.packets.split(self.buf, t, final=True)
+        self._push(*ready)
+        self._release(None)
+
+    def _push(self, *msgs: Message) -> None:
+        for m in msgs:
+            heapq.heappush(self.pending, (m.t_ns, next(self.counter), m))
+
+    def _release(self, horizon: int | None) -> None:
+        pending, ready = self.pending, self.ready
+        while pending and (horizon is None or pending[0][0] <= horizon):
+            ready.append(heapq.heappop(pending)[2])
+
+    def take(self) -> Iterator[Message]:
+        """The messages released so far (safe while :meth:`step` runs on another thread:
+        one appends, the other pops, each deque operation atomic)."""
+        ready = self.ready
+        while ready:
+            yield ready.popleft()
 
 
 class _Packetizer:
