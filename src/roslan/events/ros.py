@@ -107,8 +107,8 @@ def pack_event_array(
     if n == 0:
         return head
     first = np.empty(1, dtype=_ROS1_EVENT)
-    one_second = isinstance(sec, int)
-    _fill(first, x[:1], y[:1], sec if one_second else sec[:1], nsec[:1], p[:1])
+    sec0, sec1 = (sec, sec) if isinstance(sec, int) else (sec[:1], sec[1:])
+    _fill(first, x[:1], y[:1], sec0, nsec[:1], p[:1])
     rest = np.zeros(n - 1, dtype=_CDR_EVENT)
-    _fill(rest, x[1:], y[1:], sec if one_second else sec[1:], nsec[1:], p[1:])
+    _fill(rest, x[1:], y[1:], sec1, nsec[1:], p[1:])
     return head + first.tobytes() + rest.tobytes()

@@ -74,11 +74,10 @@ class InstantEvaluator:
             self.q_ref = (float(q_ref[0]), float(q_ref[1]), float(q_ref[2]), float(q_ref[3]))
 
     def _gaps(self, tt: float) -> tuple[list[float], list[float]]:
-        """``TauTrajectory._gaps_into`` at one instant: the gaps and rates (no accels but
-        the height's, which the flapping envelope needs)."""
+        """``TauTrajectory._gaps_into`` at one instant: the gaps and rates (no accels)."""
         T = self.T
         s = min(max(1.0 - tt / T, 0.0), 1.0)
-        gaps, rates, accels = [0.0] * 6, [0.0] * 6, [0.0] * 6
+        gaps, rates = [0.0] * 6, [0.0] * 6
         cache: dict[float, tuple[float, float, float]] = {}
         for i in range(6):
             g0 = self.g0[i]
@@ -87,17 +86,16 @@ class InstantEvaluator:
             e = self.e[i]
             if e not in cache:
                 cache[e] = _powers(s, e)
-            p0, p1, p2 = cache[e]
+            p0, p1, _ = cache[e]
             gaps[i] = p0 * g0
             rates[i] = p1 * (-g0 * e / T)
-            accels[i] = p2 * (g0 * e * (e - 1.0) / (T * T))
         f = self.flap
         if f is not None:
             w = 2.0 * math.pi * f.frequency
             ph = np.array([w * max(tt, 0.0) + f.phase])
             sn, cs = float(np.sin(ph)[0]), float(np.cos(ph)[0])
             z0 = self.g0[2]
-            e_, de, dde = gaps[2] / z0, rates[2] / z0, accels[2] / z0
+            e_, de = gaps[2] / z0, rates[2] / z0
             osc = e_ * sn
             dosc = de * sn + e_ * w * cs
             for col, amp in ((2, f.heave), (4, f.pitch)):
