@@ -10,21 +10,22 @@ from typing import Any
 import numpy as np
 import pytest
 
+import roslan.sensors.cameras.event as ev_mod
 from event_helpers import run_event_camera
 from roslan.events.model import EventBatch, EventGenerator
 from roslan.io.messages import Flavor, MessageStore
 
+STORES = [MessageStore(f) for f in Flavor]
 
-def _wire(msgs: list[Any]) -> list[tuple[int, str, bytes, bytes]]:
-    stores = [MessageStore(f) for f in Flavor]
-    return [(m.t_ns, m.topic, *(bytes(s.encode(m.build, m.msgtype)) for s in stores)) for m in msgs]
+
+def _wire(m: Any) -> tuple[Any, ...]:
+    """A message's time, topic and wire bytes in both flavours."""
+    return (m.t_ns, m.topic, *(bytes(s.encode(m.build, m.msgtype)) for s in STORES))
 
 
 def _files(root: Path) -> dict[str, bytes]:
     return {
-        str(p.relative_to(root)): p.read_bytes()
-        for p in sorted(root.rglob("*"))
-        if p.is_file() and p.suffix != ".h5"  # HDF5 stamps its own creation time
+        str(p.relative_to(root)): p.read_bytes() for p in sorted(root.rglob("*")) if p.is_file()
     }
 
 
@@ -45,22 +46,37 @@ def test_pipelined_stream_equals_sequential(
         return update(self, intensity, t_ns)
 
     monkeypatch.setattr(EventGenerator, "update", spy)
+    packers: list[str] = []
+    pack = ev_mod.pack_event_array
+
+    def pack_spy(*args: Any, **kw: Any) -> bytes:
+        packers.append(threading.current_thread().name)
+        return pack(*args, **kw)
+
+    monkeypatch.setattr(ev_mod, "pack_event_array", pack_spy)
+    main = threading.current_thread().name
     runs = {}
     for pipelined in (False, True):
         threads.clear()
+        packers.clear()
         out = tmp_path / f"p{int(pipelined)}"
         out.mkdir()
-        sensor, msgs = run_event_camera(out, 5, pipelined=pipelined, **over)
-        # ESIM ran on the helper thread only when pipelined (else on this one)
-        main = threading.current_thread().name
+        wire: list[tuple[Any, ...]] = []  # built as each message comes, as the pipeline does
+        sensor, _ = run_event_camera(
+            out, 5, pipelined=pipelined, on_message=lambda m, w=wire: w.append(_wire(m)), **over
+        )
+        # ESIM ran on the helper thread only when pipelined (else on this one); there the
+        # helper packed the later packets ahead, for both flavours
         assert threads
         assert all((name != main) == pipelined for name in threads)
+        helper_packs = sum(name != main for name in packers)
+        assert helper_packs > len(packers) // 2 if pipelined else helper_packs == 0
         assert sensor.stats["events"] > 100
-        runs[pipelined] = (_wire(msgs), _files(out), sensor.stats)
+        runs[pipelined] = (wire, _files(out), sensor.stats)
     seq, pipe = runs[False], runs[True]
     assert [m[:2] for m in pipe[0]] == [m[:2] for m in seq[0]]
     assert pipe[0] == seq[0]  # every message, both flavours, byte for byte
-    assert pipe[1] == seq[1]  # events.txt, images, flow PNGs
+    assert pipe[1] == seq[1]  # events.txt, events.h5, images, flow PNGs, depth.h5
     assert pipe[2] == seq[2]
     times = [m[0] for m in pipe[0]]
     assert times == sorted(times)

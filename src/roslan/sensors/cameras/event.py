@@ -47,7 +47,7 @@ from roslan.events.sampling import (
 )
 from roslan.io.background import BackgroundSink
 from roslan.io.images import write_png
-from roslan.io.messages import MessageStore
+from roslan.io.messages import Flavor, MessageStore
 from roslan.rundir.calibration import camera_folder
 from roslan.sensors.base import (
     Message,
@@ -256,12 +256,13 @@ class EventCamera:
         self._open_files(ctx)
         # dataset files are written beside the rendering, in order (io/background.py)
         self._sink = BackgroundSink(f"{c.name}-files")
-        post = _AfterRender(self, ctx, info_times, gt_times, gt_rate)
         # ESIM, packets, messages and file writes of an instant do not feed back into the
         # next render (but for brightness sampling, which reads ESIM's state): they run
         # on a helper thread, in order, beside the next render (docs/performance.md)
+        pipelined = self.pipelined and c.sampling != "brightness"
+        post = _AfterRender(self, ctx, info_times, gt_times, gt_rate, pipelined=pipelined)
         stage = None
-        if self.pipelined and c.sampling != "brightness":
+        if pipelined:
             stage = self._stage = BackgroundSink(f"{c.name}-esim", backlog=_STAGE_BACKLOG)
         need_depth = c.sampling == "optical_flow" or c.optic_flow or c.depthmap
         gt_set = set(gt_times.tolist())
@@ -441,6 +442,8 @@ class _AfterRender:
         info_times: NDArray[np.int64],
         gt_times: NDArray[np.int64],
         gt_rate: float,
+        *,
+        pipelined: bool,
     ) -> None:
         c = sensor.config
         self.sensor, self.ctx = sensor, ctx
@@ -456,7 +459,7 @@ class _AfterRender:
         self.pending: list[tuple[int, int, Message]] = []
         self.counter = itertools.count()
         self.buf: list[EventBatch] = []
-        self.packets = _Packetizer(sensor, ctx)
+        self.packets = _Packetizer(sensor, ctx, prebuild=pipelined)
         self.image_index = 0
         self.n_events = 0
         self.ready: collections.deque[Message] = collections.deque()
@@ -518,13 +521,17 @@ class _AfterRender:
 class _Packetizer:
     """Cuts the event stream into EventArray messages (by duration or by count)."""
 
-    def __init__(self, sensor: EventCamera, ctx: SimContext) -> None:
+    def __init__(self, sensor: EventCamera, ctx: SimContext, *, prebuild: bool = False) -> None:
         self.sensor = sensor
         self.ctx = ctx
         c = sensor.config
         self.d_ns = max(1, round(c.packet_duration * 1e9))
         self.count = c.packet_events
         self.seq = 0
+        self.prebuild = prebuild
+        """Pack each packet for the flavours asked so far when it is cut (on the helper
+        thread), so that its consumer finds the bytes ready."""
+        self.flavors: set[Flavor] = set()
 
     def split(
         self, buf: list[EventBatch], t_ns: int, *, final: bool
@@ -548,8 +555,11 @@ class _Packetizer:
             )
             if limit == 0:
                 return [ev], []
-            j = ev.t[:limit] // self.d_ns
-            cuts = [0, *(np.flatnonzero(np.diff(j)) + 1).tolist(), limit]
+            # the first event of each later packet: a few binary searches, not a pass
+            d = self.d_ns
+            j0, j1 = int(ev.t[0]) // d, int(ev.t[limit - 1]) // d
+            starts = np.arange(j0 + 1, j1 + 1, dtype=np.int64) * d
+            cuts = [0, *np.searchsorted(ev.t[:limit], starts, side="left").tolist(), limit]
         msgs = [self._message(ev.slice(a, b)) for a, b in itertools.pairwise(cuts) if b > a]
         rest = ev.slice(cuts[-1], ev.size)
         return ([rest] if rest.size else []), msgs
@@ -565,9 +575,19 @@ class _Packetizer:
         t_abs = ev.t + ctx.start_time_ns
         stamp = ctx.stamp(t_last)
 
-        def build(store: MessageStore) -> bytes:
+        def pack(flavor: Flavor) -> bytes:
             return pack_event_array(
-                store.flavor, stamp, frame, cam.height, cam.width, t_abs, ev.x, ev.y, ev.p, seq
+                flavor, stamp, frame, cam.height, cam.width, t_abs, ev.x, ev.y, ev.p, seq
             )
+
+        ready = {f: pack(f) for f in tuple(self.flavors)} if self.prebuild else {}
+        flavors = self.flavors
+
+        def build(store: MessageStore) -> bytes:
+            data = ready.pop(store.flavor, None)
+            if data is None:
+                flavors.add(store.flavor)  # (set.add is atomic: the helper reads it)
+                data = pack(store.flavor)
+            return data
 
         return Message(t_last, f"{s.config.topic}/events", EVENT_ARRAY, build)
