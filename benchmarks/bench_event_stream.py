@@ -10,7 +10,7 @@ thread runs them) of each stage, measured by wrapping the functions by name:
 * ``camera_twist``: the trajectory's pose and twist at the instant;
 * ``render``: the GL render + remap (``EventCamera.render`` minus ``camera_twist``);
 * ``flow speed``: ``max |flow|`` from the rendered depth (sampling);
-* ``ESIM``: ``EventGenerator.update``; ``split``: ``_Packetizer.split``;
+* ``ESIM``: ``EventGenerator.update``; ``split``: the packet cutter's ``split``;
 * ``build``: the message bytes (EventArray packing, CameraInfo, images), both flavours;
 * ``files``: events.txt / events.h5 writing (``EventCamera._write_events``).
 
@@ -36,7 +36,7 @@ import tempfile
 import threading
 import time
 from collections import defaultdict
-from collections.abc import Callable
+from collections.abc import Callable, Generator
 from pathlib import Path
 from typing import Any
 
@@ -68,7 +68,11 @@ def _instrument(acc: dict[str, float]) -> None:
     ev.EventCamera.render = _timed(acc, "render", ev.EventCamera.render)  # type: ignore[method-assign]
     ev._Camera.max_flow_speed = _timed(acc, "flow speed", ev._Camera.max_flow_speed)  # type: ignore[method-assign]
     EventGenerator.update = _timed(acc, "ESIM", EventGenerator.update)  # type: ignore[method-assign]
-    ev._Packetizer.split = _timed(acc, "split", ev._Packetizer.split)  # type: ignore[method-assign]
+    try:  # (roslan.sensors.cameras.event_stream since 2026-11-26)
+        from roslan.sensors.cameras.event_stream import Packetizer
+    except ImportError:
+        Packetizer = ev._Packetizer  # type: ignore[attr-defined,misc]
+    Packetizer.split = _timed(acc, "split", Packetizer.split)  # type: ignore[method-assign]
     ev.EventCamera._write_events = _timed(acc, "files", ev.EventCamera._write_events)  # type: ignore[method-assign]
 
 
@@ -78,7 +82,7 @@ def run_once(seconds: float | None) -> dict[str, Any]:
     from roslan.io.messages import Flavor, MessageStore
     from roslan.pipeline.context import Context
     from roslan.pipeline.plan import load_checked_scene, make_plan
-    from roslan.sensors.cameras import EventCamera
+    from roslan.sensors.cameras import EventCamera, EventCameraConfig
 
     acc: dict[str, float] = defaultdict(float)
     _instrument(acc)
@@ -102,11 +106,13 @@ def run_once(seconds: float | None) -> dict[str, Any]:
         )
         ctx.renderer().render  # noqa: B018  (context and scene upload: not timed)
         stores = [MessageStore(Flavor(f)) for f in ("ros1", "ros2")]
+        assert isinstance(cam_cfg, EventCameraConfig)
         cam = EventCamera(cam_cfg)
         end = None if seconds is None else round(seconds * 1e9)
         w0, c0 = time.perf_counter(), time.process_time()
         n_msgs = n_bytes = 0
         stream = cam.messages(ctx)
+        assert isinstance(stream, Generator)
         for msg in stream:
             if end is not None and msg.t_ns > end:
                 stream.close()
@@ -156,7 +162,7 @@ def ab(dirs: list[str], repeat: int, seconds: float | None) -> None:
     a, b = (runs[d] for d in dirs)
 
     def med(rs: list[dict[str, Any]], key: str) -> float:
-        return statistics.median(r[key] if key in r else r["stages"][key] for r in rs)
+        return float(statistics.median(r[key] if key in r else r["stages"][key] for r in rs))
 
     print(f"medians of {repeat} alternated runs; ratio = {dirs[1]} / {dirs[0]}")
     for key in ("wall_s", "cpu_s", *STAGES):

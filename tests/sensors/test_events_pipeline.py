@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-import roslan.sensors.cameras.event as ev_mod
+import roslan.sensors.cameras.event_stream as ev_mod
 from event_helpers import run_event_camera
 from roslan.events.model import EventBatch, EventGenerator
 from roslan.io.messages import Flavor, MessageStore
