@@ -17,7 +17,9 @@ thread runs them) of each stage, measured by wrapping the functions by name:
 A/B: ``--ab DIR_A DIR_B`` runs this script in fresh interpreters with
 ``PYTHONPATH=DIR_X/src`` alternately (``--repeat`` times each; e.g. a ``git worktree`` of
 the commit before as DIR_A and this checkout as DIR_B) and prints the ratios B/A of the
-medians. ``--seconds S`` limits the landing to its first S seconds.
+medians; ``--ab-threads`` compares this checkout without (A, ``--sequential``) and with
+(B) the event camera's helper thread. ``--seconds S`` limits the landing to its first S
+seconds.
 
     PYTHONPATH=src python benchmarks/bench_event_stream.py [--seconds 5.2]
     python benchmarks/bench_event_stream.py --ab /tmp/base . --repeat 3
@@ -76,7 +78,7 @@ def _instrument(acc: dict[str, float]) -> None:
     ev.EventCamera._write_events = _timed(acc, "files", ev.EventCamera._write_events)  # type: ignore[method-assign]
 
 
-def run_once(seconds: float | None) -> dict[str, Any]:
+def run_once(seconds: float | None, *, sequential: bool = False) -> dict[str, Any]:
     """Stream the default event camera once; wall, CPU and per-stage CPU seconds."""
     from roslan.cli.simulate import load_config
     from roslan.io.messages import Flavor, MessageStore
@@ -108,6 +110,8 @@ def run_once(seconds: float | None) -> dict[str, Any]:
         stores = [MessageStore(Flavor(f)) for f in ("ros1", "ros2")]
         assert isinstance(cam_cfg, EventCameraConfig)
         cam = EventCamera(cam_cfg)
+        if sequential:  # everything on this thread (the attribute is new on 2026-11-26)
+            cam.pipelined = False
         end = None if seconds is None else round(seconds * 1e9)
         w0, c0 = time.perf_counter(), time.process_time()
         n_msgs = n_bytes = 0
@@ -145,20 +149,22 @@ def _print(label: str, r: dict[str, Any]) -> None:
     )
 
 
-def ab(dirs: list[str], repeat: int, seconds: float | None) -> None:
-    runs: dict[str, list[dict[str, Any]]] = {d: [] for d in dirs}
+def ab(cases: list[tuple[str, str, list[str]]], repeat: int, seconds: float | None) -> None:
+    """``cases``: two (label, checkout, extra arguments), run alternately."""
+    runs: dict[str, list[dict[str, Any]]] = {c[0]: [] for c in cases}
     for k in range(repeat):
-        for d in dirs if k % 2 == 0 else dirs[::-1]:
+        for label, d, extra in cases if k % 2 == 0 else cases[::-1]:
             env = dict(os.environ, PYTHONPATH=str(Path(d).resolve() / "src"))
-            cmd = [sys.executable, __file__, "--json"]
+            cmd = [sys.executable, __file__, "--json", *extra]
             if seconds is not None:
                 cmd += ["--seconds", str(seconds)]
             res = subprocess.run(cmd, env=env, capture_output=True, text=True, check=False)
             if res.returncode != 0:
-                raise SystemExit(f"{d}: failed\n{res.stderr}")
+                raise SystemExit(f"{label}: failed\n{res.stderr}")
             r = json.loads(res.stdout.strip().splitlines()[-1])
-            runs[d].append(r)
-            _print(f"{d} run {k + 1}", r)
+            runs[label].append(r)
+            _print(f"{label} run {k + 1}", r)
+    dirs = [c[0] for c in cases]
     a, b = (runs[d] for d in dirs)
 
     def med(rs: list[dict[str, Any]], key: str) -> float:
@@ -177,12 +183,24 @@ def main() -> None:
     ap.add_argument("--seconds", type=float, default=None, help="first S s of the landing")
     ap.add_argument("--ab", nargs=2, metavar="DIR", default=None, help="checkouts A and B")
     ap.add_argument("--repeat", type=int, default=3, help="A/B runs of each")
+    ap.add_argument(
+        "--sequential", action="store_true", help="no helper thread (ESIM on the render's)"
+    )
+    ap.add_argument(
+        "--ab-threads",
+        action="store_true",
+        help="A/B of this checkout: sequential (A) vs the helper thread (B)",
+    )
     ap.add_argument("--json", action="store_true", help="print one JSON line (A/B child)")
     args = ap.parse_args()
     if args.ab:
-        ab(args.ab, args.repeat, args.seconds)
+        ab([(d, d, []) for d in args.ab], args.repeat, args.seconds)
         return
-    r = run_once(args.seconds)
+    if args.ab_threads:
+        cases = [("sequential", ".", ["--sequential"]), ("helper thread", ".", [])]
+        ab(cases, args.repeat, args.seconds)
+        return
+    r = run_once(args.seconds, sequential=args.sequential)
     if args.json:
         print(json.dumps(r))
     else:
