@@ -18,8 +18,8 @@ A/B: ``--ab DIR_A DIR_B`` runs this script in fresh interpreters with
 ``PYTHONPATH=DIR_X/src`` alternately (``--repeat`` times each; e.g. a ``git worktree`` of
 the commit before as DIR_A and this checkout as DIR_B) and prints the ratios B/A of the
 medians; ``--ab-threads`` compares this checkout without (A, ``--sequential``) and with
-(B) the event camera's helper thread. ``--seconds S`` limits the landing to its first S
-seconds.
+(B) the event camera's helper thread. ``--workdir DIR``: the temporary outputs go there.
+``--seconds S`` limits the landing to its first S seconds.
 
     PYTHONPATH=src python benchmarks/bench_event_stream.py [--seconds 5.2]
     python benchmarks/bench_event_stream.py --ab /tmp/base . --repeat 3
@@ -78,7 +78,9 @@ def _instrument(acc: dict[str, float]) -> None:
     ev.EventCamera._write_events = _timed(acc, "files", ev.EventCamera._write_events)  # type: ignore[method-assign]
 
 
-def run_once(seconds: float | None, *, sequential: bool = False) -> dict[str, Any]:
+def run_once(
+    seconds: float | None, *, sequential: bool = False, workdir: str | None = None
+) -> dict[str, Any]:
     """Stream the default event camera once; wall, CPU and per-stage CPU seconds."""
     from roslan.cli.simulate import load_config
     from roslan.io.messages import Flavor, MessageStore
@@ -91,7 +93,7 @@ def run_once(seconds: float | None, *, sequential: bool = False) -> dict[str, An
     cfg, _ = load_config(None)
     cam_cfg = next(s for s in cfg.sensors if s.type == "event_camera")
     cfg = cfg.model_copy(update={"sensors": [cam_cfg]})
-    with tempfile.TemporaryDirectory() as tmp:
+    with tempfile.TemporaryDirectory(dir=workdir) as tmp:
         plan = make_plan(cfg, Path(tmp) / "plan", workers=0)
         checked = load_checked_scene(plan, allow_collision=True)
         traj = checked.traj
@@ -149,7 +151,12 @@ def _print(label: str, r: dict[str, Any]) -> None:
     )
 
 
-def ab(cases: list[tuple[str, str, list[str]]], repeat: int, seconds: float | None) -> None:
+def ab(
+    cases: list[tuple[str, str, list[str]]],
+    repeat: int,
+    seconds: float | None,
+    workdir: str | None = None,
+) -> None:
     """``cases``: two (label, checkout, extra arguments), run alternately."""
     runs: dict[str, list[dict[str, Any]]] = {c[0]: [] for c in cases}
     for k in range(repeat):
@@ -158,6 +165,8 @@ def ab(cases: list[tuple[str, str, list[str]]], repeat: int, seconds: float | No
             cmd = [sys.executable, __file__, "--json", *extra]
             if seconds is not None:
                 cmd += ["--seconds", str(seconds)]
+            if workdir is not None:
+                cmd += ["--workdir", workdir]
             res = subprocess.run(cmd, env=env, capture_output=True, text=True, check=False)
             if res.returncode != 0:
                 raise SystemExit(f"{label}: failed\n{res.stderr}")
@@ -192,15 +201,18 @@ def main() -> None:
         help="A/B of this checkout: sequential (A) vs the helper thread (B)",
     )
     ap.add_argument("--json", action="store_true", help="print one JSON line (A/B child)")
+    ap.add_argument("--workdir", default=None, help="folder for the temporary outputs")
     args = ap.parse_args()
+    if args.workdir is not None:
+        Path(args.workdir).mkdir(parents=True, exist_ok=True)
     if args.ab:
-        ab([(d, d, []) for d in args.ab], args.repeat, args.seconds)
+        ab([(d, d, []) for d in args.ab], args.repeat, args.seconds, args.workdir)
         return
     if args.ab_threads:
         cases = [("sequential", ".", ["--sequential"]), ("helper thread", ".", [])]
-        ab(cases, args.repeat, args.seconds)
+        ab(cases, args.repeat, args.seconds, args.workdir)
         return
-    r = run_once(args.seconds, sequential=args.sequential)
+    r = run_once(args.seconds, sequential=args.sequential, workdir=args.workdir)
     if args.json:
         print(json.dumps(r))
     else:
