@@ -3,6 +3,7 @@ checkered floor and a crate, along a short tau landing, straight through the sen
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -26,9 +27,18 @@ def floor_and_crate() -> Scene:
     return Scene("test", (floor, crate))
 
 
-def run_event_camera(tmp: Path, seed: int, **over: Any) -> tuple[Any, list[Any]]:
+def run_event_camera(
+    tmp: Path,
+    seed: int,
+    *,
+    pipelined: bool = True,
+    on_message: Callable[[Any], object] | None = None,
+    **over: Any,
+) -> tuple[Any, list[Any]]:
     """The sensor and its messages (25 Hz, 40x30, pitched 0.5 rad down unless ``over``
-    says otherwise; ``over`` replaces any config key); its files land in ``tmp``."""
+    says otherwise; ``over`` replaces any config key); its files land in ``tmp``.
+    ``pipelined=False``: ESIM and the messages on the calling thread; ``on_message`` is
+    called with each message as it comes (as the pipeline builds them)."""
     from roslan.pipeline.context import Context
     from roslan.sensors.cameras import EventCamera, EventCameraConfig
 
@@ -55,6 +65,11 @@ def run_event_camera(tmp: Path, seed: int, **over: Any) -> tuple[Any, list[Any]]
         traj, tmp, seed=seed, sensors=[cfg], scene=floor_and_crate(), start_time_ns=START_NS
     )
     sensor = EventCamera(cfg)
-    msgs = list(sensor.messages(ctx))
+    sensor.pipelined = pipelined
+    msgs = []
+    for m in sensor.messages(ctx):
+        if on_message is not None:
+            on_message(m)
+        msgs.append(m)
     sensor.close(ctx)
     return sensor, msgs

@@ -82,10 +82,14 @@ def test_moving_edge_event_times_per_column() -> None:
 @pytest.mark.parametrize(
     ("n", "frame_id"), [(0, "dvs"), (1, "dv"), (2, "dvs_optical"), (7, "a"), (9, "abcd")]
 )
-def test_event_array_bytes_match_rosbags(flavor: Flavor, n: int, frame_id: str) -> None:
+@pytest.mark.parametrize("span_ns", [10 * 10**9, 10**6], ids=["10s", "1ms"])
+def test_event_array_bytes_match_rosbags(
+    flavor: Flavor, n: int, frame_id: str, span_ns: int
+) -> None:
     store = MessageStore(flavor)
     rng = np.random.default_rng(n)
-    t = np.sort(rng.integers(1_700_000_000 * 10**9, 1_700_000_010 * 10**9, n))
+    t0 = 1_700_000_000 * 10**9 + 5 * 10**8  # a 1 ms packet within one second
+    t = np.sort(rng.integers(t0, t0 + span_ns, n))
     x, y, p = rng.integers(0, 1280, n), rng.integers(0, 720, n), rng.integers(0, 2, n)
     E = store.types["dvs_msgs/msg/Event"]
     events = [

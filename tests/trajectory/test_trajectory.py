@@ -347,3 +347,33 @@ def test_default_job_flaps_in_the_imu_pitch_rate() -> None:
     assert spec[near].max() >= 10.0 * spec[hood].max() / 3.0  # no rival line nearby
     cam = next(s for s in cfg.sensors if s.type == "camera")
     assert cam.exposure_time > 0
+
+
+@pytest.mark.parametrize(
+    "extra",
+    [
+        {},
+        {"flapping": {"frequency": 3.0, "heave": 0.3, "pitch": 0.2, "phase": 0.4}},
+        {"goal": {"position": [1.0, 2.0, 0.5], "rpy": [0.1, -0.2, 0.7]}},
+        {"goal": {"position": [1.0, 2.0, 0.5], "rpy": [0.0, 0.0, 0.7]}, "hold": 0.5},
+        {"k": 0.8},
+        {"k": 0.5, "kappa": {"x": 1.0, "y": 2.0, "roll": 1.0, "pitch": 1.0, "yaw": 1.0}},
+        {"k": 0.25, "kappa": {"x": 2.0, "y": 4.0, "roll": 1.0, "pitch": 1.0, "yaw": 1.0}},
+    ],
+    ids=["F", "flapping", "tilted-goal", "yawed-goal-hold", "hard", "n1-n2", "n2-n1"],
+)
+def test_pose_twist_at_one_instant_equals_state_bit_for_bit(extra: dict[str, object]) -> None:
+    """The one-instant fast path (the event camera's per-step pose) gives exactly the
+    values of the vectorized state, before the start, through touchdown and the hold."""
+    tr = make(**{**BASE, **extra})
+    assert isinstance(tr, TauTrajectory)
+    T_ns, end = tr.touchdown_ns, tr.duration_ns
+    rng = np.random.default_rng(3)
+    ts = [*rng.integers(-(10**8), end + 10**8, 300).tolist(), 0, T_ns - 1, T_ns, T_ns + 1, end]
+    for t in ts:
+        st = tr.state_ns(np.array([t], dtype=np.int64))
+        p, v, R, w = tr.pose_twist_ns(int(t))
+        assert np.array_equal(p, st.position[0]), t
+        assert np.array_equal(v, st.velocity[0]), t
+        assert np.array_equal(R, st.R_world_body[0]), t
+        assert np.array_equal(w, st.omega_body[0]), t

@@ -72,24 +72,40 @@ def motion_field(
 
 
 @kernel
-def _max_flow_speed(d, x, y, fx, fy, vx, vy, vz, wx, wy, wz):  # type: ignore[no-untyped-def]
+def _max_flow_speed(d, xr, yc, fx, fy, vx, vy, vz, wx, wy, wz):  # type: ignore[no-untyped-def]
     # motion_field's float64 operations in the same order, its float32 rounding, then the
-    # float32 hypot of np.hypot on float32 (computed in double: exact before rounding)
-    best = np.float32(0.0)
-    for i in range(d.shape[0]):
-        for j in range(d.shape[1]):
+    # float32 hypot of np.hypot on float32 (computed in double: exact before rounding).
+    # A pinhole ray's x depends on the column only, y on the row only: the products of one
+    # of them alone are made once per column / row (the same products, the same sums).
+    # float32(sqrt(q)) never decreases with q: the largest q gives the largest speed, so
+    # the one sqrt is taken at the end.
+    H, W = d.shape
+    c1 = np.empty(W)
+    c2 = np.empty(W)
+    c3 = np.empty(W)
+    for j in range(W):
+        a = xr[j]
+        c1[j] = -vx + a * vz
+        c2[j] = (1.0 + a * a) * wy
+        c3[j] = a * wz
+    best = 0.0
+    for i in range(H):
+        b = yc[i]
+        r1 = -vy + b * vz
+        r2 = (1.0 + b * b) * wx
+        r3 = b * wz
+        for j in range(W):
             z = np.float64(d[i, j])
             inv_z = 1.0 / z if (np.isfinite(z) and z > 0.0) else 0.0
-            a = x[i, j]
-            b = y[i, j]
-            dx = (-vx + a * vz) * inv_z + a * b * wx - (1.0 + a * a) * wy + b * wz
-            dy = (-vy + b * vz) * inv_z + (1.0 + b * b) * wx - a * b * wy - a * wz
+            ab = xr[j] * b
+            dx = c1[j] * inv_z + ab * wx - c2[j] + r3
+            dy = r1 * inv_z + r2 - ab * wy - c3[j]
             u = np.float64(np.float32(fx * dx))
             v = np.float64(np.float32(fy * dy))
-            s = np.float32(np.sqrt(u * u + v * v))
-            if s > best:
-                best = s
-    return best
+            q = u * u + v * v
+            if q > best:
+                best = q
+    return np.float32(np.sqrt(best))
 
 
 def max_flow_speed(
@@ -100,7 +116,9 @@ def max_flow_speed(
     rays: tuple[F64, F64] | None = None,
 ) -> float:
     """``max |flow|`` over the image, px/s: what the ``optical_flow`` sampling needs, in one
-    pass without the (H, W, 2) field of :func:`motion_field` (same arguments, same value)."""
+    pass without the (H, W, 2) field of :func:`motion_field` (same arguments, same value;
+    ``rays``, when given, are :func:`pixel_rays` of ``K``: only their first row and column
+    are read)."""
     d = np.asarray(depth)
     H, W = d.shape
     x, y = rays if rays is not None else pixel_rays(K, W, H)
@@ -110,8 +128,8 @@ def max_flow_speed(
     return float(
         _max_flow_speed(
             d,
-            np.ascontiguousarray(x),
-            np.ascontiguousarray(y),
+            np.ascontiguousarray(x[0]),
+            np.ascontiguousarray(y[:, 0]),
             float(K[0, 0]),
             float(K[1, 1]),
             vx,
@@ -137,16 +155,22 @@ def camera_twist(
         ``T_world_cam`` (4, 4), ``v_cam`` (3,) m/s and ``w_cam`` (3,) rad/s, both in the
         optical frame (velocity of the optical centre relative to the world).
     """
-    st = trajectory.state_ns(np.array([t_ns], dtype=np.int64))
-    R_wb = st.R_world_body[0]
+    fast = getattr(trajectory, "pose_twist_ns", None)
+    if fast is not None:  # one instant without the full State (same values, bit for bit)
+        p_wb, v_wb, R_wb, w_b = fast(t_ns)
+    else:
+        st = trajectory.state_ns(np.array([t_ns], dtype=np.int64))
+        p_wb, v_wb, R_wb, w_b = st.position[0], st.velocity[0], st.R_world_body[0], st.omega_body[0]
     Tbc = np.asarray(T_body_cam, dtype=np.float64)
     R_bc, p_bc = Tbc[:3, :3], Tbc[:3, 3]
-    w_b = st.omega_body[0]
     T_wb = np.eye(4)
     T_wb[:3, :3] = R_wb
-    T_wb[:3, 3] = st.position[0]
+    T_wb[:3, 3] = p_wb
     T_wc = T_wb @ Tbc
-    v_w = st.velocity[0] + R_wb @ np.cross(w_b, p_bc)
+    # w_b x p_bc written out: np.cross's products and differences, without its overhead
+    (a0, a1, a2), (b0, b1, b2) = w_b.tolist(), p_bc.tolist()
+    cross = np.array([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0])
+    v_w = v_wb + R_wb @ cross
     R_wc = T_wc[:3, :3]
     return T_wc, R_wc.T @ v_w, R_bc.T @ w_b
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 import warnings
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -13,6 +13,9 @@ from roslan.trajectory.base import GAPS, State, Trajectory, check_duration
 from roslan.trajectory.config import TrajectoryConfig
 from roslan.trajectory.frames import euler_zyx_kinematics, rpy_to_matrix, rpy_to_quat_xyzw
 from roslan.trajectory.tau import Terminal, classify, exponent, powers
+
+if TYPE_CHECKING:
+    from roslan.trajectory.instant import InstantEvaluator
 
 __all__ = ["TauTrajectory", "TrajectoryWarning"]
 
@@ -76,6 +79,7 @@ class TauTrajectory(Trajectory):
         self._q_world_goal: F64 = rpy_to_quat_xyzw(np.asarray(c.goal.rpy))
         flap = c.flapping
         self._flap = flap if flap.enabled else None
+        self._instant: InstantEvaluator | None = None
         if warn:
             for message in self.warnings():
                 warnings.warn(message, TrajectoryWarning, stacklevel=2)
@@ -227,6 +231,16 @@ class TauTrajectory(Trajectory):
                 gaps[:, col] += amp * osc
                 rates[:, col] += amp * dosc
                 accels[:, col] += amp * ddosc
+
+    def pose_twist_ns(self, t_ns: int) -> tuple[F64, F64, F64, F64]:
+        """(3,) position, (3,) velocity, (3, 3) R_world_body and (3,) omega_body at one
+        instant: :meth:`state_ns`'s values, bit for bit, ~20x cheaper
+        (:class:`~roslan.trajectory.instant.InstantEvaluator`)."""
+        if self._instant is None:
+            from roslan.trajectory.instant import InstantEvaluator
+
+            self._instant = InstantEvaluator(self)
+        return self._instant.pose_twist_ns(t_ns)
 
     def state(self, t: ArrayLike) -> State:
         """Full state at instants ``t`` (s), shape (N,).

@@ -26,8 +26,6 @@ Headers are in ``<frame>_optical`` (z forward, x right, y down).
 
 from __future__ import annotations
 
-import heapq
-import itertools
 from collections.abc import Iterator
 from typing import IO, Any
 
@@ -35,8 +33,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from roslan.events.files import EventH5Writer, EventTextWriter
-from roslan.events.model import EventBatch, EventGenerator
-from roslan.events.ros import EVENT_ARRAY, pack_event_array
+from roslan.events.model import EventBatch
+from roslan.events.ros import EVENT_ARRAY
 from roslan.events.sampling import (
     AdaptiveSampler,
     camera_twist,
@@ -55,22 +53,19 @@ from roslan.sensors.base import (
     TopicSpec,
     sample_times_ns,
 )
-from roslan.sensors.cameras.encoding import srgb_curve
 from roslan.sensors.cameras.event_config import EventCameraConfig
-from roslan.sensors.cameras.event_image import RecentEvents
+from roslan.sensors.cameras.event_stream import AfterRender
 from roslan.sensors.cameras.event_truth import DepthH5Writer, FlowPngWriter
 from roslan.sensors.cameras.model import T_LINK_OPTICAL, CameraModel, RenderPlan
 
 __all__ = ["EventCamera"]
 
+_STAGE_BACKLOG = 4
+"""Rendered instants waiting for the helper thread at most (bounded memory: a frame and its
+depth, ~0.7 MB for a DAVIS346)."""
+
 F32 = NDArray[np.float32]
 F64 = NDArray[np.float64]
-
-
-def _srgb8(lin: NDArray[np.floating]) -> NDArray[np.uint8]:
-    s = srgb_curve(np.clip(np.asarray(lin, dtype=np.float32), 0.0, 1.0))
-    out: NDArray[np.uint8] = np.rint(s * 255.0).astype(np.uint8)
-    return out
 
 
 class _Camera:
@@ -155,6 +150,11 @@ class EventCamera:
         self._flow_file: FlowPngWriter | None = None
         self._depth_file: DepthH5Writer | None = None
         self.stats: dict[str, float] = {}
+        self._T_body_cam: F64 | None = None
+        self._stage: BackgroundSink | None = None
+        self.pipelined = True
+        """Run ESIM, packets and messages on a helper thread beside the renders (False:
+        everything on the calling thread; same stream either way)."""
 
     # -------------------------------------------------------------- interface
     @property
@@ -197,7 +197,9 @@ class EventCamera:
         cam = self.camera
         renderer = ctx.renderer()
         plan = cam.render_plan(renderer.max_size)
-        T_wc, v, w = camera_twist(ctx.trajectory, t_ns, self.T_body_cam)
+        if self._T_body_cam is None:  # (the property builds it from the config each time)
+            self._T_body_cam = self.T_body_cam
+        T_wc, v, w = camera_twist(ctx.trajectory, t_ns, self._T_body_cam)
         # luminance-only pass: one shaded channel, the cheapest read back (roslan.render.gl)
         res = renderer.render(
             T_wc,
@@ -220,6 +222,9 @@ class EventCamera:
         try:
             yield from self._stream(ctx)
         except BaseException:  # failed or abandoned run: no more writes into its folder
+            if self._stage is not None:
+                stage, self._stage = self._stage, None
+                stage.abort()
             if self._sink is not None:
                 sink, self._sink = self._sink, None
                 sink.abort()
@@ -228,7 +233,6 @@ class EventCamera:
     def _stream(self, ctx: SimContext) -> Iterator[Message]:
         c = self.config
         cam = self.camera
-        W, H = cam.width, cam.height
         end = int(ctx.trajectory.duration_ns)
         info_times = sample_times_ns(c.rate, end)
         gt_rate = c.ground_truth_rate or c.rate
@@ -239,37 +243,26 @@ class EventCamera:
         sampler = AdaptiveSampler(
             c.sampling, c.adaptive_lambda, c.min_rate, c.max_rate, end, forced
         )
-        gen = EventGenerator(W, H, self.params, ctx.rng(f"{c.name}/pixels"))
-        tick = c.timestamp_resolution_ns
         self._open_files(ctx)
-        recent = RecentEvents(W, H, round(c.event_image_window * 1e9)) if c.event_image else None
         # dataset files are written beside the rendering, in order (io/background.py)
-        sink = self._sink = BackgroundSink(f"{c.name}-files")
+        self._sink = BackgroundSink(f"{c.name}-files")
+        # ESIM, packets, messages and file writes of an instant do not feed back into the
+        # next render (but for brightness sampling, which reads ESIM's state): they run
+        # on a helper thread, in order, beside the next render (docs/performance.md)
+        pipelined = self.pipelined and c.sampling != "brightness"
+        post = AfterRender(self, ctx, info_times, gt_times, gt_rate, pipelined=pipelined)
+        stage = None
+        if pipelined:
+            stage = self._stage = BackgroundSink(f"{c.name}-esim", backlog=_STAGE_BACKLOG)
         need_depth = c.sampling == "optical_flow" or c.optic_flow or c.depthmap
-        info_set = set(info_times.tolist())
         gt_set = set(gt_times.tolist())
-        pending: list[tuple[int, int, Message]] = []
-        counter = itertools.count()
-        buf: list[EventBatch] = []
-        packets = _Packetizer(self, ctx)
-        n_frames = n_events = n_capped = 0
-        image_index = 0
+        n_frames = n_capped = 0
         t = 0
         prev_L: F64 | None = None
         t_prev = 0
         while True:
             lum, depth, v, w = self.render(ctx, t, need_depth=need_depth)
             n_frames += 1
-            batch = gen.update(lum, t)
-            if batch.size and tick > 1:
-                batch.t[:] -= batch.t % tick  # the sensor's timestamp counter (order kept)
-            if batch.size:
-                n_events += batch.size
-                if self._writers:
-                    sink.submit(self._write_events, batch)
-                buf.append(batch)
-            if recent is not None:
-                recent.add(batch, t)
             flow = None
             speed = 0.0  # max |flow|, px/s (optical_flow sampling)
             if depth is not None and c.optic_flow and t in gt_set:
@@ -277,30 +270,16 @@ class EventCamera:
                 speed = float(np.max(np.hypot(flow[..., 0], flow[..., 1])))
             elif depth is not None and c.sampling == "optical_flow":
                 speed = cam.max_flow_speed(depth, v, w)
-            # messages of this instant
-            out: list[Message] = []
-            if t in info_set:
-                out.append(self._camera_info_msg(ctx, t))
-                if recent is not None:
-                    out.append(self._image_msg(ctx, t, recent.frame(t), "rgb8"))
-                if c.has_aps:
-                    aps = _srgb8(lum)
-                    out.append(self._image_msg(ctx, t, aps, "mono8"))
-                    sink.submit(self._write_image, ctx, t, aps, image_index)
-                    image_index += 1
-            if t in gt_set:
-                out += self._truth_msgs(ctx, t, flow, depth, gt_times, gt_rate)
-            buf, ready = packets.split(buf, t, final=False)
-            for m in (*ready, *out):
-                heapq.heappush(pending, (m.t_ns, next(counter), m))
-            horizon = t if not buf else min(t, int(buf[0].t[0]))
-            while pending and pending[0][0] <= horizon:
-                yield heapq.heappop(pending)[2]
+            if stage is None:
+                post.step(t, lum, depth, flow)
+            else:
+                stage.submit(post.step, t, lum, depth, flow)
+            yield from post.take()
             # next instant: ESIM's lambda / max rate of change
             if c.sampling == "optical_flow":
                 rate = speed
             elif c.sampling == "brightness":
-                L = gen.lp.copy()
+                L = post.gen.lp.copy()
                 if prev_L is None:
                     rate = float("inf")  # no estimate yet: smallest step
                 else:
@@ -314,15 +293,15 @@ class EventCamera:
             if nxt is None:
                 break
             t = nxt
-        buf, ready = packets.split(buf, t, final=True)
-        for m in ready:
-            heapq.heappush(pending, (m.t_ns, next(counter), m))
-        while pending:
-            yield heapq.heappop(pending)[2]
+        if stage is not None:
+            self._stage = None
+            stage.close()  # the instants still queued, and any error of one
+        post.finish(t)
+        yield from post.take()
         self.stats = {
             "frames": n_frames,
-            "events": n_events,
-            "dropped": gen.n_dropped,
+            "events": post.n_events,
+            "dropped": post.gen.n_dropped,
             "capped": n_capped,
             "duration_s": end * 1e-9,
         }
@@ -437,61 +416,3 @@ class EventCamera:
         self._truth = []
         if self._images_fh is not None and not self._images_fh.closed:
             self._images_fh.close()
-
-
-class _Packetizer:
-    """Cuts the event stream into EventArray messages (by duration or by count)."""
-
-    def __init__(self, sensor: EventCamera, ctx: SimContext) -> None:
-        self.sensor = sensor
-        self.ctx = ctx
-        c = sensor.config
-        self.d_ns = max(1, round(c.packet_duration * 1e9))
-        self.count = c.packet_events
-        self.seq = 0
-
-    def split(
-        self, buf: list[EventBatch], t_ns: int, *, final: bool
-    ) -> tuple[list[EventBatch], list[Message]]:
-        """Messages for every complete packet (all of them when ``final``) and the rest."""
-        if not buf:
-            return buf, []
-        ev = EventBatch.concatenate(buf)
-        cuts: list[int]
-        if self.count is not None:
-            n_full = ev.size // self.count
-            cuts = [i * self.count for i in range(n_full + 1)]
-            if final and ev.size > cuts[-1]:
-                cuts.append(ev.size)
-        else:
-            # packet j = [j d, (j+1) d) is complete once the frame time reaches its end
-            limit = (
-                ev.size
-                if final
-                else int(np.searchsorted(ev.t, (t_ns // self.d_ns) * self.d_ns, side="left"))
-            )
-            if limit == 0:
-                return [ev], []
-            j = ev.t[:limit] // self.d_ns
-            cuts = [0, *(np.flatnonzero(np.diff(j)) + 1).tolist(), limit]
-        msgs = [self._message(ev.slice(a, b)) for a, b in itertools.pairwise(cuts) if b > a]
-        rest = ev.slice(cuts[-1], ev.size)
-        return ([rest] if rest.size else []), msgs
-
-    def _message(self, ev: EventBatch) -> Message:
-        s = self.sensor
-        ctx = self.ctx
-        t_last = int(ev.t[-1])
-        seq = self.seq
-        self.seq += 1
-        cam = s.camera
-        frame = s.optical_frame
-        t_abs = ev.t + ctx.start_time_ns
-        stamp = ctx.stamp(t_last)
-
-        def build(store: MessageStore) -> bytes:
-            return pack_event_array(
-                store.flavor, stamp, frame, cam.height, cam.width, t_abs, ev.x, ev.y, ev.p, seq
-            )
-
-        return Message(t_last, f"{s.config.topic}/events", EVENT_ARRAY, build)

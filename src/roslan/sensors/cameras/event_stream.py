@@ -1,0 +1,204 @@
+"""The event camera's stream after each render: ESIM, EventArray packets, messages.
+
+:class:`AfterRender` takes one rendered instant at a time (luminance, depth, flow), in
+time order, on the sensor's helper thread (or the calling one): the events of the
+interval, their dataset-file writes (submitted to the sensor's file writer), the
+instant's messages, and the packets cut by :class:`Packetizer`. The messages come out in
+stream order through :meth:`AfterRender.take`.
+"""
+
+from __future__ import annotations
+
+import collections
+import heapq
+import itertools
+from collections.abc import Iterator
+from typing import TYPE_CHECKING
+
+import numpy as np
+from numpy.typing import NDArray
+
+from roslan.events.model import EventBatch, EventGenerator
+from roslan.events.ros import EVENT_ARRAY, pack_event_array
+from roslan.io.messages import Flavor, MessageStore
+from roslan.sensors.base import Message, SimContext
+from roslan.sensors.cameras.encoding import srgb_curve
+from roslan.sensors.cameras.event_image import RecentEvents
+
+if TYPE_CHECKING:
+    from roslan.sensors.cameras.event import EventCamera
+
+__all__ = ["AfterRender", "Packetizer"]
+
+F32 = NDArray[np.float32]
+
+
+def _srgb8(lin: NDArray[np.floating]) -> NDArray[np.uint8]:
+    s = srgb_curve(np.clip(np.asarray(lin, dtype=np.float32), 0.0, 1.0))
+    out: NDArray[np.uint8] = np.rint(s * 255.0).astype(np.uint8)
+    return out
+
+
+class AfterRender:
+    """What follows an instant's render and flow: ESIM, event packets, the instant's
+    messages and its dataset-file writes, in time order (one thread at a time).
+
+    :meth:`step` queues the instant's messages; :meth:`take` hands over, in stream order,
+    those whose time no later message can precede."""
+
+    def __init__(
+        self,
+        sensor: EventCamera,
+        ctx: SimContext,
+        info_times: NDArray[np.int64],
+        gt_times: NDArray[np.int64],
+        gt_rate: float,
+        *,
+        pipelined: bool,
+    ) -> None:
+        c = sensor.config
+        self.sensor, self.ctx = sensor, ctx
+        W, H = sensor.camera.width, sensor.camera.height
+        self.gen = EventGenerator(W, H, sensor.params, ctx.rng(f"{c.name}/pixels"))
+        self.tick = c.timestamp_resolution_ns
+        self.recent = (
+            RecentEvents(W, H, round(c.event_image_window * 1e9)) if c.event_image else None
+        )
+        self.info_set = set(info_times.tolist())
+        self.gt_set = set(gt_times.tolist())
+        self.gt_times, self.gt_rate = gt_times, gt_rate
+        self.pending: list[tuple[int, int, Message]] = []
+        self.counter = itertools.count()
+        self.buf: list[EventBatch] = []
+        self.packets = Packetizer(sensor, ctx, prebuild=pipelined)
+        self.image_index = 0
+        self.n_events = 0
+        self.ready: collections.deque[Message] = collections.deque()
+
+    def step(self, t: int, lum: F32, depth: F32 | None, flow: F32 | None) -> None:
+        s, c, ctx, sink = self.sensor, self.sensor.config, self.ctx, self.sensor._sink
+        assert sink is not None
+        batch = self.gen.update(lum, t)
+        if batch.size and self.tick > 1:
+            batch.t[:] -= batch.t % self.tick  # the sensor's timestamp counter (order kept)
+        if batch.size:
+            self.n_events += batch.size
+            if s._writers:
+                sink.submit(s._write_events, batch)
+            self.buf.append(batch)
+        recent = self.recent
+        if recent is not None:
+            recent.add(batch, t)
+        out: list[Message] = []
+        if t in self.info_set:
+            out.append(s._camera_info_msg(ctx, t))
+            if recent is not None:
+                out.append(s._image_msg(ctx, t, recent.frame(t), "rgb8"))
+            if c.has_aps:
+                aps = _srgb8(lum)
+                out.append(s._image_msg(ctx, t, aps, "mono8"))
+                sink.submit(s._write_image, ctx, t, aps, self.image_index)
+                self.image_index += 1
+        if t in self.gt_set:
+            out += s._truth_msgs(ctx, t, flow, depth, self.gt_times, self.gt_rate)
+        self.buf, ready = self.packets.split(self.buf, t, final=False)
+        self._push(*ready, *out)
+        horizon = t if not self.buf else min(t, int(self.buf[0].t[0]))
+        self._release(horizon)
+
+    def finish(self, t: int) -> None:
+        """After the last instant ``t``: the last packet, then everything queued."""
+        self.buf, ready = self.packets.split(self.buf, t, final=True)
+        self._push(*ready)
+        self._release(None)
+
+    def _push(self, *msgs: Message) -> None:
+        for m in msgs:
+            heapq.heappush(self.pending, (m.t_ns, next(self.counter), m))
+
+    def _release(self, horizon: int | None) -> None:
+        pending, ready = self.pending, self.ready
+        while pending and (horizon is None or pending[0][0] <= horizon):
+            ready.append(heapq.heappop(pending)[2])
+
+    def take(self) -> Iterator[Message]:
+        """The messages released so far (safe while :meth:`step` runs on another thread:
+        one appends, the other pops, each deque operation atomic)."""
+        ready = self.ready
+        while ready:
+            yield ready.popleft()
+
+
+class Packetizer:
+    """Cuts the event stream into EventArray messages (by duration or by count)."""
+
+    def __init__(self, sensor: EventCamera, ctx: SimContext, *, prebuild: bool = False) -> None:
+        self.sensor = sensor
+        self.ctx = ctx
+        c = sensor.config
+        self.d_ns = max(1, round(c.packet_duration * 1e9))
+        self.count = c.packet_events
+        self.seq = 0
+        self.prebuild = prebuild
+        """Pack each packet for the flavours asked so far when it is cut (on the helper
+        thread), so that its consumer finds the bytes ready."""
+        self.flavors: set[Flavor] = set()
+
+    def split(
+        self, buf: list[EventBatch], t_ns: int, *, final: bool
+    ) -> tuple[list[EventBatch], list[Message]]:
+        """Messages for every complete packet (all of them when ``final``) and the rest."""
+        if not buf:
+            return buf, []
+        ev = EventBatch.concatenate(buf)
+        cuts: list[int]
+        if self.count is not None:
+            n_full = ev.size // self.count
+            cuts = [i * self.count for i in range(n_full + 1)]
+            if final and ev.size > cuts[-1]:
+                cuts.append(ev.size)
+        else:
+            # packet j = [j d, (j+1) d) is complete once the frame time reaches its end
+            limit = (
+                ev.size
+                if final
+                else int(np.searchsorted(ev.t, (t_ns // self.d_ns) * self.d_ns, side="left"))
+            )
+            if limit == 0:
+                return [ev], []
+            # the first event of each later packet: a few binary searches, not a pass
+            d = self.d_ns
+            j0, j1 = int(ev.t[0]) // d, int(ev.t[limit - 1]) // d
+            starts = np.arange(j0 + 1, j1 + 1, dtype=np.int64) * d
+            cuts = [0, *np.searchsorted(ev.t[:limit], starts, side="left").tolist(), limit]
+        msgs = [self._message(ev.slice(a, b)) for a, b in itertools.pairwise(cuts) if b > a]
+        rest = ev.slice(cuts[-1], ev.size)
+        return ([rest] if rest.size else []), msgs
+
+    def _message(self, ev: EventBatch) -> Message:
+        s = self.sensor
+        ctx = self.ctx
+        t_last = int(ev.t[-1])
+        seq = self.seq
+        self.seq += 1
+        cam = s.camera
+        frame = s.optical_frame
+        t_abs = ev.t + ctx.start_time_ns
+        stamp = ctx.stamp(t_last)
+
+        def pack(flavor: Flavor) -> bytes:
+            return pack_event_array(
+                flavor, stamp, frame, cam.height, cam.width, t_abs, ev.x, ev.y, ev.p, seq
+            )
+
+        ready = {f: pack(f) for f in tuple(self.flavors)} if self.prebuild else {}
+        flavors = self.flavors
+
+        def build(store: MessageStore) -> bytes:
+            data = ready.pop(store.flavor, None)
+            if data is None:
+                flavors.add(store.flavor)  # (set.add is atomic: the helper reads it)
+                data = pack(store.flavor)
+            return data
+
+        return Message(t_last, f"{s.config.topic}/events", EVENT_ARRAY, build)
