@@ -4,14 +4,18 @@ Runs, in fresh subprocesses and alternating, best of ``--repeat`` (default 2):
 
 1. the packaged default job with ``--workers auto``;
 2. the same with the event camera at ``max_rate: 1000``;
-3. (``--with-serial``) the default job with ``--workers 0`` for comparison.
+3. the default job with ``--workers auto`` and ``ROSLAN_SENSOR_THREADS=1`` (every frame
+   and scan post-processed on its sensor's own thread, as before the per-sensor pools);
+4. (``--with-serial``) the default job with ``--workers 0`` for comparison;
 
 and prints for each: the real-time factor (wall / trajectory time), CPU seconds per
 trajectory second (whole process tree), core utilisation over the run and while
 streaming, the critical path (busy seconds of each process while streaming) and the
-OpenGL renderer EGL gives (GL_RENDERER). Every figure and the
-machine description go to ``OUTDIR/gpu_e2e.json``. About 1-2 minutes on a 16-core
-machine with an H200; run from the repository root:
+OpenGL renderer EGL gives (GL_RENDERER). Then the default job's frame camera and HDL-32E
+each alone (``--workers 0``, :mod:`bench_sensor_threads`), once with 1 thread per sensor
+and once with the automatic count: wall time, CPU time and the sensor's own thread. Every
+figure and the machine description go to ``OUTDIR/gpu_e2e.json``. About 2-3 minutes on a
+16-core machine with an H200; run from the repository root:
 
     PYTHONPATH=src:benchmarks python3 benchmarks/gpu_e2e.py OUTDIR
 """
@@ -19,20 +23,55 @@ machine with an H200; run from the repository root:
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
 import platform
 import subprocess
 import sys
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
+import bench_sensor_threads
 from bench_e2e import _report, run_case
 
-CASES: list[tuple[str, str, float | None]] = [
-    ("default job, --workers auto", "auto", None),
-    ("event camera max_rate 1000, --workers auto", "auto", 1000.0),
+CASES: list[tuple[str, str, float | None, str | None]] = [
+    ("default job, --workers auto", "auto", None, None),
+    ("event camera max_rate 1000, --workers auto", "auto", 1000.0, None),
+    ("default job, --workers auto, ROSLAN_SENSOR_THREADS=1", "auto", None, "1"),
 ]
+
+
+@contextlib.contextmanager
+def _sensor_threads(value: str | None) -> Iterator[None]:
+    """``ROSLAN_SENSOR_THREADS`` = ``value`` (None: unset) for the runs started inside."""
+    old = os.environ.pop("ROSLAN_SENSOR_THREADS", None)
+    if value is not None:
+        os.environ["ROSLAN_SENSOR_THREADS"] = value
+    try:
+        yield
+    finally:
+        os.environ.pop("ROSLAN_SENSOR_THREADS", None)
+        if old is not None:
+            os.environ["ROSLAN_SENSOR_THREADS"] = old
+
+
+def _sensors_alone(repeat: int = 1) -> dict[str, Any]:
+    """The frame camera and the HDL-32E alone, 1 thread vs the automatic count."""
+    runs: dict[str, list[dict[str, Any]]] = {}
+    for _ in range(repeat):
+        for kind in ("camera", "lidar"):
+            for threads in (1, None):
+                name = f"{kind} alone, --workers 0, threads {threads or 'auto'}"
+                r = bench_sensor_threads.run_case(kind, threads)
+                runs.setdefault(name, []).append(r)
+                print(
+                    f"--- {name} ({r['sensor_threads']} threads): wall {r['wall_s']:.2f} s, CPU "
+                    f"{r['cpu_s']:.2f} s, sensor thread {r['sensor_s']:.2f} s",
+                    flush=True,
+                )
+    return runs
 
 
 def _machine() -> dict[str, Any]:
@@ -72,13 +111,14 @@ def main() -> None:
     args.outdir.mkdir(parents=True, exist_ok=True)
     cases = list(CASES)
     if args.with_serial:
-        cases.append(("default job, --workers 0", "0", None))
+        cases.append(("default job, --workers 0", "0", None, None))
     machine = _machine()
     print(f"machine: {machine}", flush=True)
-    runs: dict[str, list[dict[str, Any]]] = {name: [] for name, _, _ in cases}
+    runs: dict[str, list[dict[str, Any]]] = {name: [] for name, _, _, _ in cases}
     for _ in range(args.repeat):
-        for name, workers, rate in cases:
-            r = run_case(1.0, workers, rate)
+        for name, workers, rate, threads in cases:
+            with _sensor_threads(threads):
+                r = run_case(1.0, workers, rate)
             r["scale"] = 1.0
             runs[name].append(r)
             print(f"--- {name}", flush=True)
@@ -95,6 +135,15 @@ def main() -> None:
             f"second, utilisation {b['utilisation_stream']:.2f} cores while streaming; "
             f"critical path: {path}"
         )
+    alone = _sensors_alone()
+    for name, rs in alone.items():
+        b = min(rs, key=lambda r: r["wall_s"])
+        best[name] = b
+        print(
+            f"  {name}: wall {b['wall_s']:.2f} s, CPU {b['cpu_s']:.2f} s, sensor thread "
+            f"{b['sensor_s']:.2f} s ({b['sensor_threads']} threads)"
+        )
+    runs.update(alone)
     out = {"machine": machine, "runs": runs, "best": best}
     (args.outdir / "gpu_e2e.json").write_text(json.dumps(out, indent=1))
     print(f"wrote {args.outdir / 'gpu_e2e.json'}")

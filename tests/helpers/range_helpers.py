@@ -127,6 +127,7 @@ class FakeContext:
         self.sensors: list[Any] = []
         self.root_camera: str | None = None
         self.root_imu: str | None = None
+        self.sensor_threads = 1
         self.outdir = outdir
 
     def stamp(self, t_ns: int) -> int:

@@ -1,5 +1,6 @@
 """Writers and readers of the files a run produces: bags (ROS 1 and ROS 2), messages,
-atomic files, PNG images, text tables, and the bounded, safe reading of user files.
+atomic files, PNG images, text tables, ordered thread pools for per-frame work, and the
+bounded, safe reading of user files.
 
 Names are imported on first use (PEP 562), so importing one light module of the
 package does not load the heavy ones.
@@ -28,10 +29,13 @@ _WHERE = {
     "MAX_YAML_NODES": "safe_read",
     "MessageStore": "messages",
     "MultiBagWriter": "bag",
+    "OrderedPool": "ordered",
     "PackedBatch": "packing",
+    "PoolClosedError": "ordered",
     "ROS1_MSG_TEXTS": "ros1_msgdefs",
     "Ros1BagWriter": "bag",
     "Ros2BagWriter": "bag",
+    "Turn": "ordered",
     "atomic_write": "files",
     "atomic_write_bytes": "files",
     "atomic_write_text": "files",

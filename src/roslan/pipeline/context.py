@@ -40,6 +40,8 @@ class Context:
         start_time_ns: absolute stamp of trajectory time 0.
         sensors: every sensor config of the run.
         scene_spec: the config's ``scene`` (None: no scene) and ``base_dir`` for relative paths.
+        sensor_threads: threads of each frame/scan sensor for its per-instant work
+            (:class:`~roslan.io.ordered.OrderedPool`; 1: all on the sensor's thread).
     """
 
     def __init__(
@@ -53,6 +55,7 @@ class Context:
         scene_spec: str | None = None,
         base_dir: Path | None = None,
         scene: Scene | None = None,
+        sensor_threads: int = 1,
     ) -> None:
         self.trajectory = trajectory
         self.outdir = Path(outdir)
@@ -64,6 +67,7 @@ class Context:
         self.scene_spec = scene_spec
         self.base_dir = base_dir
         self._scene = scene
+        self.sensor_threads = max(1, int(sensor_threads))
         self._renderer: FrameRenderer | None = None
         self._raycaster: BeamCaster | None = None
 

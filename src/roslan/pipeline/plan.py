@@ -28,6 +28,7 @@ from roslan.io.bag import BagTopic
 from roslan.limits import preflight as check_limits
 from roslan.pipeline.estimate import check_free_space, estimate_run
 from roslan.pipeline.namespace import check_namespace
+from roslan.pipeline.threads import sensor_threads
 from roslan.pipeline.worker import plan_workers, resolve_workers
 from roslan.rundir.extrinsics import static_transforms
 from roslan.rundir.folder import check_outdir
@@ -77,6 +78,9 @@ class RunPlan:
     """Every bag connection, in a fixed order: ground truth, then sensors in config order."""
     groups: list[list[int]]
     """Sensor indices per worker process (empty: every sensor runs in this process)."""
+    sensor_threads: int = 1
+    """Threads of each frame/scan sensor for its per-instant work
+    (:func:`~roslan.pipeline.threads.sensor_threads`)."""
 
 
 def preflight(config: SimConfig, traj: Trajectory) -> None:
@@ -163,6 +167,7 @@ def make_plan(
     # (children need an interpreter to start and a POSIX fd to talk through)
     posix = bool(sys.executable) and os.name == "posix"
     groups = plan_workers(config.sensors, n_workers) if posix else []
+    threads = sensor_threads(len(groups) + 1)  # the workers and this process
     return RunPlan(
         config=config,
         outdir=outdir,
@@ -176,6 +181,7 @@ def make_plan(
         owners=owners,
         bag_topics=bag_topics,
         groups=groups,
+        sensor_threads=threads,
     )
 
 

@@ -264,6 +264,7 @@ class _Run:
                 formats=plan.formats,
                 profile=self.opts.profile,
                 nice=nices[g],
+                sensor_threads=plan.sensor_threads,
             )
         )
 
@@ -278,6 +279,7 @@ class _Run:
             scene_spec=config.scene,
             base_dir=self.plan.base_dir,
             scene=self.scene,
+            sensor_threads=self.plan.sensor_threads,
         )
 
     # ------------------------------------------------------------------------- 3. merge
@@ -390,6 +392,7 @@ class _Run:
             "stream_real_time_factor": stream_s / duration,
             "workers": len(plan.groups),
             "worker_sensors": [[plan.sensors[i].config.name for i in g] for g in plan.groups],
+            "sensor_threads": plan.sensor_threads,
         }
         if self.opts.profile:
             timing["profile"] = self._profile()

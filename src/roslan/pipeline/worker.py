@@ -56,6 +56,7 @@ from typing import TYPE_CHECKING, Any
 
 from roslan.errors import ConfigError, RoslanError
 from roslan.pipeline.merge import MERGE_KEY, CheckedStream, MergeItem, tagged
+from roslan.pipeline.threads import usable_cpus
 from roslan.sensors.base import Message, SensorConfig
 from roslan.sensors.registry import render_cost
 
@@ -104,14 +105,6 @@ class _RemoteTraceback(Exception):
 
 
 # ---------------------------------------------------------------------------- planning
-def usable_cpus() -> int:
-    """CPUs this process may run on (affinity mask where the OS has one)."""
-    try:
-        return max(1, len(os.sched_getaffinity(0)))
-    except AttributeError:  # pragma: no cover - non-Linux
-        return max(1, os.cpu_count() or 1)
-
-
 def resolve_workers(workers: int | str, sensors: Sequence[SensorConfig]) -> int:
     """Number of worker processes for ``workers`` (``'auto'``, 0 or N >= 1).
 
@@ -183,6 +176,7 @@ class WorkerJob:
     profile: bool
     queue_bytes: int = QUEUE_BYTES
     nice: int = 0
+    sensor_threads: int = 1
 
 
 class ByteQueue:
@@ -297,6 +291,7 @@ def _run_job(job: WorkerJob, put: Callable[[Any], None]) -> None:
         scene_spec=job.scene_spec,
         base_dir=job.base_dir,
         scene=job.scene,
+        sensor_threads=job.sensor_threads,
     )
     stores = [MessageStore(Flavor(f)) for f in job.formats]
     sensors = [cls(job.sensors[i]) for cls, i in zip(job.classes, job.assigned, strict=True)]

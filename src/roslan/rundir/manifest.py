@@ -91,6 +91,8 @@ class Timing(TypedDict):
     stream_real_time_factor: float
     workers: int
     worker_sensors: list[list[str]]
+    sensor_threads: NotRequired[int]
+    """Threads of each frame/scan sensor for its per-instant work."""
     profile: NotRequired[dict[str, Any]]
     """Per-component seconds (``--profile``)."""
     overview_s: NotRequired[float]

@@ -152,6 +152,9 @@ class SimContext(Protocol):
     root_imu: str | None
     """The IMU whose readings are the OUTDIR root's ``imu.txt``
     (:func:`roslan.rundir.calibration.root_imu`); other IMUs write ``imu_<name>.txt``."""
+    sensor_threads: int
+    """Threads a frame or scan sensor may use for its per-instant work after the render
+    or cast (:class:`~roslan.io.ordered.OrderedPool`); outputs do not depend on it."""
 
     def stamp(self, t_ns: int) -> int:
         """Absolute header stamp (ns) of trajectory time ``t_ns``."""

@@ -15,6 +15,7 @@ from pydantic import Field
 
 from roslan.config.base import FiniteFloat
 from roslan.io.files import save_npz
+from roslan.io.ordered import OrderedPool, Turn
 from roslan.sensors.base import (
     Message,
     SensorConfig,
@@ -28,7 +29,15 @@ from roslan.sensors.beams.pointcloud import POINTCLOUD2, pointcloud2
 if TYPE_CHECKING:
     from roslan.render.base import BeamCaster
 
-__all__ = ["BeamConfig", "Measurement", "PointCloudSensor", "ScanWriter", "measure"]
+__all__ = [
+    "BeamConfig",
+    "BeamDraws",
+    "Measurement",
+    "PointCloudSensor",
+    "ScanWriter",
+    "draw_beams",
+    "measure",
+]
 
 F64 = NDArray[np.float64]
 F32 = NDArray[np.float32]
@@ -67,6 +76,30 @@ class Measurement(NamedTuple):
     intensity: F32
 
 
+class BeamDraws(NamedTuple):
+    """The random draws of N beams (:func:`draw_beams`), made before the cast.
+
+    Attributes:
+        noise: (N,) standard normal range noise, or None without noise.
+        uniform: (N,) uniform [0, 1) dropout draws, or None without dropout.
+    """
+
+    noise: F64 | None
+    uniform: F64 | None
+
+
+def draw_beams(
+    rng: np.random.Generator, n: int, noise_sigma: float, returns: BeamConfig
+) -> BeamDraws:
+    """The draws :func:`measure` makes for ``n`` beams, in its order: ``n`` normals (if
+    ``noise_sigma`` > 0), then ``n`` uniforms (if ``returns.dropout`` > 0). They do not
+    depend on what is hit, so a scan's draws can be made in time order on the sensor's
+    thread and the scan cast on any other."""
+    noise = rng.standard_normal(n) if noise_sigma > 0 else None
+    uniform = rng.random(n) if returns.dropout > 0 else None
+    return BeamDraws(noise, uniform)
+
+
 def measure(
     caster: BeamCaster,
     origins: NDArray[np.floating[Any]],
@@ -76,19 +109,25 @@ def measure(
     max_range: float,
     noise_sigma: float,
     returns: BeamConfig,
-    rng: np.random.Generator,
+    rng: np.random.Generator | BeamDraws,
 ) -> Measurement:
     """Cast the beams and apply the range sensor model (see :class:`Measurement`):
     limits, noise, and the dropout and intensity keys of ``returns``.
 
     The random draws (one normal and one uniform per beam) do not depend on what is
-    hit, so a seed gives the same noise stream whatever the scene.
+    hit, so a seed gives the same noise stream whatever the scene; ``rng`` is the
+    generator to draw them from, or the draws themselves (:func:`draw_beams`).
     """
     n = origins.shape[0]
     dist, echo = caster.cast_incidence(origins, directions, max_range)
-    noise = rng.standard_normal(n) if noise_sigma > 0 else None
+    draws = rng if isinstance(rng, BeamDraws) else draw_beams(rng, n, noise_sigma, returns)
     dropout = returns.dropout
-    keep = rng.random(n) >= dropout if dropout > 0 else None
+    for a, used in ((draws.noise, noise_sigma > 0), (draws.uniform, dropout > 0)):
+        if used and (a is None or a.shape != (n,)):
+            msg = f"beam draws {None if a is None else a.shape} for {n} beams"
+            raise ValueError(msg)
+    noise = draws.noise if noise_sigma > 0 else None
+    keep = draws.uniform >= dropout if draws.uniform is not None and dropout > 0 else None
     true = dist.astype(np.float64)
     hit = np.isfinite(true)
     too_close = hit & (true < min_range)
@@ -127,19 +166,29 @@ class ScanWriter:
         self.count = 0
 
     def write(self, t_ns: int, points: NDArray[Any]) -> None:
-        if self._fh is None:
-            self.folder.mkdir(parents=True, exist_ok=True)
-            self._fh = self.index.open("w", encoding="utf-8")
-        name = f"{self.count:06d}.npz"
+        """The next scan's file and index line."""
+        self.write_file(self.count, t_ns, points)
+        self.listed(self.count, t_ns)
+
+    def write_file(self, count: int, t_ns: int, points: NDArray[Any]) -> None:
+        """Scan number ``count``'s ``.npz`` file (any thread; then :meth:`listed`)."""
+        self.folder.mkdir(parents=True, exist_ok=True)
+        name = f"{count:06d}.npz"
         ok = ~np.isnan(points["x"])  # organized clouds carry NaN rows for no return
         arrays = {k: np.ascontiguousarray(points[k][ok]) for k in points.dtype.names or ()}
         tmp = self.folder / (name + ".part")
         with tmp.open("wb") as fh:
             save_npz(fh, {"stamp": np.asarray(t_ns, np.int64), **arrays})
         tmp.replace(self.folder / name)
+
+    def listed(self, count: int, t_ns: int) -> None:
+        """Scan number ``count``'s line in ``timestamps.txt`` (in scan order, after its
+        file is written)."""
+        if self._fh is None:
+            self._fh = self.index.open("w", encoding="utf-8")
         sec, nsec = divmod(int(t_ns), 1_000_000_000)
-        self._fh.write(f"{sec}.{nsec:09d} {self.folder.name}/{name}\n")
-        self.count += 1
+        self._fh.write(f"{sec}.{nsec:09d} {self.folder.name}/{count:06d}.npz\n")
+        self.count = count + 1
 
     def close(self) -> None:
         if self._fh is not None:
@@ -158,7 +207,7 @@ class PointCloudSensor:
     _writer: ScanWriter | None = None
 
     def scan(
-        self, trajectory: Any, caster: BeamCaster, t0_ns: int, rng: np.random.Generator
+        self, trajectory: Any, caster: BeamCaster, t0_ns: int, rng: np.random.Generator | BeamDraws
     ) -> NDArray[Any]:  # pragma: no cover - every subclass has one
         raise NotImplementedError
 
@@ -173,28 +222,52 @@ class PointCloudSensor:
         return []  # base_link -> frame comes from the extrinsics (pipeline)
 
     def messages(self, ctx: SimContext) -> Iterator[Message]:
+        """One cloud per scan. Each scan's random draws are made here, in time order
+        (:meth:`draw`); the scan itself (rays, cast, range model, packing, its ``.npz``
+        file) runs on the sensor's pool (``ctx.sensor_threads`` threads; the cast of one
+        scan beside the file of the previous), and the scans come back in order."""
         cfg = self.config
         caster = ctx.raycaster()
         rng = ctx.rng(cfg.name)
         index = ctx.path(f"lidar/{cfg.name}/timestamps.txt")
-        self._writer = ScanWriter(index.parent, index)
+        writer = self._writer = ScanWriter(index.parent, index)
         height, dense = self.cloud_layout()
+        pool: OrderedPool[tuple[int, int, NDArray[Any]]] = OrderedPool(
+            ctx.sensor_threads, f"{cfg.name}-scans"
+        )
+
+        def task(turn: Turn, seq: int, t0: int, draws: BeamDraws) -> tuple[int, int, NDArray[Any]]:
+            pts = self.scan(ctx.trajectory, caster, t0, draws)
+            writer.write_file(seq, t0, pts)
+            return seq, t0, pts
+
+        def emit(done: list[tuple[int, int, NDArray[Any]]]) -> Iterator[Message]:
+            for seq, t0, pts in done:
+                writer.listed(seq, t0)
+                stamp = ctx.stamp(t0)
+
+                def build(
+                    store: Any, pts: NDArray[Any] = pts, stamp: int = stamp, seq: int = seq
+                ) -> Any:
+                    return pointcloud2(
+                        store, stamp, cfg.frame, pts, height=height, seq=seq, is_dense=dense
+                    )
+
+                yield Message(t0, cfg.topic, POINTCLOUD2, build)
+
         # a scan fires over [t0, t0 + 1/rate): only whole scans that end within the
         # trajectory (and so within the ground-truth record) are produced
         last_start = ctx.trajectory.duration_ns - round(1e9 / cfg.rate)
-        for seq, t0 in enumerate(sample_times_ns(cfg.rate, last_start).tolist()):
-            pts = self.scan(ctx.trajectory, caster, t0, rng)
-            self._writer.write(t0, pts)
-            stamp = ctx.stamp(t0)
+        try:
+            for seq, t0 in enumerate(sample_times_ns(cfg.rate, last_start).tolist()):
+                yield from emit(pool.submit(task, seq, t0, self.draw(rng)))
+            yield from emit(pool.finish())
+        finally:
+            pool.close()  # a failed or abandoned run: no write into its folder after this
 
-            def build(
-                store: Any, pts: NDArray[Any] = pts, stamp: int = stamp, seq: int = seq
-            ) -> Any:
-                return pointcloud2(
-                    store, stamp, cfg.frame, pts, height=height, seq=seq, is_dense=dense
-                )
-
-            yield Message(t0, cfg.topic, POINTCLOUD2, build)
+    def draw(self, rng: np.random.Generator) -> BeamDraws:  # pragma: no cover - overridden
+        """The random draws of one scan (:func:`draw_beams`)."""
+        raise NotImplementedError
 
     def close(self, ctx: SimContext) -> None:
         if self._writer is not None:

@@ -36,7 +36,13 @@ from roslan.config.base import FiniteFloat
 from roslan.sensors.base import (
     TopicName,
 )
-from roslan.sensors.beams.base import BeamConfig, PointCloudSensor, measure
+from roslan.sensors.beams.base import (
+    BeamConfig,
+    BeamDraws,
+    PointCloudSensor,
+    draw_beams,
+    measure,
+)
 from roslan.sensors.beams.pointcloud import XYZIRT
 from roslan.sensors.beams.rays import rays_in_world
 
@@ -273,8 +279,13 @@ class Lidar(PointCloudSensor):
         """Organized: one row per ring, NaN where nothing returned (not dense)."""
         return (self.spec.n_lasers, False) if self.config.organized else (1, True)
 
+    def draw(self, rng: np.random.Generator) -> BeamDraws:
+        """The random draws of one scan's beams (:func:`~.base.draw_beams`)."""
+        n = self.offsets.shape[0] * self.spec.n_lasers
+        return draw_beams(rng, n, self.spec.noise_sigma, self.config)
+
     def scan(
-        self, trajectory: Any, caster: BeamCaster, t0_ns: int, rng: np.random.Generator
+        self, trajectory: Any, caster: BeamCaster, t0_ns: int, rng: np.random.Generator | BeamDraws
     ) -> NDArray[Any]:
         """One turn starting at ``t0_ns``: structured :data:`XYZIRT` points.
 

@@ -39,7 +39,13 @@ from roslan.config.base import FiniteFloat
 from roslan.sensors.base import (
     TopicName,
 )
-from roslan.sensors.beams.base import BeamConfig, PointCloudSensor, measure
+from roslan.sensors.beams.base import (
+    BeamConfig,
+    BeamDraws,
+    PointCloudSensor,
+    draw_beams,
+    measure,
+)
 from roslan.sensors.beams.pointcloud import XYZIRT
 from roslan.sensors.beams.rays import rays_in_world
 
@@ -150,8 +156,12 @@ class SolidStateLidar(PointCloudSensor):
         self.instants = math.floor(1.0 / (config.rate * self.firing_dt) + 1e-9)
         self.T_body_sensor = config.pose.matrix()
 
+    def draw(self, rng: np.random.Generator) -> BeamDraws:
+        """The random draws of one scan's beams (:func:`~.base.draw_beams`)."""
+        return draw_beams(rng, self.instants * self.spec.lines, self.spec.noise_sigma, self.config)
+
     def scan(
-        self, trajectory: Any, caster: BeamCaster, t0_ns: int, rng: np.random.Generator
+        self, trajectory: Any, caster: BeamCaster, t0_ns: int, rng: np.random.Generator | BeamDraws
     ) -> NDArray[Any]:
         """One frame from ``t0_ns``: (n_returns,) :data:`XYZIRT` points in firing order."""
         s = self.spec

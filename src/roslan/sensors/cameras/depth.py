@@ -6,7 +6,7 @@ Dataset files: ``depth/<name>/NNNNNNNN.png`` (16-bit, millimetres, 0 = no return
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from typing import Annotated, Literal
 
 import numpy as np
@@ -14,10 +14,17 @@ from numpy.typing import NDArray
 from pydantic import Field, model_validator
 
 from roslan.config.base import FiniteFloat
+from roslan.io.ordered import Turn
 from roslan.render import FrameRenderer
 from roslan.sensors.base import Message, SensorConfig, SimContext
+from roslan.sensors.cameras.common import (
+    RAW_ROWS_FACTOR,
+    CameraBase,
+    Eye,
+    Shot,
+    pose_matrices,
+)
 from roslan.sensors.cameras.config import CameraIntrinsics
-from roslan.sensors.cameras.frame import CameraBase, Eye, pose_matrices
 from roslan.sensors.cameras.model import T_LINK_OPTICAL
 from roslan.sensors.cameras.shutter import RollingShutterKeys, shutter_plan
 
@@ -91,6 +98,10 @@ class DepthCamera(CameraBase):
 
     def render_depth(self, renderer: FrameRenderer, e: Eye, T_world_body: F64) -> F32:
         """(H, W) float32 metric z-depth (inf: nothing hit) of eye ``e`` at one body pose (4, 4)."""
+        return self._depth_view(e, self._render_raw(renderer, e, T_world_body))
+
+    def _render_raw(self, renderer: FrameRenderer, e: Eye, T_world_body: F64) -> F32:
+        """The render of :meth:`render_depth` (a fresh array of the virtual view)."""
         assert e.plan is not None
         T = T_world_body @ self._T_body_sensor @ e.T_sensor_optical
         z = renderer.render(
@@ -104,6 +115,11 @@ class DepthCamera(CameraBase):
             supersampling=self.config.supersampling,
         ).depth
         assert z is not None
+        return z
+
+    def _depth_view(self, e: Eye, z: F32) -> F32:
+        """The rest of :meth:`render_depth` (any thread): the render ``z`` through the lens."""
+        assert e.plan is not None
         if e.plan.identity:
             return np.asarray(z, dtype=np.float32)
         import cv2
@@ -137,35 +153,62 @@ class DepthCamera(CameraBase):
     def rolling_depth(self, ctx: SimContext, renderer: FrameRenderer, e: Eye, t_ns: int) -> F32:
         """The depth frame stamped ``t_ns``: one render at the stamp (global shutter),
         else each row from the render whose cell holds its instant (:mod:`.shutter`)."""
+        return self.depth_raw(ctx, renderer, e, t_ns, inline=True)()
+
+    def depth_raw(
+        self, ctx: SimContext, renderer: FrameRenderer, e: Eye, t_ns: int, *, inline: bool
+    ) -> Callable[[], F32]:
+        """:meth:`rolling_depth` in two steps: the renders now (this thread), the rest as a
+        call for any thread. A rolling shutter's renders (full views) are handed over
+        when there are at most ``RAW_ROWS_FACTOR`` of them, else processed here."""
         c = self.config
         plan = shutter_plan(t_ns, 0.0, c.readout_time, c.readout_samples, e.model.height)
         T_wb = pose_matrices(ctx, plan.instants_ns)
         if plan.global_shutter:
-            return self.render_depth(renderer, e, T_wb[0])
+            z0 = self._render_raw(renderer, e, T_wb[0])
+            return lambda: self._depth_view(e, z0)
         z = np.empty((e.model.height, e.model.width), dtype=np.float32)
-        for k, T in enumerate(T_wb):
-            r0, r1 = (int(v) for v in plan.rows[k])
-            if r1 > r0:
-                z[r0:r1] = self.render_depth(renderer, e, T)[r0:r1]
-        return z
+        rows = [(k, int(r0), int(r1)) for k, (r0, r1) in enumerate(plan.rows) if r1 > r0]
+        if inline or len(rows) > RAW_ROWS_FACTOR:
+            for k, r0, r1 in rows:
+                z[r0:r1] = self.render_depth(renderer, e, T_wb[k])[r0:r1]
+            return lambda: z
+        raws = [(r0, r1, self._render_raw(renderer, e, T_wb[k])) for k, r0, r1 in rows]
+
+        def compose() -> F32:
+            for r0, r1, raw in raws:
+                z[r0:r1] = self._depth_view(e, raw)[r0:r1]
+            return z
+
+        return compose
 
     def messages(self, ctx: SimContext) -> Iterator[Message]:
+        """The depth frames: renders on this thread, the rest on the sensor's pool
+        (:meth:`CameraBase._frames`); noise drawn frame after frame."""
         c = self.config
         rng = ctx.rng(f"depth_camera/{c.name}")
         renderer = self._plans(ctx)
         e = self._eyes[0]
         if c.write_images:
             self._open_index(ctx, e, "depth")
-        for i, t in enumerate(self._stamps(ctx).tolist()):
-            z = self.rolling_depth(ctx, renderer, e, t)
+
+        def render(inline: bool, i: int, t: int) -> Callable[[], F32]:
+            return self.depth_raw(ctx, renderer, e, t, inline=inline)
+
+        def post(turn: Turn, i: int, t: int, compose: Callable[[], F32]) -> list[Shot]:
+            z = compose()
             if c.noise_std > 0 or c.noise_quadratic > 0:
                 sigma = c.noise_std + c.noise_quadratic * np.where(np.isfinite(z), z, 0.0) ** 2
-                z = (z + rng.normal(0.0, 1.0, size=z.shape) * sigma).astype(np.float32)
+                with turn:  # the draws in frame order, whatever the threads
+                    draw = rng.normal(0.0, 1.0, size=z.shape)
+                z = (z + draw * sigma).astype(np.float32)
             bad = ~np.isfinite(z) | (z < c.min_range)
             if c.max_range is not None:
                 bad |= z > c.max_range
             z[bad] = np.nan
             if c.write_images:
                 mm = np.where(bad, 0.0, np.round(np.clip(z, 0.0, 65.535) * 1000.0))
-                self._write_png(ctx, e, i, t, np.nan_to_num(mm).astype(np.uint16))
-            yield from self._messages(ctx, t, i, e, z.astype("<f4"), "32FC1")
+                self._png(ctx, e, i, np.nan_to_num(mm).astype(np.uint16))
+            return [Shot(e, z.astype("<f4"), "32FC1", c.write_images)]
+
+        yield from self._frames(ctx, self._stamps(ctx).tolist(), render, post)

@@ -33,41 +33,34 @@ Dataset files:
 from __future__ import annotations
 
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass, field
 from pathlib import Path
-from typing import IO, Annotated, Any, Literal
+from typing import Annotated, Literal
 
 import numpy as np
 from numpy.typing import NDArray
 from pydantic import Field, ValidationInfo, field_validator, model_validator
 
 from roslan.config.base import FiniteFloat
-from roslan.errors import RenderError, SensorError
-from roslan.io.images import write_png
-from roslan.io.messages import MessageStore
+from roslan.errors import SensorError
+from roslan.io.ordered import Turn
 from roslan.io.text import format_seconds
 from roslan.render import REC709_LUMA, FrameRenderer
-from roslan.rundir.calibration import camera_folder
-from roslan.sensors.base import (
-    Message,
-    SensorConfig,
-    SimContext,
-    StaticTransform,
-    TopicSpec,
-    sample_times_ns,
-)
+from roslan.sensors.base import Message, SensorConfig, SimContext
 from roslan.sensors.cameras.calibration import CalibCamera, load_calibration
+from roslan.sensors.cameras.common import RAW_ROWS_FACTOR, CameraBase, Eye, Shot, pose_matrices
 from roslan.sensors.cameras.config import CameraIntrinsics, intrinsics_model
 from roslan.sensors.cameras.encoding import encode_image, srgb_lut
-from roslan.sensors.cameras.model import T_LINK_OPTICAL, CameraModel, RenderPlan
+from roslan.sensors.cameras.model import T_LINK_OPTICAL, CameraModel
 from roslan.sensors.cameras.shutter import (
     AutoExposure,
     RollingShutterKeys,
     ShutterPlan,
     auto_exposure_sequence,
+    band_extents,
+    compose_bands,
     meter_level,
     meter_view,
-    render_rolling,
+    render_bands,
     shutter_plan,
 )
 
@@ -84,9 +77,6 @@ __all__ = [
 F32 = NDArray[np.float32]
 F64 = NDArray[np.float64]
 U8 = NDArray[np.uint8]
-
-IMAGE = "sensor_msgs/msg/Image"
-CAMERA_INFO = "sensor_msgs/msg/CameraInfo"
 
 Positive = Annotated[FiniteFloat, Field(gt=0)]
 NonNegative = Annotated[FiniteFloat, Field(ge=0)]
@@ -228,154 +218,6 @@ def _renamed(m: CameraModel, name: str) -> CameraModel:
 _LUMA = np.asarray(REC709_LUMA, dtype=np.float32)  # Rec. 709, linear
 
 
-# --------------------------------------------------------------------- helpers
-@dataclass
-class Eye:
-    """One physical camera of a sensor: intrinsics, extrinsics, render plan, outputs."""
-
-    suffix: str  # '' or 'left' / 'right'
-    model: CameraModel
-    T_sensor_optical: F64  # pose of the optical frame in the sensor link frame
-    topic: str  # prefix: <topic>[/left]
-    frame: str  # optical frame id
-    Tx: float = 0.0
-    plan: RenderPlan | None = None
-    files: str = ""  # PNG folder: images, <name>/images or depth/<name>
-    index_fh: IO[str] | None = None
-    exposure_fh: IO[str] | None = None  # exposures.txt: t exposure
-    scratch: dict[str, F32] = field(default_factory=dict)  # per-frame float buffers
-
-    def buffer(self, key: str, shape: tuple[int, ...]) -> F32:
-        """A float32 work array of ``shape`` reused from frame to frame: fresh multi-MB
-        arrays every frame cost page faults (thousands per 640x480 frame when glibc
-        returns the freed memory to the system)."""
-        a = self.scratch.get(key)
-        if a is None or a.shape != shape:
-            a = self.scratch[key] = np.empty(shape, dtype=np.float32)
-        return a
-
-
-def pose_matrices(ctx: SimContext, t_ns: NDArray[np.int64]) -> F64:
-    """(N, 4, 4) ``T_world_body`` at trajectory times ``t_ns``."""
-    st = ctx.trajectory.state(t_ns.astype(np.float64) * 1e-9)
-    T = np.zeros((len(t_ns), 4, 4))
-    T[:, :3, :3] = st.R_world_body
-    T[:, :3, 3] = st.position
-    T[:, 3, 3] = 1.0
-    return T
-
-
-class CameraBase:
-    """Shared machinery of the three camera sensors."""
-
-    config: Any
-    _eyes: list[Eye]
-
-    def _setup_eyes(self, eyes: list[Eye]) -> None:
-        self._eyes = eyes
-        self._T_body_sensor = self.config.pose.matrix()
-
-    def topics(self) -> list[TopicSpec]:
-        out = []
-        for e in self._eyes:
-            out += [
-                TopicSpec(f"{e.topic}/image_raw", IMAGE),
-                TopicSpec(f"{e.topic}/camera_info", CAMERA_INFO),
-            ]
-        return out
-
-    def static_transforms(self) -> list[StaticTransform]:
-        # base_link -> frame comes from the extrinsics (pipeline); the eyes are ours
-        frame = self.config.frame
-        return [StaticTransform(frame, e.frame, e.T_sensor_optical.copy()) for e in self._eyes]
-
-    def _plans(self, ctx: SimContext) -> Any:
-        renderer = ctx.renderer()
-        for e in self._eyes:
-            if e.plan is None:
-                try:
-                    e.plan = e.model.render_plan(
-                        renderer.max_size, scale=getattr(self.config, "render_scale", None)
-                    )
-                except SensorError as err:
-                    msg = f"sensors: {self.config.name}: {err}"
-                    raise SensorError(msg) from None
-                try:
-                    renderer.check_size(e.plan.width, e.plan.height)
-                except RenderError as err:
-                    msg = f"sensor {self.config.name!r}: resolution: {err}"
-                    raise SensorError(msg) from None
-        return renderer
-
-    def _stamps(self, ctx: SimContext) -> NDArray[np.int64]:
-        """Image stamps every ``1 / rate`` from 0 whose every rendered instant (the
-        longest shutter window's) lies within the run (the ground truth covers them)."""
-        end = int(ctx.trajectory.duration_ns)
-        stamps = sample_times_ns(self.config.rate, end)
-        offs = self._window_offsets()
-        if stamps.size == 0:
-            return stamps
-        keep = (stamps + int(offs.min()) >= 0) & (stamps + int(offs.max()) <= end)
-        return stamps[keep]
-
-    def _window_offsets(self) -> NDArray[np.int64]:
-        """Render instants of the longest shutter window, relative to the stamp (ns)."""
-        c = self.config
-        exposure = c.max_exposure() if hasattr(c, "max_exposure") else 0.0
-        samples = int(getattr(c, "exposure_samples", getattr(c, "readout_samples", 1)))
-        height = self._eyes[0].model.height
-        return shutter_plan(0, exposure, c.readout_time, samples, height).instants_ns
-
-    def _open_index(self, ctx: SimContext, e: Eye, kind: str) -> None:
-        if kind == "depth":
-            e.files = f"depth/{self.config.name}"
-            e.index_fh = ctx.path(f"depth_{self.config.name}.txt").open(
-                "w", encoding="utf-8", newline="\n"
-            )
-            return
-        name = f"{self.config.name}_{e.suffix}" if e.suffix else self.config.name
-        folder = camera_folder(ctx.root_camera, name)  # '' at the OUTDIR root, else '<name>/'
-        e.files = f"{folder}images"
-        e.index_fh = ctx.path(f"{folder}images.txt").open("w", encoding="utf-8", newline="\n")
-        if getattr(self.config, "exposure_time", 0.0) > 0:
-            e.exposure_fh = ctx.path(f"{folder}exposures.txt").open(
-                "w", encoding="utf-8", newline="\n"
-            )
-
-    def _write_png(self, ctx: SimContext, e: Eye, index: int, t_ns: int, img: NDArray[Any]) -> None:
-        rel = f"{e.files}/{index:08d}.png"
-        # images.txt lists paths relative to its own folder; depth_<name>.txt to OUTDIR
-        listed = rel if e.files.startswith("depth/") else f"images/{index:08d}.png"
-        if img.ndim == 3 and getattr(self.config, "encoding", "rgb8") == "bgr8":
-            img = img[..., ::-1]  # the topic's bgr8 data; a PNG file holds RGB
-        write_png(ctx.path(rel), img)
-        assert e.index_fh is not None
-        e.index_fh.write(f"{format_seconds(np.array([t_ns]))[0]} {listed}\n")
-
-    def close(self, ctx: SimContext) -> None:
-        for e in self._eyes:
-            for fh in (e.index_fh, e.exposure_fh):
-                if fh is not None and not fh.closed:
-                    fh.close()
-
-    def _messages(
-        self, ctx: SimContext, t_ns: int, seq: int, e: Eye, data: NDArray[Any], encoding: str
-    ) -> list[Message]:
-        stamp = ctx.stamp(t_ns)
-        frame = e.frame
-
-        def build_image(store: MessageStore) -> Any:
-            return store.image(frame, stamp, data, encoding, seq)
-
-        def build_info(store: MessageStore) -> Any:
-            return e.model.camera_info(store, e.frame, stamp, seq, e.Tx)
-
-        return [
-            Message(t_ns, f"{e.topic}/image_raw", IMAGE, build_image),
-            Message(t_ns, f"{e.topic}/camera_info", CAMERA_INFO, build_info),
-        ]
-
-
 class _ImagingCamera(CameraBase):
     """Colour/mono camera pipeline (frame and stereo cameras)."""
 
@@ -398,27 +240,42 @@ class _ImagingCamera(CameraBase):
 
         The array is one of ``e``'s work buffers: valid (and modifiable) until the next
         call for ``e``."""
+        return self.render_raw(renderer, e, T_world_body, shutter, inline=True)()
+
+    def render_raw(
+        self,
+        renderer: FrameRenderer,
+        e: Eye,
+        T_world_body: F64,
+        shutter: ShutterPlan | None = None,
+        *,
+        inline: bool,
+    ) -> Callable[[], F32]:
+        """:meth:`render_linear` in two steps: the renders, now (this thread: the GL
+        context's), and the rest (lens remap, rolling-shutter composition) as a call for
+        any thread, returning the work buffer of the thread that calls it. ``inline``:
+        the call comes next, on this thread (which may then hand over its own buffers and
+        draw the rolling-shutter bands lazily, one in memory at a time)."""
         p = e.plan
         assert p is not None
-        mono = self.config.encoding == "mono8"
+        c = self.config
+        mono = c.encoding == "mono8"
         if shutter is not None and not shutter.global_shutter:
             T_opt = T_world_body @ self._T_body_sensor @ e.T_sensor_optical
             out_shape = (e.model.height, e.model.width, *(() if mono else (3,)))
-            return render_rolling(
-                renderer,
-                p,
-                T_opt,
-                shutter,
-                e.buffer("rolling", out_shape),
-                mono,
-                self.config.near_clip,
-                self.config.supersampling,
-            )
+            bands = render_bands(renderer, p, T_opt, shutter, mono, c.near_clip, c.supersampling)
+            if not inline:
+                rows = sum(b - a for *_, a, b in band_extents(p, shutter))
+                if rows > RAW_ROWS_FACTOR * p.height:  # composed here, band by band
+                    lin = compose_bands(p, shutter, bands, np.empty(out_shape, np.float32), mono)
+                    return lambda: lin
+                bands = iter(list(bands))  # drawn now
+            return lambda: compose_bands(p, shutter, bands, e.buffer("rolling", out_shape), mono)
         shape = (p.height, p.width) if mono else (p.height, p.width, 3)
-        acc = e.buffer("render", shape)
+        acc: F32 | None = e.buffer("render", shape) if inline else None  # else a fresh one
         for i, T_wb in enumerate(T_world_body):
             T = T_wb @ self._T_body_sensor @ e.T_sensor_optical
-            renderer.render(
+            res = renderer.render(
                 T,
                 p.K,
                 p.width,
@@ -427,19 +284,32 @@ class _ImagingCamera(CameraBase):
                 depth=False,
                 luminance=mono,
                 out=acc if i == 0 else e.buffer("sub", shape),
-                near=self.config.near_clip,
-                supersampling=self.config.supersampling,
+                near=c.near_clip,
+                supersampling=c.supersampling,
             )
-            if i > 0:
-                acc += e.scratch["sub"]
+            img = res.luminance if mono else res.color
+            assert img is not None
+            if i == 0:
+                acc = img
+            else:
+                assert acc is not None
+                acc += img
+        assert acc is not None
+        view: F32 = acc
         if len(T_world_body) > 1:
-            acc *= np.float32(1.0 / len(T_world_body))
+            view *= np.float32(1.0 / len(T_world_body))
         if p.identity:
-            return acc
+            return lambda: view
+        return lambda: self._remap(e, view)
+
+    def _remap(self, e: Eye, acc: F32) -> F32:
+        """The virtual pinhole view ``acc`` through the lens maps, into a work buffer."""
         import cv2
 
+        p = e.plan
+        assert p is not None
         # straight from the readback buffer into a reused output (no copies)
-        out = e.buffer("remap", (e.model.height, e.model.width, *shape[2:]))
+        out = e.buffer("remap", (e.model.height, e.model.width, *acc.shape[2:]))
         cv2.remap(acc, p.map1, p.map2, cv2.INTER_LINEAR, dst=out, borderMode=cv2.BORDER_REPLICATE)
         return out
 
@@ -447,14 +317,26 @@ class _ImagingCamera(CameraBase):
         """Gain, noise and encoding of a linear image (H, W, 3) or luminance (H, W) ->
         uint8 (H, W[, 3]). With auto-exposure, ``exposure`` (s) scales the radiance by
         ``exposure / exposure_time``."""
+        lin, gain = self.add_noise(lin, rng, exposure)
+        return self.encode(lin, gain)
+
+    @property
+    def noisy(self) -> bool:
+        """Whether frames draw from the random generator (shot or read noise)."""
+        return self.config.full_well is not None or self.config.noise_std > 0
+
+    def add_noise(
+        self, lin: F32, rng: np.random.Generator, exposure: float | None = None
+    ) -> tuple[F32, float]:
+        """The first half of :meth:`finish_image`: the linear image with its noise drawn
+        (``lin`` may be modified) and the gain still to apply."""
         c = self.config
         if c.encoding == "mono8" and lin.ndim == 3:
             lin = lin @ _LUMA
         gain = c.gain
         if exposure is not None and c.auto_exposure is not None:
             gain *= exposure / c.exposure_time
-        noisy = c.full_well is not None or c.noise_std > 0
-        if noisy and gain != 1.0:
+        if self.noisy and gain != 1.0:
             lin *= np.float32(gain)  # before the noise
             gain = 1.0
         if c.full_well is not None:
@@ -462,8 +344,12 @@ class _ImagingCamera(CameraBase):
             lin = (rng.poisson(np.clip(lin, 0.0, None) * fw) / fw).astype(np.float32)
         if c.noise_std > 0:
             lin += rng.normal(0.0, c.noise_std, size=lin.shape).astype(np.float32)
-        # gain (noise-free), clip, sRGB/gamma codes and bgr order in one pass
-        return encode_image(lin, self._lut, gain=gain, reverse=c.encoding == "bgr8")
+        return lin, gain
+
+    def encode(self, lin: F32, gain: float) -> U8:
+        """The second half of :meth:`finish_image`: gain (noise-free), clip, sRGB/gamma
+        codes and bgr order in one pass."""
+        return encode_image(lin, self._lut, gain=gain, reverse=self.config.encoding == "bgr8")
 
     def exposures(self, ctx: SimContext, stamps: NDArray[np.int64]) -> F64:
         """Exposure (s) of each frame: ``exposure_time``, or the auto-exposure sequence
@@ -498,21 +384,48 @@ class _ImagingCamera(CameraBase):
         plan = shutter_plan(t_ns, exposure, c.readout_time, c.exposure_samples, e.model.height)
         return plan, pose_matrices(ctx, plan.instants_ns)
 
-    def _stream(
-        self, ctx: SimContext, per_frame: Callable[[int, int, Any, float], list[Message]]
-    ) -> Iterator[Message]:
+    def messages(self, ctx: SimContext) -> Iterator[Message]:
+        """Every eye's frames: renders on this thread, the rest on the sensor's pool
+        (:meth:`CameraBase._frames`); noise drawn eye after eye, frame after frame."""
+        c = self.config
+        rng = ctx.rng(f"{c.type}/{c.name}")
         renderer = self._plans(ctx)
         stamps = self._stamps(ctx)
         exposures = self.exposures(ctx, stamps)
-        if self.config.write_images:
+        if c.write_images:
             for e in self._eyes:
                 self._open_index(ctx, e, "image")
-        for i, t in enumerate(stamps.tolist()):
+
+        def render(inline: bool, i: int, t: int) -> tuple[float, list[Callable[[], F32]]]:
             exposure = float(exposures[i])
             for e in self._eyes:
                 if e.exposure_fh is not None:
                     e.exposure_fh.write(f"{format_seconds(np.array([t]))[0]} {exposure:.9f}\n")
-            yield from per_frame(i, t, renderer, exposure)
+            composes = []
+            for e in self._eyes:
+                plan, T_wb = self.eye_poses(ctx, e, t, exposure)
+                composes.append(self.render_raw(renderer, e, T_wb, plan, inline=inline))
+            return exposure, composes
+
+        def post(
+            turn: Turn, i: int, t: int, job: tuple[float, list[Callable[[], F32]]]
+        ) -> list[Shot]:
+            exposure, composes = job
+            lins = [compose() for compose in composes]
+            if self.noisy:
+                with turn:  # the draws in frame order, whatever the threads
+                    noisy = [self.add_noise(lin, rng, exposure) for lin in lins]
+            else:
+                noisy = [self.add_noise(lin, rng, exposure) for lin in lins]
+            shots = []
+            for e, (lin, gain) in zip(self._eyes, noisy, strict=True):
+                img = self.encode(lin, gain)
+                if c.write_images:
+                    self._png(ctx, e, i, img)
+                shots.append(Shot(e, img, c.encoding, c.write_images))
+            return shots
+
+        yield from self._frames(ctx, stamps.tolist(), render, post)
 
 
 class Camera(_ImagingCamera):
@@ -524,21 +437,6 @@ class Camera(_ImagingCamera):
         c = config
         self._setup_eyes([Eye("", model, T_LINK_OPTICAL.copy(), c.topic, f"{c.frame}_optical")])
         self._init_imaging()
-
-    def messages(self, ctx: SimContext) -> Iterator[Message]:
-        rng = ctx.rng(f"camera/{self.config.name}")
-        e = self._eyes[0]
-        enc = self.config.encoding
-
-        def frame(i: int, t: int, renderer: FrameRenderer, exposure: float) -> list[Message]:
-            plan, T_wb = self.eye_poses(ctx, e, t, exposure)
-            lin = self.render_linear(renderer, e, T_wb, plan)
-            img = self.finish_image(lin, rng, exposure)
-            if self.config.write_images:
-                self._write_png(ctx, e, i, t, img)
-            return self._messages(ctx, t, i, e, img, enc)
-
-        yield from self._stream(ctx, frame)
 
 
 class StereoCamera(_ImagingCamera):
@@ -570,20 +468,3 @@ class StereoCamera(_ImagingCamera):
             ]
         )
         self._init_imaging()
-
-    def messages(self, ctx: SimContext) -> Iterator[Message]:
-        rng = ctx.rng(f"stereo_camera/{self.config.name}")
-        enc = self.config.encoding
-
-        def frame(i: int, t: int, renderer: FrameRenderer, exposure: float) -> list[Message]:
-            out: list[Message] = []
-            for e in self._eyes:
-                plan, T_wb = self.eye_poses(ctx, e, t, exposure)
-                lin = self.render_linear(renderer, e, T_wb, plan)
-                img = self.finish_image(lin, rng, exposure)
-                if self.config.write_images:
-                    self._write_png(ctx, e, i, t, img)
-                out += self._messages(ctx, t, i, e, img, enc)
-            return out
-
-        yield from self._stream(ctx, frame)

@@ -28,7 +28,7 @@ then computable on its own from its stamp and its exposure (time-parallel render
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
 from typing import Annotated
 
@@ -46,12 +46,17 @@ __all__ = [
     "METER_DOWNSCALE",
     "METER_FIELD",
     "AutoExposure",
+    "Band",
     "RollingShutterKeys",
     "ShutterPlan",
+    "add_band",
     "auto_exposure_sequence",
+    "band_extents",
     "band_rows",
+    "compose_bands",
     "meter_level",
     "meter_view",
+    "render_bands",
     "render_rolling",
     "shutter_plan",
 ]
@@ -246,6 +251,105 @@ class RollingShutterKeys(StrictModel):
             raise ValueError(msg)
 
 
+@dataclass(frozen=True)
+class Band:
+    """One render of a rolling-shutter frame, before the lens remap (:func:`add_band`).
+
+    Attributes:
+        k: the render's index in the :class:`ShutterPlan`.
+        r0, r1: the output rows ``[r0, r1)`` it serves.
+        a: the first row of the virtual pinhole view that ``img`` holds.
+        img: (rows, W) luminance or (rows, W, 3) linear RGB of the virtual view.
+    """
+
+    k: int
+    r0: int
+    r1: int
+    a: int
+    img: F32
+
+
+def band_extents(plan: RenderPlan, shutter: ShutterPlan) -> list[tuple[int, int, int, int, int]]:
+    """``(k, r0, r1, a, b)`` of every render that serves a row: output rows ``[r0, r1)``
+    from rows ``[a, b)`` of the virtual pinhole view (:func:`band_rows`)."""
+    out = []
+    for k in range(shutter.instants_ns.shape[0]):
+        r0, r1 = (int(v) for v in shutter.rows[k])
+        if r1 <= r0:
+            continue
+        if plan.identity:
+            a, b = band_rows(r0, r1 - 1, plan.height)
+        else:
+            ys = plan.mapy[r0:r1]
+            a, b = band_rows(float(ys.min()), float(ys.max()), plan.height)
+        out.append((k, r0, r1, a, b))
+    return out
+
+
+def render_bands(
+    renderer: FrameRenderer,
+    plan: RenderPlan,
+    T_world_optical: F64,
+    shutter: ShutterPlan,
+    mono: bool,
+    near: float,
+    supersampling: int = 1,
+) -> Iterator[Band]:
+    """The renders of a rolling-shutter frame, one :class:`Band` each, in plan order:
+    render ``k`` (optical pose ``T_world_optical[k]``) covers only the rows it serves, as
+    a band of the virtual pinhole view (principal point moved up by the band's first
+    row). Only these renders touch the renderer; each array is fresh."""
+    for k, r0, r1, a, b in band_extents(plan, shutter):
+        K = plan.K.copy()
+        K[1, 2] -= a
+        res = renderer.render(
+            T_world_optical[k],
+            K,
+            plan.width,
+            b - a,
+            color=not mono,
+            depth=False,
+            luminance=mono,
+            near=near,
+            supersampling=supersampling,
+        )
+        img = res.luminance if mono else res.color
+        assert img is not None
+        yield Band(k, r0, r1, a, img)
+
+
+def add_band(plan: RenderPlan, shutter: ShutterPlan, band: Band, out: F32, mono: bool) -> None:
+    """Add ``band``, remapped through the lens maps, with its row weights to ``out``
+    ((H, W) luminance or (H, W, 3) linear RGB at the output size)."""
+    assert shutter.weights is not None
+    r0, r1, a = band.r0, band.r1, band.a
+    if plan.identity:
+        img = band.img[r0 - a : r1 - a]
+    else:
+        import cv2
+
+        m1 = plan.map1[r0:r1].copy()
+        m1[..., 1] -= a
+        img = np.asarray(
+            cv2.remap(
+                band.img, m1, plan.map2[r0:r1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE
+            ),
+            dtype=np.float32,
+        )
+    w = shutter.weights[r0:r1, band.k]
+    out[r0:r1] += img * (w[:, None] if mono else w[:, None, None])
+
+
+def compose_bands(
+    plan: RenderPlan, shutter: ShutterPlan, bands: Iterable[Band], out: F32, mono: bool
+) -> F32:
+    """A rolling-shutter frame from its renders (:func:`render_bands`) into ``out``."""
+    out.fill(0.0)
+    for band in bands:
+        add_band(plan, shutter, band, out, mono)
+    return out
+
+
 def render_rolling(
     renderer: FrameRenderer,
     plan: RenderPlan,
@@ -257,58 +361,8 @@ def render_rolling(
     supersampling: int = 1,
 ) -> F32:
     """A rolling-shutter frame into ``out`` ((H, W) luminance or (H, W, 3) linear RGB at
-    the output size): render ``k`` (optical pose ``T_world_optical[k]``) covers only the
-    rows it serves (:attr:`ShutterPlan.rows`, as a band of the virtual pinhole view,
-    remapped through the lens maps), added with its row weights."""
+    the output size): each render of :func:`render_bands` remapped and added with its row
+    weights as soon as it is drawn (one band in memory at a time)."""
     assert shutter.weights is not None
-    out.fill(0.0)
-    for k, T in enumerate(T_world_optical):
-        r0, r1 = (int(v) for v in shutter.rows[k])
-        if r1 <= r0:
-            continue
-        band = _render_band(renderer, plan, T, r0, r1, mono, near, supersampling)
-        w = shutter.weights[r0:r1, k]
-        out[r0:r1] += band * (w[:, None] if mono else w[:, None, None])
-    return out
-
-
-def _render_band(
-    renderer: FrameRenderer,
-    plan: RenderPlan,
-    T: F64,
-    r0: int,
-    r1: int,
-    mono: bool,
-    near: float,
-    supersampling: int = 1,
-) -> F32:
-    """Output rows ``[r0, r1)`` of the view from optical pose ``T``: a band of the virtual
-    pinhole render (principal point moved up by the band's first row), remapped."""
-    if plan.identity:
-        a, b = band_rows(r0, r1 - 1, plan.height)
-    else:
-        ys = plan.mapy[r0:r1]
-        a, b = band_rows(float(ys.min()), float(ys.max()), plan.height)
-    K = plan.K.copy()
-    K[1, 2] -= a
-    res = renderer.render(
-        T,
-        K,
-        plan.width,
-        b - a,
-        color=not mono,
-        depth=False,
-        luminance=mono,
-        near=near,
-        supersampling=supersampling,
-    )
-    img = res.luminance if mono else res.color
-    assert img is not None
-    if plan.identity:
-        return img[r0 - a : r1 - a]
-    import cv2
-
-    m1 = plan.map1[r0:r1].copy()
-    m1[..., 1] -= a
-    band = cv2.remap(img, m1, plan.map2[r0:r1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-    return np.asarray(band, dtype=np.float32)
+    bands = render_bands(renderer, plan, T_world_optical, shutter, mono, near, supersampling)
+    return compose_bands(plan, shutter, bands, out, mono)
