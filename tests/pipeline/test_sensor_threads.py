@@ -126,11 +126,11 @@ def test_thread_count_follows_cpus_processes_and_the_variable(
 ) -> None:
     monkeypatch.delenv(SENSOR_THREADS_ENV, raising=False)
     monkeypatch.setattr(threads_mod, "usable_cpus", lambda: 2)
-    assert sensor_threads(1) == 2  # --workers 0 on two cores
-    assert sensor_threads(2) == 1
+    assert sensor_threads(1) == 1  # --workers 0 on two cores: inline, as before
     assert sensor_threads(3) == 1  # two workers and the main process: inline, as before
     monkeypatch.setattr(threads_mod, "usable_cpus", lambda: 16)
-    assert sensor_threads(4) == 4
+    assert sensor_threads(4) == 3  # three workers and the main process: 16 // 5
+    assert sensor_threads(7) == 2
     assert sensor_threads(1) == MAX_SENSOR_THREADS
     monkeypatch.setattr(threads_mod, "usable_cpus", lambda: 1)
     assert sensor_threads(1) == 1

@@ -3,9 +3,11 @@ its per-instant work (:class:`~roslan.io.ordered.OrderedPool`).
 
 The CPUs are shared by the processes of a run: the main process (merge, bag threads,
 local sensors) and its sensor worker processes (:mod:`roslan.pipeline.worker`). Each
-camera-type and point-cloud sensor gets ``usable_cpus() // processes`` threads, at most
-:data:`MAX_SENSOR_THREADS`, at least 1 (1: everything inline on the sensor's thread, as
-on a 2-core machine running 2 worker processes beside the main one). A run that is itself
+camera-type and point-cloud sensor gets ``usable_cpus() // (processes + 1)`` threads (one
+process's share is left to llvmpipe's render threads and the bag writer threads), at
+most :data:`MAX_SENSOR_THREADS`, at least 1 (1: everything inline on the sensor's
+thread, as on a 2-core machine, with or without worker processes: there the extra
+threads only competed with the event camera, 2026-11-26, docs/performance.md). A run that is itself
 a multiprocessing worker (``roslan dataset`` / Dask run simulations side by side) gets 1.
 The environment variable ``ROSLAN_SENSOR_THREADS`` overrides the count. Outputs do not
 depend on it.
@@ -61,4 +63,4 @@ def sensor_threads(processes: int) -> int:
         return n
     if multiprocessing.parent_process() is not None:
         return 1
-    return max(1, min(MAX_SENSOR_THREADS, usable_cpus() // max(1, int(processes))))
+    return max(1, min(MAX_SENSOR_THREADS, usable_cpus() // (max(1, int(processes)) + 1)))
