@@ -110,10 +110,12 @@ vec3 tex_filtered(vec2 uv) {
     return acc / n;
 #else
     // unrolled (a loop costs llvmpipe more)
-    float lod = max(floor(max(log2(max(lmaj, 1e-20)) - 1.5, log2(max(lmin, 1e-20)) - 1.0) + 0.35), 0.0);
+    float lmj = log2(max(lmaj, 1e-20)) - 1.5, lmn = log2(max(lmin, 1e-20)) - 1.0;
+    float lod = max(floor(max(lmj, lmn) + 0.35), 0.0);
     vec2 ox = 0.25 * gx, oy = 0.25 * gy;
-    return 0.25 * (textureLod(u_tex, uv - ox - oy, lod).rgb + textureLod(u_tex, uv + ox - oy, lod).rgb
-                 + textureLod(u_tex, uv - ox + oy, lod).rgb + textureLod(u_tex, uv + ox + oy, lod).rgb);
+    vec3 a = textureLod(u_tex, uv - ox - oy, lod).rgb + textureLod(u_tex, uv + ox - oy, lod).rgb;
+    vec3 b = textureLod(u_tex, uv - ox + oy, lod).rgb + textureLod(u_tex, uv + ox + oy, lod).rgb;
+    return 0.25 * (a + b);
 #endif
 }
 in vec2 v_uv;
