@@ -23,12 +23,13 @@ Image formation, the same on every OpenGL implementation (nothing that sets a pi
 left to the driver; :func:`image_formation` is what run.json records): aliasing would
 turn into fake events in the event camera, over-blurring into missing ones. Textures:
 mip levels computed by roslan (:mod:`.mipmaps`, area averages in linear light) and
-filtered in the shader from explicit uv derivatives: up to :data:`DEFAULT_ANISO`
-bilinear taps along the pixel's footprint in the nearest level (llvmpipe's own
+filtered in the shader from explicit uv derivatives: the pixel's area average
+supersampled in texture space, :data:`DEFAULT_TEXTURE_TAPS` bilinear taps at the centres
+of its footprint's half-pixel cells in the mip level of a cell (llvmpipe's own
 anisotropic filtering stalls, and a GPU's differs). Geometric edges: 1 sample per pixel
 (:data:`DEFAULT_SAMPLES`) and an FXAA-style edge filter on geometric edges only: where
 1/z is not affine in the image (silhouettes, creases) and the luma contrast is high, the
-neighbour across the edge is blended in by its estimated coverage (1/8 to 3/8); texture
+neighbour across the edge is blended in by its estimated coverage (1/12 to 3/8); texture
 detail on planes is left untouched. One shadow-map size (:data:`.upload.SHADOW_MAP_MAX`).
 Sub-pixel geometry (wires, lines thinner than a pixel) needs MSAA:
 ``ROSLAN_MSAA_SAMPLES=4``. ``render(supersampling=N)`` is the reference the default is
@@ -67,7 +68,7 @@ from roslan.render.gl.renderer import (
     projection_from_K,
 )
 from roslan.render.gl.settings import (
-    DEFAULT_ANISO,
+    DEFAULT_TEXTURE_TAPS,
     DEFAULT_SAMPLES,
     MAX_ANISO,
     MAX_SUPERSAMPLING,
@@ -76,7 +77,7 @@ from roslan.render.gl.settings import (
 )
 
 __all__ = [
-    "DEFAULT_ANISO",
+    "DEFAULT_TEXTURE_TAPS",
     "DEFAULT_SAMPLES",
     "EGL_PACKAGES",
     "FLUSH_CHUNKS",

@@ -11,7 +11,7 @@ from roslan.render.gl.context import create_context
 from roslan.render.gl.upload import SHADOW_MAP_MAX
 
 __all__ = [
-    "DEFAULT_ANISO",
+    "DEFAULT_TEXTURE_TAPS",
     "DEFAULT_SAMPLES",
     "MAX_ANISO",
     "MAX_SUPERSAMPLING",
@@ -27,11 +27,13 @@ docs/performance.md). Override with ``ROSLAN_MSAA_SAMPLES`` or ``Renderer(sample
 MAX_ANISO = 16
 """Most taps of the supersampled reference's anisotropic texture filter
 (:attr:`Renderer.max_aniso <roslan.render.gl.Renderer>`); the default image formation
-takes at most 2 (:data:`DEFAULT_ANISO`)."""
+takes :data:`DEFAULT_TEXTURE_TAPS`."""
 
-DEFAULT_ANISO = 2
-"""Most taps of the default image formation's anisotropic texture filter (fixed in the
-shader: llvmpipe's cost of a tap; docs/performance.md, "Image formation")."""
+DEFAULT_TEXTURE_TAPS = 4
+"""Taps of the default image formation's texture filter: 2 x 2 bilinear taps over the
+pixel's footprint in texture space, in one mip level (fixed in the shader; chosen against
+the supersampled reference at llvmpipe's cost of a tap; docs/performance.md, "Image
+formation")."""
 
 MAX_SUPERSAMPLING = 8
 """Largest ``supersampling`` factor (N x N samples per pixel) of
@@ -71,10 +73,10 @@ def image_formation(samples: int | None = None) -> dict[str, Any]:
             else f"{ns}x MSAA, samples averaged"
         ),
         "texture_filtering": (
-            "anisotropic in the shader on roslan-computed mip-maps (area average in "
-            f"linear light): up to {DEFAULT_ANISO} bilinear taps in the nearest mip level "
-            f"along the footprint (the supersampled reference: up to {MAX_ANISO} "
-            "trilinear taps per sample)"
+            "in the shader on roslan-computed mip-maps (area average in linear light): "
+            f"{DEFAULT_TEXTURE_TAPS} bilinear taps at the centres of the pixel footprint's "
+            "half-pixel cells, in the mip level of a cell (the supersampled reference: up "
+            f"to {MAX_ANISO} trilinear taps along each sample's footprint)"
         ),
         "shadow_map_max": SHADOW_MAP_MAX,
         "supersampling": "per camera (its supersampling key; N > 1: N x N samples per "
