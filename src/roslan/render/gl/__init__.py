@@ -68,8 +68,8 @@ from roslan.render.gl.renderer import (
     projection_from_K,
 )
 from roslan.render.gl.settings import (
-    DEFAULT_TEXTURE_TAPS,
     DEFAULT_SAMPLES,
+    DEFAULT_TEXTURE_TAPS,
     MAX_ANISO,
     MAX_SUPERSAMPLING,
     default_samples,
@@ -77,8 +77,8 @@ from roslan.render.gl.settings import (
 )
 
 __all__ = [
-    "DEFAULT_TEXTURE_TAPS",
     "DEFAULT_SAMPLES",
+    "DEFAULT_TEXTURE_TAPS",
     "EGL_PACKAGES",
     "FLUSH_CHUNKS",
     "MAX_ANISO",

@@ -11,8 +11,8 @@ from roslan.render.gl.context import create_context
 from roslan.render.gl.upload import SHADOW_MAP_MAX
 
 __all__ = [
-    "DEFAULT_TEXTURE_TAPS",
     "DEFAULT_SAMPLES",
+    "DEFAULT_TEXTURE_TAPS",
     "MAX_ANISO",
     "MAX_SUPERSAMPLING",
     "default_samples",

@@ -74,12 +74,12 @@ uniform int u_max_aniso;     // REFERENCE: most taps of its texture filter
 // within that level).
 // Default: the pixel's area average, supersampled in texture space: 2 x 2 bilinear taps
 // at the quarter points of the footprint's parallelogram (the centres of its four
-// half-pixel cells), each in the mip level of a half-pixel cell (its longer side half a
-// level finer, its shorter side not), rounded to the nearer level with a bias of 0.15
-// towards the finer one. One tap at a footprint-sized level is a mip texel convolved
-// with the bilinear tent, about twice as wide as the pixel: it blurs and loses events
-// (-6 to -10 % on the early landing); the constants were chosen against the supersampled
-// reference (docs/performance.md, "Image formation").
+// half-pixel cells), each in the mip level of a half-pixel cell (its longer side a
+// quarter level finer, its shorter side not), rounded down from 0.82 of a level up
+// (0.32 of a level towards the finer one). One tap at a footprint-sized level is a mip
+// texel convolved with the bilinear tent, about twice as wide as the pixel: it blurs and
+// loses events (-6 to -10 % on the early landing); the constants were chosen against the
+// supersampled reference (docs/performance.md, "Image formation").
 // REFERENCE (the supersampled reference, whose samples are themselves 1/N pixel apart):
 // the EXT_texture_filter_anisotropic recipe, n = ceil(major / minor) taps along the
 // major axis (1 where the texture is magnified), up to u_max_aniso, each trilinear at
@@ -110,8 +110,8 @@ vec3 tex_filtered(vec2 uv) {
     return acc / n;
 #else
     // unrolled (a loop costs llvmpipe more)
-    float lmj = log2(max(lmaj, 1e-20)) - 1.5, lmn = log2(max(lmin, 1e-20)) - 1.0;
-    float lod = max(floor(max(lmj, lmn) + 0.35), 0.0);
+    float lmj = log2(max(lmaj, 1e-20)) - 1.25, lmn = log2(max(lmin, 1e-20)) - 1.0;
+    float lod = max(floor(max(lmj, lmn) + 0.18), 0.0);
     vec2 ox = 0.25 * gx, oy = 0.25 * gy;
     vec3 a = textureLod(u_tex, uv - ox - oy, lod).rgb + textureLod(u_tex, uv + ox - oy, lod).rgb;
     vec3 b = textureLod(u_tex, uv - ox + oy, lod).rgb + textureLod(u_tex, uv + ox + oy, lod).rgb;
