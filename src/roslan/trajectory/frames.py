@@ -13,6 +13,7 @@ All functions are vectorized over a leading axis of N samples.
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -26,9 +27,12 @@ __all__ = [
     "matrix_to_rpy",
     "quat_multiply",
     "quat_xyzw_to_matrix",
+    "quaternion_matrix_entries",
+    "reference_yaw",
     "rotation_log",
     "rpy_to_matrix",
     "rpy_to_quat_xyzw",
+    "zyx_quaternion",
 ]
 
 F64 = NDArray[np.float64]
@@ -221,6 +225,58 @@ def quat_multiply(a: ArrayLike, b: ArrayLike) -> F64:
     )
 
 
+def reference_yaw(
+    q_parent_ref: ArrayLike | None,
+) -> tuple[float, tuple[float, float, float, float] | None]:
+    """``(yaw_offset, q_ref)`` of a constant reference orientation (x, y, z, w) for
+    :func:`euler_zyx_kinematics`: a pure yaw of the reference frame just adds to the
+    (outermost) yaw angle (``q_ref`` None); otherwise the quaternion is kept."""
+    if q_parent_ref is None:
+        return 0.0, None
+    q = np.asarray(q_parent_ref, dtype=np.float64)
+    if abs(q[0]) < 1e-15 and abs(q[1]) < 1e-15:
+        return 2.0 * math.atan2(float(q[2]), float(q[3])), None
+    return 0.0, (float(q[0]), float(q[1]), float(q[2]), float(q[3]))
+
+
+def zyx_quaternion(
+    chr_: Any, chp: Any, chy: Any, shr: Any, shp: Any, shy: Any,
+    q_ref: tuple[float, float, float, float] | None = None,
+) -> tuple[Any, Any, Any, Any]:  # fmt: skip
+    """x, y, z, w of Rz(y) Ry(p) Rx(r) from the cosines and sines of the half angles
+    (floats or arrays alike: the same operations in the same order, so one instant on
+    floats equals the vectorized result bit for bit), premultiplied by ``q_ref``."""
+    a, b = chr_ * chp, shr * shp
+    c, d = shr * chp, chr_ * shp
+    qx = c * chy - d * shy
+    qy = d * chy + c * shy
+    qz = a * shy - b * chy
+    qw = a * chy + b * shy
+    if q_ref is not None:
+        x1, y1, z1, w1 = q_ref
+        qx, qy, qz, qw = (
+            w1 * qx + x1 * qw + y1 * qz - z1 * qy,
+            w1 * qy - x1 * qz + y1 * qw + z1 * qx,
+            w1 * qz + x1 * qy - y1 * qx + z1 * qw,
+            w1 * qw - x1 * qx - y1 * qy - z1 * qz,
+        )
+    return qx, qy, qz, qw
+
+
+def quaternion_matrix_entries(qx: Any, qy: Any, qz: Any, qw: Any) -> tuple[Any, ...]:
+    """The 9 entries, row by row, of the rotation matrix of a unit quaternion (floats or
+    arrays alike, as :func:`zyx_quaternion`)."""
+    tx, ty, tz = 2.0 * qx, 2.0 * qy, 2.0 * qz
+    xx, yy, zz = tx * qx, ty * qy, tz * qz
+    xy, xz, yz = tx * qy, tx * qz, ty * qz
+    wx, wy, wz = tx * qw, ty * qw, tz * qw
+    return (
+        1.0 - (yy + zz), xy - wz, xz + wy,
+        xy + wz, 1.0 - (xx + zz), yz - wx,
+        xz - wy, yz + wx, 1.0 - (xx + yy),
+    )  # fmt: skip
+
+
 def euler_zyx_kinematics(
     rpy: F64,
     rpy_dot: F64,
@@ -248,35 +304,14 @@ def euler_zyx_kinematics(
     n = rpy.shape[0]
     half = 0.5 * rpy.T  # (3, N), rows contiguous after the copy below
     half = np.ascontiguousarray(half)
-    yaw_offset = 0.0
-    q_ref = None
-    if q_parent_ref is not None:
-        q_ref = np.asarray(q_parent_ref, dtype=np.float64)
-        if abs(q_ref[0]) < 1e-15 and abs(q_ref[1]) < 1e-15:
-            # a pure yaw of the reference frame just adds to the (outermost) yaw angle
-            yaw_offset = 2.0 * math.atan2(float(q_ref[2]), float(q_ref[3]))
-            q_ref = None
+    yaw_offset, q_ref = reference_yaw(q_parent_ref)
     if yaw_offset != 0.0:
         half[2] += 0.5 * yaw_offset
     cos_h = np.cos(half)
     sin_h = np.sin(half)
     chr_, chp, chy = cos_h
     shr, shp, shy = sin_h
-    # quaternion of Rz(y) Ry(p) Rx(r)
-    a, b = chr_ * chp, shr * shp
-    c, d = shr * chp, chr_ * shp
-    qx = c * chy - d * shy
-    qy = d * chy + c * shy
-    qz = a * shy - b * chy
-    qw = a * chy + b * shy
-    if q_ref is not None:
-        x1, y1, z1, w1 = (float(v) for v in q_ref)
-        qx, qy, qz, qw = (
-            w1 * qx + x1 * qw + y1 * qz - z1 * qy,
-            w1 * qy - x1 * qz + y1 * qw + z1 * qx,
-            w1 * qz + x1 * qy - y1 * qx + z1 * qw,
-            w1 * qw - x1 * qx - y1 * qy - z1 * qz,
-        )
+    qx, qy, qz, qw = zyx_quaternion(chr_, chp, chy, shr, shp, shy, q_ref)
     if out is None:
         quat, R = np.empty((n, 4)), np.empty((n, 3, 3))
         omega, alpha = np.empty((n, 3)), np.empty((n, 3))
@@ -287,20 +322,8 @@ def euler_zyx_kinematics(
     np.multiply(qy, sign, out=quat[:, 1])
     np.multiply(qz, sign, out=quat[:, 2])
     np.multiply(qw, sign, out=quat[:, 3])
-    # rotation matrix from the (unit) quaternion
-    tx, ty, tz = 2.0 * qx, 2.0 * qy, 2.0 * qz
-    xx, yy, zz = tx * qx, ty * qy, tz * qz
-    xy, xz, yz = tx * qy, tx * qz, ty * qz
-    wx, wy, wz = tx * qw, ty * qw, tz * qw
-    R[:, 0, 0] = 1.0 - (yy + zz)
-    R[:, 0, 1] = xy - wz
-    R[:, 0, 2] = xz + wy
-    R[:, 1, 0] = xy + wz
-    R[:, 1, 1] = 1.0 - (xx + zz)
-    R[:, 1, 2] = yz - wx
-    R[:, 2, 0] = xz - wy
-    R[:, 2, 1] = yz + wx
-    R[:, 2, 2] = 1.0 - (xx + yy)
+    for k, entry in enumerate(quaternion_matrix_entries(qx, qy, qz, qw)):
+        R[:, k // 3, k % 3] = entry
     # full-angle trig of roll and pitch from the half angles
     sr, cr = 2.0 * shr * chr_, chr_ * chr_ - shr * shr
     sp, cp = 2.0 * shp * chp, chp * chp - shp * shp

@@ -18,6 +18,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
+from roslan.trajectory.frames import quaternion_matrix_entries, reference_yaw, zyx_quaternion
 from roslan.trajectory.tau import _EPS, S_FLOOR
 
 if TYPE_CHECKING:
@@ -65,13 +66,7 @@ class InstantEvaluator:
         self.RT = np.ascontiguousarray(traj.R_world_goal.T)
         self.p_goal = traj.p_world_goal
         self.flap = traj._flap
-        q_ref = np.asarray(traj._q_world_goal, dtype=np.float64)
-        self.yaw_offset = 0.0
-        self.q_ref: tuple[float, float, float, float] | None = None
-        if abs(q_ref[0]) < 1e-15 and abs(q_ref[1]) < 1e-15:
-            self.yaw_offset = 2.0 * math.atan2(float(q_ref[2]), float(q_ref[3]))
-        else:
-            self.q_ref = (float(q_ref[0]), float(q_ref[1]), float(q_ref[2]), float(q_ref[3]))
+        self.yaw_offset, self.q_ref = reference_yaw(traj._q_world_goal)
 
     def _gaps(self, tt: float) -> tuple[list[float], list[float]]:
         """``TauTrajectory._gaps_into`` at one instant: the gaps and rates (no accels)."""
@@ -122,31 +117,8 @@ class InstantEvaluator:
         ha = np.array(half)
         chr_, chp, chy = np.cos(ha).tolist()
         shr, shp, shy = np.sin(ha).tolist()
-        a, b = chr_ * chp, shr * shp
-        c, d = shr * chp, chr_ * shp
-        qx = c * chy - d * shy
-        qy = d * chy + c * shy
-        qz = a * shy - b * chy
-        qw = a * chy + b * shy
-        if self.q_ref is not None:
-            x1, y1, z1, w1 = self.q_ref
-            qx, qy, qz, qw = (
-                w1 * qx + x1 * qw + y1 * qz - z1 * qy,
-                w1 * qy - x1 * qz + y1 * qw + z1 * qx,
-                w1 * qz + x1 * qy - y1 * qx + z1 * qw,
-                w1 * qw - x1 * qx - y1 * qy - z1 * qz,
-            )
-        tx, ty, tz = 2.0 * qx, 2.0 * qy, 2.0 * qz
-        xx, yy, zz = tx * qx, ty * qy, tz * qz
-        xy, xz, yz = tx * qy, tx * qz, ty * qz
-        wx, wy, wz = tx * qw, ty * qw, tz * qw
-        R = np.array(
-            [
-                [1.0 - (yy + zz), xy - wz, xz + wy],
-                [xy + wz, 1.0 - (xx + zz), yz - wx],
-                [xz - wy, yz + wx, 1.0 - (xx + yy)],
-            ]
-        )
+        qx, qy, qz, qw = zyx_quaternion(chr_, chp, chy, shr, shp, shy, self.q_ref)
+        R = np.array(quaternion_matrix_entries(qx, qy, qz, qw)).reshape(3, 3)
         sr, cr = 2.0 * shr * chr_, chr_ * chr_ - shr * shr
         sp, cp = 2.0 * shp * chp, chp * chp - shp * shp
         dr, dp, dy = r[3], r[4], r[5]
