@@ -265,6 +265,7 @@ class _Run:
                 profile=self.opts.profile,
                 nice=nices[g],
                 sensor_threads=plan.sensor_threads,
+                render_helpers=tuple(plan.render_helpers.items()),
             )
         )
 
@@ -280,6 +281,7 @@ class _Run:
             base_dir=self.plan.base_dir,
             scene=self.scene,
             sensor_threads=self.plan.sensor_threads,
+            render_helpers=self.plan.render_helpers,
         )
 
     # ------------------------------------------------------------------------- 3. merge
@@ -393,6 +395,7 @@ class _Run:
             "workers": len(plan.groups),
             "worker_sensors": [[plan.sensors[i].config.name for i in g] for g in plan.groups],
             "sensor_threads": plan.sensor_threads,
+            "render_helpers": dict(plan.render_helpers),
         }
         if self.opts.profile:
             timing["profile"] = self._profile()
