@@ -29,7 +29,7 @@ from roslan.pipeline import run_simulation
 from roslan.pipeline import worker as worker_mod
 from roslan.pipeline.worker import ByteQueue, WorkerError, plan_workers, resolve_workers
 from roslan.sensors.base import Message
-from roslan.sensors.cameras import Camera
+from roslan.sensors.cameras import Camera, EventCamera
 from roslan.sensors.registry import SENSOR_TYPES, sensor_class
 
 HERE = Path(__file__).parent
@@ -354,8 +354,8 @@ def test_killed_render_helper_fails_the_run_cleanly(tmp_path: Path) -> None:
     def assassin() -> None:
         while not stop.is_set() and not killed:
             for p in _children():
-                with contextlib.suppress(psutil.Error):
-                    if "event_chains" in " ".join(p.cmdline()):
+                if _is_helper(p):
+                    with contextlib.suppress(psutil.Error):
                         p.kill()
                         killed.append(p.pid)
                         return
@@ -440,6 +440,69 @@ def test_stopping_the_parent_stops_the_children(tmp_path: Path, sig: signal.Sign
         assert list(out.iterdir()) == []
     else:
         assert not (out / "o").exists()
+
+
+def _is_helper(p: psutil.Process) -> bool:
+    try:
+        return "event_chains" in " ".join(p.cmdline())
+    except psutil.Error:  # a finished (zombie) helper such as the background plot
+        return False
+
+
+class HangingEventCamera(EventCamera):
+    """In a render helper (which imports this class by name), every render notes the
+    helper's pid in $ROSLAN_TEST_PIDDIR, then hangs."""
+
+    def render(self, ctx: Any, t_ns: int, *, need_depth: bool) -> Any:
+        if "event_chains" in " ".join(psutil.Process().cmdline()):
+            (Path(os.environ["ROSLAN_TEST_PIDDIR"]) / str(os.getpid())).write_text("")
+            time.sleep(120)
+        return super().render(ctx, t_ns, need_depth=need_depth)
+
+
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGKILL])
+def test_stopping_the_parent_stops_the_render_helpers(tmp_path: Path, sig: signal.Signals) -> None:
+    """The event camera's render helpers are grandchildren (the camera runs in a worker):
+    stopping the run stops them too."""
+    script = textwrap.dedent(
+        f"""
+        import sys
+        sys.path[:0] = [{str(HERE)!r}, {str(HERE.parent / "helpers")!r}]
+        from pathlib import Path
+        import roslan.pipeline.plan as plan
+        from roslan.pipeline import run_simulation
+        from roslan.sensors.registry import sensor_class
+        from test_pipeline_parallel import HangingEventCamera, tiny_config
+        plan.sensor_class = lambda n: HangingEventCamera if n == "event_camera" else sensor_class(n)
+        try:
+            run_simulation(tiny_config(), Path(sys.argv[1]), quiet=True, workers=4,
+                           overview=False)
+        except KeyboardInterrupt:
+            sys.exit(130)
+        """
+    )
+    piddir = tmp_path / "pids"
+    piddir.mkdir()
+    out = tmp_path / "runs"
+    out.mkdir()
+    env = {**os.environ, "ROSLAN_TEST_PIDDIR": str(piddir)}
+    proc = subprocess.Popen([sys.executable, "-c", script, str(out / "o")], env=env)
+    deadline = time.monotonic() + 90
+    while len(list(piddir.iterdir())) < 2:  # both helpers render
+        assert proc.poll() is None, "the run ended before the renders hung"
+        assert time.monotonic() < deadline
+        time.sleep(0.05)
+    tree = psutil.Process(proc.pid).children(recursive=True)
+    helpers = [p for p in tree if _is_helper(p)]
+    assert len(helpers) == 2
+    assert {p.pid for p in helpers} == {int(f.name) for f in piddir.iterdir()}
+    proc.send_signal(sig)
+    code = proc.wait(timeout=30)
+    _gone, alive = psutil.wait_procs(tree, timeout=15)
+    assert [p for p in alive if p.status() != "zombie"] == []
+    if sig == signal.SIGTERM:
+        assert code == 130
+        assert list(out.iterdir()) == []
 
 
 # ------------------------------------------------------------------ bounded queue

@@ -158,7 +158,7 @@ class EventCamera:
         """Run ESIM, packets and messages on a helper thread beside the renders (False:
         everything on the calling thread; same stream either way)."""
         self.render_here = True
-        """Render chains in this process too when it has render helpers (False: only the
+        """With render helpers, render chains here while none is ready (False: only the
         helpers render, :class:`~roslan.sensors.cameras.event_chains.ChainFarm`; same
         stream either way)."""
 

@@ -15,12 +15,13 @@ and ESIM still consumes the renders in time order.
   step to the next instant, and what the event stream needs of it (ground-truth flow
   and depth at ground-truth instants only).
 * :class:`ChainFarm` hands chains to ``helpers`` render helper processes (fresh
-  interpreters with their own OpenGL context, :mod:`roslan.io.child`) and to this
-  process, and yields the rendered instants in time order. This process renders a chain
-  itself whenever the one it needs next is not being rendered elsewhere, or while it
-  waits (so helpers that are still starting cost nothing). At most :data:`IN_FLIGHT`
-  chains per helper and a look-ahead of ``IN_FLIGHT * (helpers + 1) + 2`` chains are
-  outstanding (bounded memory: a DAVIS346 chain is ~3 MB).
+  interpreters with their own OpenGL context, :mod:`roslan.io.child`) and yields the
+  rendered instants in time order. This process renders a chain itself only while no
+  helper is ready (they take a few seconds to start): once they are, it only feeds their
+  renders to ESIM, packets and files, which are then its whole work (the critical path
+  on a GPU machine, docs/performance.md). At most :data:`IN_FLIGHT` chains per helper
+  and a look-ahead of ``IN_FLIGHT * (helpers + 1) + 2`` chains are outstanding (bounded
+  memory: a DAVIS346 chain is ~3 MB).
 
 Brightness sampling reads ESIM's state between renders, so it has no chains: the event
 camera renders it in one sequence (:func:`brightness_instants`).
@@ -277,9 +278,9 @@ class ChainFarm:
     """The rendered instants of an optical-flow or fixed-rate event camera, in time order,
     from this process and ``helpers`` render helper processes (see the module docstring).
 
-    ``render_here=False``: this process only waits for the helpers' chains (benchmarks,
-    tests; with no helper it still renders everything itself). Use as a context manager:
-    leaving it stops the helpers (killed on an error)."""
+    ``render_here=False``: this process renders nothing, not even while its helpers start
+    (benchmarks, tests; with no helper it still renders everything itself). Use as a
+    context manager: leaving it stops the helpers (killed on an error)."""
 
     def __init__(
         self,
@@ -342,17 +343,9 @@ class ChainFarm:
             self._assign(k)
             if k in self.results:
                 return self.results.pop(k)
-            if not self.render_here:
-                self._drain(block=True)
-                continue
-            if k == self.next_k:  # nobody has it: render it here
+            if self.render_here and k == self.next_k:  # no helper is ready to take it
                 self.next_k += 1
                 return self._render_here(k)
-            if self.next_k < min(len(self.starts), k + self.lookahead):
-                j = self.next_k  # ours is elsewhere: render a later one meanwhile
-                self.next_k += 1
-                self.results[j] = self._render_here(j)
-                continue
             self._drain(block=True)
 
     def _render_here(self, k: int) -> list[Instant]:
