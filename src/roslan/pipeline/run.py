@@ -133,6 +133,15 @@ def run_simulation(
         return _Run(plan, options, wall0).execute()
 
 
+def _warm_up_plots() -> None:
+    """:func:`roslan.plots.overview.warm_up`, on a thread: a failure here is only a lost
+    head start (``write_overview`` reports any real problem)."""
+    with contextlib.suppress(Exception):
+        from roslan.plots.overview import warm_up
+
+        warm_up()
+
+
 @contextlib.contextmanager
 def _sigterm_as_interrupt() -> Iterator[None]:
     """Turn SIGTERM into KeyboardInterrupt while running, so cleanup runs (main thread only)."""
@@ -168,6 +177,7 @@ class _Run:
         self.writers: MultiBagWriter | None = None
         self.plot: BackgroundPlot | None = None
         self.export: BackgroundSink | None = None  # the scene export's thread
+        self.warm: threading.Thread | None = None  # overview.png's warm-up thread
         self.streams: list[CheckedStream] = []
         self.ticks: dict[str, float] = {}
         self.write_s = 0.0
@@ -306,6 +316,9 @@ class _Run:
         ]
         if self.pool is not None:
             sources += self.pool.streams(plan.formats)
+        if self.opts.overview:  # matplotlib's first-draw costs, beside the streaming
+            self.warm = threading.Thread(target=_warm_up_plots, name="overview-warm-up")
+            self.warm.start()
         self.progress.start(self.traj.duration)
         self.write_s, self.build_s = pump(
             sources, self.writers, ctx.start_time_ns, self.progress, profile, plan.owners
@@ -320,6 +333,8 @@ class _Run:
         self.progress.phase("closing sensors and bags")
         if self.pool is not None:
             self.pool.finish()
+        if self.warm is not None:  # (before anything else draws with matplotlib)
+            self.warm.join()
         self.plot.finish()
         if self.export is not None:
             self.export.close()  # raises the export's error, if any
