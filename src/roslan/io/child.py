@@ -67,8 +67,11 @@ class RemoteTraceback(Exception):
 
 
 # ---------------------------------------------------------------------------- parent side
-def spawn(code: str, what: str) -> tuple[subprocess.Popen[bytes], Connection]:
-    """Start ``python -c code FD PID`` and return it with the parent's end of its socket.
+def spawn(
+    code: str, what: str, args: Sequence[str] = ()
+) -> tuple[subprocess.Popen[bytes], Connection]:
+    """Start ``python -c code FD PID *args`` and return it with the parent's end of its
+    socket.
 
     Raises:
         ChildError: the interpreter cannot be started (``what`` names the child).
@@ -81,7 +84,7 @@ def spawn(code: str, what: str) -> tuple[subprocess.Popen[bytes], Connection]:
     env["PYTHONPATH"] = os.pathsep.join(p or os.getcwd() for p in sys.path)
     try:
         proc = subprocess.Popen(
-            [sys.executable, "-c", code, str(child_fd), str(os.getpid())],
+            [sys.executable, "-c", code, str(child_fd), str(os.getpid()), *args],
             pass_fds=(child_fd,),
             stdin=subprocess.DEVNULL,
             stdout=subprocess.DEVNULL,
@@ -155,7 +158,7 @@ def _die_with_parent(parent_pid: int) -> None:
 
 
 def child_connection(argv: Sequence[str] | None = None) -> Connection:
-    """In the child (``argv`` = ``FD PID``, default ``sys.argv[1:]``): set the signal
+    """In the child (``argv`` = ``FD PID ...``, default ``sys.argv[1:]``): set the signal
     rules of the module docstring and return the connection to the parent."""
     args = list(sys.argv[1:] if argv is None else argv)
     fd, parent_pid = int(args[0]), int(args[1])

@@ -49,7 +49,7 @@ from roslan.pipeline.context import Context
 from roslan.pipeline.merge import CheckedStream, MergeItem, pump, tagged
 from roslan.pipeline.plan import RunPlan, load_checked_scene, make_plan
 from roslan.pipeline.report import BackgroundPlot, Progress, playback_text, print_profile
-from roslan.pipeline.worker import WorkerJob, WorkerPool, worker_nice
+from roslan.pipeline.worker import WorkerJob, WorkerPool, sensor_stats, worker_nice
 from roslan.rundir.calibration import root_camera, write_calibration
 from roslan.rundir.extrinsics import write_extrinsics
 from roslan.rundir.folder import clean_stale, finalize, make_temp, outdir_lock
@@ -194,7 +194,7 @@ class _Run:
     def execute(self) -> RunManifest:
         # the worker interpreters start (imports) while this process loads the scene
         if self.plan.groups:
-            self.pool = WorkerPool(self.plan.groups, self.config.sensors)
+            self.pool = WorkerPool(self.plan.groups, self.config.sensors, self.plan.render_helpers)
         try:
             self._load_scene()
             self.tmp = make_temp(self.plan.outdir)
@@ -417,12 +417,14 @@ class _Run:
         return timing
 
     def _profile(self) -> dict[str, Any]:
+        by_name = {s.config.name: s for s in self.plan.sensors}
         local = {
             st.name: {
                 "generator_s": st.seconds,
                 "build_s": self.build_s.get(st.name, 0.0),
                 "close_s": self.close_s.get(st.name, 0.0),
                 "messages": st.count,
+                **sensor_stats(by_name.get(st.name)),
             }
             for st in self.streams
         }

@@ -46,7 +46,7 @@ import sys
 import threading
 import time
 from collections import deque
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from multiprocessing.connection import Connection
 from pathlib import Path
@@ -83,6 +83,7 @@ __all__ = [
     "plan_helpers",
     "plan_workers",
     "resolve_workers",
+    "sensor_stats",
     "worker_nice",
 ]
 
@@ -332,15 +333,30 @@ def _run_job(job: WorkerJob, put: Callable[[Any], None]) -> None:
             "messages": st.count,
             "worker_pid": os.getpid(),
             "worker_nice": os.nice(0),
+            **sensor_stats(sensors[k]),
         }
         for k, st in enumerate(streams)
     }
     put(dumps(("done", profile), protocol=pickle.HIGHEST_PROTOCOL))
 
 
+def sensor_stats(sensor: Any) -> dict[str, Any]:
+    """``{"stats": ...}``: a sensor's own counters after its stream (e.g. the event
+    camera's frames, capped steps and chains rendered here), where it keeps them."""
+    stats = getattr(sensor, "stats", None)
+    return {"stats": dict(stats)} if isinstance(stats, dict) and stats else {}
+
+
 def main(argv: Sequence[str] | None = None) -> None:
-    """Child entry point: ``python -c 'from roslan.pipeline.worker import main; main()' FD PID``."""
-    conn = child_connection(argv)
+    """Child entry point: ``python -c 'from roslan.pipeline.worker import main; main()' FD
+    PID HELPERS``: HELPERS render helper interpreters of this worker's event cameras are
+    started at once, so that their imports overlap the parent's set-up."""
+    args = list(sys.argv[1:] if argv is None else argv)
+    conn = child_connection(args)
+    if len(args) > 2 and int(args[2]) > 0:
+        from roslan.sensors.cameras.event_chains import prestart
+
+        prestart(int(args[2]))
     queue: ByteQueue | None = None
     sender: threading.Thread | None = None
     code = 0
@@ -389,9 +405,9 @@ class _Ready:
 class _Worker:
     """One child process and its connection (parent side)."""
 
-    def __init__(self, names: list[str]) -> None:
+    def __init__(self, names: list[str], helpers: int = 0) -> None:
         self.names = names
-        self.proc, self.conn = spawn(_CHILD_CODE, "a sensor worker process")
+        self.proc, self.conn = spawn(_CHILD_CODE, "a sensor worker process", (str(helpers),))
         self.profile: dict[str, dict[str, Any]] = {}
         self.wait_s = 0.0
         self.done = False
@@ -455,19 +471,27 @@ class _Worker:
 
 
 class WorkerPool:
-    """The worker processes of one run (parent side).
+    """The worker processes of one run (parent side); ``helpers``: render helpers per
+    event camera name (:func:`plan_helpers`), started by the worker running the camera.
 
     Start them early (:meth:`__init__` only launches the interpreters), :meth:`send` their
     jobs once the scene and OUTDIR are ready, merge :meth:`streams`, then :meth:`finish`;
     :meth:`kill` on any failure (before removing OUTDIR: children write into it).
     """
 
-    def __init__(self, groups: Sequence[Sequence[int]], sensors: Sequence[SensorConfig]) -> None:
+    def __init__(
+        self,
+        groups: Sequence[Sequence[int]],
+        sensors: Sequence[SensorConfig],
+        helpers: Mapping[str, int] | None = None,
+    ) -> None:
         self.groups = [tuple(g) for g in groups]
         self.workers: list[_Worker] = []
+        per_name = dict(helpers or {})
         try:
             for g in self.groups:
-                self.workers.append(_Worker([sensors[i].name for i in g]))
+                names = [sensors[i].name for i in g]
+                self.workers.append(_Worker(names, sum(per_name.get(n, 0) for n in names)))
         except BaseException:
             self.kill()
             raise

@@ -19,7 +19,11 @@ and ESIM still consumes the renders in time order.
   rendered instants in time order. This process renders a chain itself only while no
   helper is ready (they take a few seconds to start): once they are, it only feeds their
   renders to ESIM, packets and files, which are then its whole work (the critical path
-  on a GPU machine, docs/performance.md). At most :data:`IN_FLIGHT` chains per helper
+  on a GPU machine, docs/performance.md). A sensor worker starts its cameras' helpers as
+  it starts itself (:func:`prestart`): their imports and numba kernels load during the
+  run's set-up, so they are ready about a renderer's build after the camera's first
+  instant (on the dev machine the camera renders 1 of the default landing's 128 chains
+  itself). At most :data:`IN_FLIGHT` chains per helper
   and a look-ahead of ``IN_FLIGHT * (helpers + 1) + 2`` chains are outstanding (bounded
   memory: a DAVIS346 chain is ~3 MB).
 
@@ -72,6 +76,7 @@ __all__ = [
     "brightness_instants",
     "chain_starts",
     "helper_main",
+    "prestart",
     "render_chain",
 ]
 
@@ -182,10 +187,23 @@ class ChainJob:
     gt_times: tuple[int, ...]
 
 
+def _warm_helper() -> None:
+    """What a render helper needs before its job: the heavy imports and the flow-speed
+    kernel (numba's cache), so that a helper started early is ready soon after."""
+    import roslan.pipeline.context
+    import roslan.render.gl
+    import roslan.sensors.cameras.event  # noqa: F401
+    from roslan.events.sampling import max_flow_speed, pixel_rays
+
+    K = np.array([[1.0, 0.0, 0.5], [0.0, 1.0, 0.5], [0.0, 0.0, 1.0]])
+    v = np.zeros(3)
+    max_flow_speed(np.ones((2, 2), np.float32), K, v, v, pixel_rays(K, 2, 2))
+
+
 def helper_main(argv: Sequence[str] | None = None) -> None:
-    """Render helper entry point (``python -c ... FD PID``): gets a :class:`ChainJob`,
-    says ``("ready",)`` once its renderer exists, then answers each ``("chain", k, start,
-    stop)`` with ``("chain", k, instants)`` until ``("stop",)``."""
+    """Render helper entry point (``python -c ... FD PID``): warms up, gets a
+    :class:`ChainJob`, says ``("ready",)`` once its renderer exists, then answers each
+    ``("chain", k, start, stop)`` with ``("chain", k, instants)`` until ``("stop",)``."""
     import os
 
     from roslan.pipeline.context import Context
@@ -193,6 +211,7 @@ def helper_main(argv: Sequence[str] | None = None) -> None:
     conn = child_connection(argv)
     code = 0
     try:
+        _warm_helper()
         job: ChainJob = pickle.loads(conn.recv_bytes())
         sensor = job.sensor_class(job.config)
         # (renders only: an OUTDIR that cannot be written to)
@@ -217,25 +236,55 @@ def helper_main(argv: Sequence[str] | None = None) -> None:
     os._exit(code)  # skip interpreter teardown (EGL exit handlers add nothing)
 
 
+_PRESTARTED: list[_Helper] = []
+"""Render helpers started ahead (:func:`prestart`), waiting for an event camera's job."""
+
+
+def prestart(n: int) -> None:
+    """Start ``n`` render helper interpreters now (a sensor worker does this as it starts,
+    before its job arrives): their imports then overlap the run's set-up, and the next
+    :class:`ChainFarm` of this process takes them instead of starting its own."""
+    for _ in range(max(0, int(n))):
+        _PRESTARTED.append(_Helper())
+
+
+def _take_helpers(n: int) -> list[_Helper]:
+    """``n`` helpers: the prestarted ones first, then new ones."""
+    out = [_PRESTARTED.pop(0) for _ in range(min(n, len(_PRESTARTED)))]
+    try:
+        while len(out) < n:
+            out.append(_Helper())
+    except BaseException:
+        for h in out:
+            h.kill()
+        raise
+    return out
+
+
 class _Helper:
     """One render helper process (owner side) and the thread reading its answers."""
 
-    def __init__(self, name: str, index: int, inbox: queue.Queue[tuple[_Helper, Any]]) -> None:
-        self.name = name
+    def __init__(self) -> None:
         self.proc: subprocess.Popen[bytes]
         self.conn: Connection
-        self.proc, self.conn = spawn(_HELPER_CODE, f"a render helper process of {name}")
-        self.index = index
+        self.proc, self.conn = spawn(_HELPER_CODE, "a render helper process")
+        self.name = "?"
+        self.index = 0
         self.ready = False
         self.in_flight = 0
-        self.inbox = inbox
-        self.reader = threading.Thread(target=self._read, name=f"{name}-helper{index}", daemon=True)
+        self.inbox: queue.Queue[tuple[_Helper, Any]] | None = None
+        self.reader: threading.Thread | None = None
 
     def describe(self) -> str:
         return f"render helper {self.index} (pid {self.proc.pid}) of event camera {self.name}"
 
-    def start(self, job: ChainJob) -> None:
+    def start(self, job: ChainJob, index: int, inbox: queue.Queue[tuple[_Helper, Any]]) -> None:
+        """Send it the job of camera ``job.config.name``; its answers go to ``inbox``."""
+        self.name, self.index, self.inbox = job.config.name, index, inbox
         self.send(job)
+        self.reader = threading.Thread(
+            target=self._read, name=f"{self.name}-helper{index}", daemon=True
+        )
         self.reader.start()
 
     def send(self, obj: Any) -> None:
@@ -248,6 +297,7 @@ class _Helper:
         return ChildError(death_message(self.proc, self.describe(), "while rendering"))
 
     def _read(self) -> None:
+        assert self.inbox is not None
         try:
             while True:
                 rec = pickle.loads(self.conn.recv_bytes())
@@ -265,7 +315,8 @@ class _Helper:
         except subprocess.TimeoutExpired:
             self.kill()
             code = 0  # its chains were all delivered; only the exit hung
-        self.reader.join(JOIN_TIMEOUT_S)
+        if self.reader is not None:
+            self.reader.join(JOIN_TIMEOUT_S)
         self.conn.close()
         if code != 0:
             raise ChildError(f"{self.describe()} exited with status {code} after finishing")
@@ -314,10 +365,9 @@ class ChainFarm:
                 tuple(sorted(self.gt_set)),
             )
             try:
-                for i in range(n):
-                    self.helpers.append(_Helper(sensor.config.name, i, self.inbox))
-                for h in self.helpers:
-                    h.start(job)
+                self.helpers = _take_helpers(n)
+                for i, h in enumerate(self.helpers):
+                    h.start(job, i, self.inbox)
             except BaseException:
                 self.kill()
                 raise
