@@ -146,6 +146,10 @@ def test_workers_give_byte_identical_outputs(tmp_path: Path) -> None:
         assert per["dvs"]["messages"] > 0
         assert per["dvs"]["generator_s"] > 0
         assert per["dvs"]["worker_pid"] != os.getpid()
+        # the event camera's own counters: every instant of its chains became a frame
+        st = per["dvs"]["stats"]
+        assert st["frames"] >= st["chains"] > 1
+        assert 0 <= st["chains_rendered_here"] <= st["chains"]
         # with two workers the camera's runs below the event camera's priority
         base = os.nice(0)
         assert per["dvs"]["worker_nice"] == base
