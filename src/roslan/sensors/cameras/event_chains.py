@@ -190,9 +190,11 @@ class ChainJob:
 def _warm_helper() -> None:
     """What a render helper needs before its job: the heavy imports and the flow-speed
     kernel (numba's cache), so that a helper started early is ready soon after."""
+    import cv2  # noqa: F401  (the event camera's module, which the job unpickles, needs it)
+    import h5py  # noqa: F401  (likewise)
+
     import roslan.pipeline.context
-    import roslan.render.gl
-    import roslan.sensors.cameras.event  # noqa: F401
+    import roslan.render.gl  # noqa: F401
     from roslan.events.sampling import max_flow_speed, pixel_rays
 
     K = np.array([[1.0, 0.0, 0.5], [0.0, 1.0, 0.5], [0.0, 0.0, 1.0]])
