@@ -366,3 +366,30 @@ def format_txt(t, x, y, p, out):  # type: ignore[no-untyped-def]
         out[k + 2] = 10
         k += 3
     return k
+
+
+@kernel
+def pack_events(t, offset, x, y, p, first, rest):  # type: ignore[no-untyped-def]
+    """``dvs_msgs/Event`` records (structured arrays, little endian): event 0 into
+    ``first`` (1,), the others into ``rest`` (N - 1,) (fields ``x, y, sec, nsec, p``; any
+    padding between them is left as it is). Stamps ``t + offset`` ns split into sec / nsec
+    (floor; low 32 bits of each), x, y (low 16 bits), polarity 1 where ``p > 0``. One
+    store per field (the structured-array assignments of NumPy take a pass per field)."""
+    if t.shape[0]:
+        _pack_records(t[:1], offset, x[:1], y[:1], p[:1], first)
+        _pack_records(t[1:], offset, x[1:], y[1:], p[1:], rest)
+
+
+@numba.njit(inline="always")
+def _pack_records(t, offset, x, y, p, rec):  # type: ignore[no-untyped-def]
+    ns = np.int64(1_000_000_000)
+    m32 = np.int64(0xFFFFFFFF)
+    for j in range(t.shape[0]):
+        tt = t[j] + offset
+        sec = tt // ns
+        r = rec[j]
+        r.x = np.uint16(np.int64(x[j]) & 0xFFFF)
+        r.y = np.uint16(np.int64(y[j]) & 0xFFFF)
+        r.sec = np.uint32(sec & m32)
+        r.nsec = np.uint32((tt - sec * ns) & m32)
+        r.p = 1 if p[j] > 0 else 0
