@@ -14,7 +14,7 @@ import collections
 import heapq
 import itertools
 from collections.abc import Iterator
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
@@ -166,7 +166,8 @@ class Packetizer:
         else:
             # packet j = [j d, (j+1) d) is complete once the frame time reaches its end
             d = self.d_ns
-            limit = total if final else _count_before(buf, (t_ns // d) * d)
+            end = np.array([(t_ns // d) * d], np.int64)
+            limit = total if final else int(_count_before(buf, end)[0])
             if limit == 0:
                 return buf, []
             # the first event of each later packet: a few binary searches, not a pass
@@ -208,13 +209,13 @@ class Packetizer:
         return Message(t_last, f"{s.config.topic}/events", EVENT_ARRAY, build)
 
 
-def _count_before(buf: list[EventBatch], bounds: Any) -> Any:
+def _count_before(buf: list[EventBatch], bounds: NDArray[np.int64]) -> NDArray[np.int64]:
     """The number of buffered events (``buf``: batches in time order) earlier than each of
-    ``bounds`` (an int or an array of them): the sum of the batches' binary searches."""
-    n = 0
+    ``bounds``: the sum of the batches' binary searches."""
+    n = np.zeros(bounds.shape, np.int64)
     for b in buf:
-        n = n + np.searchsorted(b.t, bounds, side="left")
-    return n if isinstance(n, np.ndarray) else int(n)
+        n += np.searchsorted(b.t, bounds, side="left")
+    return n
 
 
 def _pieces(buf: list[EventBatch], starts: list[int], a: int, b: int) -> list[EventBatch]:
