@@ -81,7 +81,9 @@ class AfterRender:
         assert sink is not None
         batch = self.gen.update(lum, t)
         if batch.size and self.tick > 1:
-            batch.t[:] -= batch.t % self.tick  # the sensor's timestamp counter (order kept)
+            # the sensor's timestamp counter (order kept): floor to the tick, in place
+            np.floor_divide(batch.t, self.tick, out=batch.t)
+            batch.t[:] *= self.tick
         if batch.size:
             self.n_events += batch.size
             if s._writers:
