@@ -81,6 +81,7 @@ CHILD = textwrap.dedent(
         "peak_rss_children_mib": kids.ru_maxrss / 1024,
         "workers": timing["workers"],
         "worker_sensors": timing["worker_sensors"],
+        "render_helpers": timing.get("render_helpers", {}),
         "epoch0": epoch0,
         # (absent before issue 27: the streaming window is then unknown)
         "stream_start_s": timing.get("stream_start_s", timing["setup_s"]),
@@ -196,7 +197,8 @@ def _report(r: dict[str, Any], workers: str) -> None:
     total = sum(v["generator_s"] + v["build_s"] + v["close_s"] for v in sensors.values())
     total += r["profile"]["writers_s"]
     print(
-        f"x{scale:g} workers={workers} ({r['workers']}: {r['worker_sensors']}): trajectory "
+        f"x{scale:g} workers={workers} ({r['workers']}: {r['worker_sensors']}; render helpers "
+        f"{r.get('render_helpers', {})}): trajectory "
         f"{r['duration_s']:.2f} s, wall {r['wall_s']:.1f} s, RTF wall {r['rtf_wall']:.2f}, "
         f"RTF cpu {r['rtf_cpu']:.2f}, peak RSS tree {r['peak_tree_rss_mib']:.0f} MiB "
         f"(largest process {max(r['peak_rss_mib'], r['peak_rss_children_mib']):.0f} MiB), "

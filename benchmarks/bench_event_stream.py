@@ -14,6 +14,12 @@ thread runs them) of each stage, measured by wrapping the functions by name:
 * ``build``: the message bytes (EventArray packing, CameraInfo, images), both flavours;
 * ``files``: events.txt / events.h5 writing (``EventCamera._write_events``).
 
+``--helpers N``: the camera's chains are rendered by N render helper processes as well
+(``roslan.sensors.cameras.event_chains``; ``--no-render-here``: only by them); the CPU
+then includes the helpers' (reaped children). ``--ab-helpers N`` compares 0 (A) and N (B)
+helpers; with ``LP_NUM_THREADS=1`` in the environment each llvmpipe render uses one core,
+as the CPU side does on a GPU machine, which shows how the chains scale with processes.
+
 A/B: ``--ab DIR_A DIR_B`` runs this script in fresh interpreters with
 ``PYTHONPATH=DIR_X/src`` alternately (``--repeat`` times each; e.g. a ``git worktree`` of
 the commit before as DIR_A and this checkout as DIR_B) and prints the ratios B/A of the
@@ -31,6 +37,7 @@ import argparse
 import functools
 import json
 import os
+import resource
 import statistics
 import subprocess
 import sys
@@ -79,7 +86,12 @@ def _instrument(acc: dict[str, float]) -> None:
 
 
 def run_once(
-    seconds: float | None, *, sequential: bool = False, workdir: str | None = None
+    seconds: float | None,
+    *,
+    sequential: bool = False,
+    workdir: str | None = None,
+    helpers: int = 0,
+    render_here: bool = True,
 ) -> dict[str, Any]:
     """Stream the default event camera once; wall, CPU and per-stage CPU seconds."""
     from roslan.cli.simulate import load_config
@@ -107,6 +119,7 @@ def run_once(
             sensors=cfg.sensors,
             scene_spec=cfg.scene,
             scene=checked.scene,
+            render_helpers={cam_cfg.name: helpers},
         )
         ctx.renderer().render  # noqa: B018  (context and scene upload: not timed)
         stores = [MessageStore(Flavor(f)) for f in ("ros1", "ros2")]
@@ -114,7 +127,9 @@ def run_once(
         cam = EventCamera(cam_cfg)
         if sequential:  # everything on this thread (the attribute is new on 2026-11-26)
             cam.pipelined = False
+        cam.render_here = render_here
         end = None if seconds is None else round(seconds * 1e9)
+        kids0 = resource.getrusage(resource.RUSAGE_CHILDREN)
         w0, c0 = time.perf_counter(), time.process_time()
         n_msgs = n_bytes = 0
         stream = cam.messages(ctx)
@@ -130,6 +145,8 @@ def run_once(
             n_msgs += 1
         cam.close(ctx)
         wall, cpu = time.perf_counter() - w0, time.process_time() - c0
+        kids1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+        cpu += (kids1.ru_utime + kids1.ru_stime) - (kids0.ru_utime + kids0.ru_stime)
     acc["render"] -= acc["camera_twist"]
     return {
         "wall_s": wall,
@@ -138,6 +155,9 @@ def run_once(
         "bytes": n_bytes,
         "frames": cam.stats.get("frames", 0),
         "events": cam.stats.get("events", 0),
+        "chains": cam.stats.get("chains", 0),
+        "chains_here": cam.stats.get("chains_rendered_here", 0),
+        "helpers": helpers,
         "stages": {k: acc[k] for k in STAGES},
     }
 
@@ -146,7 +166,8 @@ def _print(label: str, r: dict[str, Any]) -> None:
     st = "  ".join(f"{k} {v:.2f}" for k, v in r["stages"].items())
     print(
         f"{label}: wall {r['wall_s']:.2f} s, CPU {r['cpu_s']:.2f} s, {r['frames']} frames, "
-        f"{r['events']} events, {r['messages']} messages | CPU-s: {st}",
+        f"{r['events']} events, {r['messages']} messages, {r.get('helpers', 0)} helpers "
+        f"({r.get('chains_here', 0)} of {r.get('chains', 0)} chains rendered here) | CPU-s: {st}",
         flush=True,
     )
 
@@ -200,6 +221,11 @@ def main() -> None:
         action="store_true",
         help="A/B of this checkout: sequential (A) vs the helper thread (B)",
     )
+    ap.add_argument("--helpers", type=int, default=0, help="render helper processes")
+    ap.add_argument(
+        "--no-render-here", action="store_true", help="only the helpers render (with --helpers)"
+    )
+    ap.add_argument("--ab-helpers", type=int, default=None, help="A/B: 0 vs N render helpers")
     ap.add_argument("--json", action="store_true", help="print one JSON line (A/B child)")
     ap.add_argument("--workdir", default=None, help="folder for the temporary outputs")
     args = ap.parse_args()
@@ -212,7 +238,19 @@ def main() -> None:
         cases = [("sequential", ".", ["--sequential"]), ("helper thread", ".", [])]
         ab(cases, args.repeat, args.seconds, args.workdir)
         return
-    r = run_once(args.seconds, sequential=args.sequential, workdir=args.workdir)
+    if args.ab_helpers is not None:
+        extra = ["--no-render-here"] if args.no_render_here else []
+        n = str(args.ab_helpers)
+        cases = [("0 helpers", ".", []), (f"{n} helpers", ".", ["--helpers", n, *extra])]
+        ab(cases, args.repeat, args.seconds, args.workdir)
+        return
+    r = run_once(
+        args.seconds,
+        sequential=args.sequential,
+        workdir=args.workdir,
+        helpers=args.helpers,
+        render_here=not args.no_render_here,
+    )
     if args.json:
         print(json.dumps(r))
     else:

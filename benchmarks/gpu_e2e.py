@@ -6,7 +6,10 @@ Runs, in fresh subprocesses and alternating, best of ``--repeat`` (default 2):
 2. the same with the event camera at ``max_rate: 1000``;
 3. the default job with ``--workers auto`` and ``ROSLAN_SENSOR_THREADS=1`` (every frame
    and scan post-processed on its sensor's own thread, as before the per-sensor pools);
-4. (``--with-serial``) the default job with ``--workers 0`` for comparison;
+4. the default job and the ``max_rate: 1000`` one with ``--workers 3``: one process per
+   render-heavy sensor and no render helpers of the event camera (``auto`` adds helpers up
+   to half the CPUs: 5 on 16 cores), to see what the time-parallel chains give;
+5. (``--with-serial``) the default job with ``--workers 0`` for comparison;
 
 and prints for each: the real-time factor (wall / trajectory time), CPU seconds per
 trajectory second (whole process tree), core utilisation over the run and while
@@ -40,6 +43,8 @@ CASES: list[tuple[str, str, float | None, str | None]] = [
     ("default job, --workers auto", "auto", None, None),
     ("event camera max_rate 1000, --workers auto", "auto", 1000.0, None),
     ("default job, --workers auto, ROSLAN_SENSOR_THREADS=1", "auto", None, "1"),
+    ("default job, --workers 3 (no render helpers)", "3", None, None),
+    ("event camera max_rate 1000, --workers 3 (no render helpers)", "3", 1000.0, None),
 ]
 
 

@@ -27,18 +27,9 @@ def floor_and_crate() -> Scene:
     return Scene("test", (floor, crate))
 
 
-def run_event_camera(
-    tmp: Path,
-    seed: int,
-    *,
-    pipelined: bool = True,
-    on_message: Callable[[Any], object] | None = None,
-    **over: Any,
-) -> tuple[Any, list[Any]]:
-    """The sensor and its messages (25 Hz, 40x30, pitched 0.5 rad down unless ``over``
-    says otherwise; ``over`` replaces any config key); its files land in ``tmp``.
-    ``pipelined=False``: ESIM and the messages on the calling thread; ``on_message`` is
-    called with each message as it comes (as the pipeline builds them)."""
+def event_camera_and_context(tmp: Path, seed: int, **over: Any) -> tuple[Any, Any]:
+    """The sensor (25 Hz, 40x30, pitched 0.5 rad down unless ``over`` says otherwise;
+    ``over`` replaces any config key) and its run context (files land in ``tmp``)."""
     from roslan.pipeline.context import Context
     from roslan.sensors.cameras import EventCamera, EventCameraConfig
 
@@ -64,7 +55,21 @@ def run_event_camera(
     ctx = Context(
         traj, tmp, seed=seed, sensors=[cfg], scene=floor_and_crate(), start_time_ns=START_NS
     )
-    sensor = EventCamera(cfg)
+    return EventCamera(cfg), ctx
+
+
+def run_event_camera(
+    tmp: Path,
+    seed: int,
+    *,
+    pipelined: bool = True,
+    on_message: Callable[[Any], object] | None = None,
+    **over: Any,
+) -> tuple[Any, list[Any]]:
+    """The sensor of :func:`event_camera_and_context` and its messages.
+    ``pipelined=False``: ESIM and the messages on the calling thread; ``on_message`` is
+    called with each message as it comes (as the pipeline builds them)."""
+    sensor, ctx = event_camera_and_context(tmp, seed, **over)
     sensor.pipelined = pipelined
     msgs = []
     for m in sensor.messages(ctx):

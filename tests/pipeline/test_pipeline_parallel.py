@@ -3,6 +3,7 @@ crashes in a child surface cleanly in the parent, no orphan processes, bounded q
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import signal
@@ -23,11 +24,12 @@ from roslan.cli import main
 from roslan.config.base import load_yaml_model
 from roslan.config.sim import SimConfig
 from roslan.errors import ConfigError, SensorError
+from roslan.io.child import ChildError
 from roslan.pipeline import run_simulation
 from roslan.pipeline import worker as worker_mod
 from roslan.pipeline.worker import ByteQueue, WorkerError, plan_workers, resolve_workers
 from roslan.sensors.base import Message
-from roslan.sensors.cameras import Camera
+from roslan.sensors.cameras import Camera, EventCamera
 from roslan.sensors.registry import SENSOR_TYPES, sensor_class
 
 HERE = Path(__file__).parent
@@ -122,19 +124,21 @@ def _patch_camera(monkeypatch: pytest.MonkeyPatch, cls: type) -> None:
 def test_workers_give_byte_identical_outputs(tmp_path: Path) -> None:
     cfg = tiny_config()
     outs = {}
-    for w in (0, 1, 2):  # in-process; both render sensors in one child; one child each
+    # in-process; both render sensors in one child; one child each; and two render helpers
+    for w in (0, 1, 2, 4):
         outs[w] = tmp_path / f"w{w}"
         run_simulation(cfg, outs[w], quiet=True, workers=w, profile=True, overview=False)
     ref = tree_bytes(outs[0])
     assert "events.txt" in ref
     assert "images.txt" in ref
     assert "landing.bag" in ref
-    for w in (1, 2):
+    for w in (1, 2, 4):
         got = tree_bytes(outs[w])
         assert got.keys() == ref.keys()
         assert [k for k in ref if got[k] != ref[k]] == []
         timing = json.loads((outs[w] / "timing.json").read_text())
-        assert timing["workers"] == w
+        assert timing["workers"] == min(w, 2)
+        assert timing["render_helpers"] == ({"dvs": 2} if w == 4 else {})
         assert sorted(n for g in timing["worker_sensors"] for n in g) == ["cam", "dvs"]
         per = timing["profile"]["sensors"]
         # child-side figures, reported under every sensor's name, in config order
@@ -146,7 +150,7 @@ def test_workers_give_byte_identical_outputs(tmp_path: Path) -> None:
         base = os.nice(0)
         assert per["dvs"]["worker_nice"] == base
         light = min(19, base + worker_mod.LIGHT_NICE)  # Linux caps nice at 19
-        assert per["cam"]["worker_nice"] == (light if w == 2 else base)
+        assert per["cam"]["worker_nice"] == (light if w >= 2 else base)
         assert "worker_pid" not in per["imu"]
     run0 = json.loads((outs[0] / "timing.json").read_text())
     assert run0["workers"] == 0
@@ -205,15 +209,33 @@ def test_resolve_and_plan_workers(monkeypatch: pytest.MonkeyPatch) -> None:
         }
     )
     s = cfg.sensors
+    H = worker_mod.MAX_RENDER_HELPERS
     monkeypatch.setattr(worker_mod, "usable_cpus", lambda: 2)
     assert resolve_workers("auto", s) == 2
     assert resolve_workers(0, s) == 0
-    assert resolve_workers(8, s) == 3  # never more than the render-heavy sensors
+    # the render-heavy sensors, then render helpers of the event camera
+    assert resolve_workers(8, s) == 8
+    assert resolve_workers(100, s) == 3 + H
+    no_chains = [c.model_copy(update={"sampling": "brightness"}) if c.type == "event_camera"
+                 else c for c in s]  # fmt: skip
+    assert resolve_workers(8, no_chains) == 3  # never more than the render-heavy sensors
     monkeypatch.setattr(worker_mod, "usable_cpus", lambda: 1)
     assert resolve_workers("auto", s) == 0  # one CPU: nothing to overlap with
+    monkeypatch.setattr(worker_mod, "usable_cpus", lambda: 6)
+    assert resolve_workers("auto", s) == 3  # renders keep 6 CPUs busy: no helper
     monkeypatch.setattr(worker_mod, "usable_cpus", lambda: 16)
-    assert resolve_workers("auto", s) == 3
+    assert resolve_workers("auto", s) == 3 + 5  # helpers up to half the CPUs in all
+    assert resolve_workers("auto", no_chains) == 3
+    monkeypatch.setattr(worker_mod, "usable_cpus", lambda: 64)
+    assert resolve_workers("auto", s) == 3 + H
     assert resolve_workers("auto", s[:1]) == 0  # no render-heavy sensor
+    # the processes beyond one per render-heavy sensor go to the event cameras in turn
+    assert worker_mod.plan_helpers(s, 3) == {}
+    assert worker_mod.plan_helpers(s, 5) == {"dvs": 2}
+    assert worker_mod.plan_helpers(s, 100) == {"dvs": H}
+    assert worker_mod.plan_helpers(no_chains, 8) == {}
+    two = [*s, s[2].model_copy(update={"name": "dvs2", "topic": "/dvs2"})]
+    assert worker_mod.plan_helpers(two, 4 + 3) == {"dvs": 2, "dvs2": 1}
     # inside a multiprocessing worker (roslan dataset's Dask workers): already parallel
     monkeypatch.setattr("multiprocessing.parent_process", lambda: object())
     assert resolve_workers("auto", s) == 0
@@ -320,6 +342,38 @@ def test_killed_child_fails_the_run_cleanly(
     assert _children() == []
 
 
+def test_killed_render_helper_fails_the_run_cleanly(tmp_path: Path) -> None:
+    """A render helper of the event camera (a grandchild: the camera runs in a worker)
+    killed mid-run: the run fails with an error naming it, leaves no OUTDIR and no
+    process behind."""
+    import threading
+
+    killed: list[int] = []
+    stop = threading.Event()
+
+    def assassin() -> None:
+        while not stop.is_set() and not killed:
+            for p in _children():
+                if _is_helper(p):
+                    with contextlib.suppress(psutil.Error):
+                        p.kill()
+                        killed.append(p.pid)
+                        return
+            time.sleep(0.005)
+
+    watcher = threading.Thread(target=assassin, daemon=True)
+    watcher.start()
+    try:
+        with pytest.raises(ChildError, match=r"render helper \d \(pid \d+\) of event camera dvs"):
+            run_simulation(tiny_config(), tmp_path / "out", quiet=True, workers=4, overview=False)
+    finally:
+        stop.set()
+        watcher.join()
+    assert killed
+    assert list(tmp_path.iterdir()) == []
+    assert _children() == []
+
+
 @pytest.mark.parametrize("workers", [0, 2])
 def test_bag_writer_failure_leaves_no_outdir(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, workers: int
@@ -386,6 +440,69 @@ def test_stopping_the_parent_stops_the_children(tmp_path: Path, sig: signal.Sign
         assert list(out.iterdir()) == []
     else:
         assert not (out / "o").exists()
+
+
+def _is_helper(p: psutil.Process) -> bool:
+    try:
+        return "event_chains" in " ".join(p.cmdline())
+    except psutil.Error:  # a finished (zombie) helper such as the background plot
+        return False
+
+
+class HangingEventCamera(EventCamera):
+    """In a render helper (which imports this class by name), every render notes the
+    helper's pid in $ROSLAN_TEST_PIDDIR, then hangs."""
+
+    def render(self, ctx: Any, t_ns: int, *, need_depth: bool) -> Any:
+        if "event_chains" in " ".join(psutil.Process().cmdline()):
+            (Path(os.environ["ROSLAN_TEST_PIDDIR"]) / str(os.getpid())).write_text("")
+            time.sleep(120)
+        return super().render(ctx, t_ns, need_depth=need_depth)
+
+
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGKILL])
+def test_stopping_the_parent_stops_the_render_helpers(tmp_path: Path, sig: signal.Signals) -> None:
+    """The event camera's render helpers are grandchildren (the camera runs in a worker):
+    stopping the run stops them too."""
+    script = textwrap.dedent(
+        f"""
+        import sys
+        sys.path[:0] = [{str(HERE)!r}, {str(HERE.parent / "helpers")!r}]
+        from pathlib import Path
+        import roslan.pipeline.plan as plan
+        from roslan.pipeline import run_simulation
+        from roslan.sensors.registry import sensor_class
+        from test_pipeline_parallel import HangingEventCamera, tiny_config
+        plan.sensor_class = lambda n: HangingEventCamera if n == "event_camera" else sensor_class(n)
+        try:
+            run_simulation(tiny_config(), Path(sys.argv[1]), quiet=True, workers=4,
+                           overview=False)
+        except KeyboardInterrupt:
+            sys.exit(130)
+        """
+    )
+    piddir = tmp_path / "pids"
+    piddir.mkdir()
+    out = tmp_path / "runs"
+    out.mkdir()
+    env = {**os.environ, "ROSLAN_TEST_PIDDIR": str(piddir)}
+    proc = subprocess.Popen([sys.executable, "-c", script, str(out / "o")], env=env)
+    deadline = time.monotonic() + 90
+    while len(list(piddir.iterdir())) < 2:  # both helpers render
+        assert proc.poll() is None, "the run ended before the renders hung"
+        assert time.monotonic() < deadline
+        time.sleep(0.05)
+    tree = psutil.Process(proc.pid).children(recursive=True)
+    helpers = [p for p in tree if _is_helper(p)]
+    assert len(helpers) == 2
+    assert {p.pid for p in helpers} == {int(f.name) for f in piddir.iterdir()}
+    proc.send_signal(sig)
+    code = proc.wait(timeout=30)
+    _gone, alive = psutil.wait_procs(tree, timeout=15)
+    assert [p for p in alive if p.status() != "zombie"] == []
+    if sig == signal.SIGTERM:
+        assert code == 130
+        assert list(out.iterdir()) == []
 
 
 # ------------------------------------------------------------------ bounded queue

@@ -455,6 +455,28 @@ def test_overview_with_all_sensors(run_dir: Path, tmp_path: Path) -> None:
     assert _near(img, EVENT_NEG_RGB, 25) > 20
 
 
+def test_overview_warm_up_changes_no_pixel(run_dir: Path, tmp_path: Path) -> None:
+    """``roslan simulate`` warms matplotlib up on a thread while it streams: the overview
+    drawn after that is the same file as one drawn in a fresh interpreter."""
+    import subprocess
+    import sys
+    import threading
+
+    from roslan.plots.overview import warm_up, write_overview
+
+    fresh = tmp_path / "fresh.png"
+    code = (
+        "import sys; from pathlib import Path; from roslan.plots.overview import write_overview;"
+        " write_overview(Path(sys.argv[1]), Path(sys.argv[2]), title='t')"
+    )
+    subprocess.run([sys.executable, "-c", code, str(run_dir), str(fresh)], check=True)
+    th = threading.Thread(target=warm_up)
+    th.start()
+    th.join()
+    warm = write_overview(run_dir, tmp_path / "warm.png", title="t")
+    assert warm.read_bytes() == fresh.read_bytes()
+
+
 def test_overview_copes_with_missing_sensors(bare_dir: Path) -> None:
     from roslan.plots.overview import write_overview
 

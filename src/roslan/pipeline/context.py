@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import hashlib
 import importlib
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -42,6 +42,8 @@ class Context:
         scene_spec: the config's ``scene`` (None: no scene) and ``base_dir`` for relative paths.
         sensor_threads: threads of each frame/scan sensor for its per-instant work
             (:class:`~roslan.io.ordered.OrderedPool`; 1: all on the sensor's thread).
+        render_helpers: render helper processes per sensor name (event cameras' chains,
+            :mod:`roslan.sensors.cameras.event_chains`); absent names get none.
     """
 
     def __init__(
@@ -56,6 +58,7 @@ class Context:
         base_dir: Path | None = None,
         scene: Scene | None = None,
         sensor_threads: int = 1,
+        render_helpers: Mapping[str, int] | None = None,
     ) -> None:
         self.trajectory = trajectory
         self.outdir = Path(outdir)
@@ -68,6 +71,7 @@ class Context:
         self.base_dir = base_dir
         self._scene = scene
         self.sensor_threads = max(1, int(sensor_threads))
+        self._helpers = dict(render_helpers or {})
         self._renderer: FrameRenderer | None = None
         self._raycaster: BeamCaster | None = None
 
@@ -117,6 +121,10 @@ class Context:
             gl = importlib.import_module("roslan.render.gl")
             self._renderer = gl.get_renderer(self.scene)
         return self._renderer
+
+    def render_helpers(self, name: str) -> int:
+        """Render helper processes sensor ``name`` may start (0: none)."""
+        return max(0, int(self._helpers.get(name, 0)))
 
     def raycaster(self) -> BeamCaster:
         """The process-wide Embree ray caster of the scene (created on first use)."""

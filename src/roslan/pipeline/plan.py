@@ -18,7 +18,7 @@ from __future__ import annotations
 import os
 import sys
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -29,7 +29,7 @@ from roslan.limits import preflight as check_limits
 from roslan.pipeline.estimate import check_free_space, estimate_run
 from roslan.pipeline.namespace import check_namespace
 from roslan.pipeline.threads import sensor_threads
-from roslan.pipeline.worker import plan_workers, resolve_workers
+from roslan.pipeline.worker import plan_helpers, plan_workers, resolve_workers
 from roslan.rundir.extrinsics import static_transforms
 from roslan.rundir.folder import check_outdir
 from roslan.sensors.base import Sensor
@@ -78,6 +78,9 @@ class RunPlan:
     """Every bag connection, in a fixed order: ground truth, then sensors in config order."""
     groups: list[list[int]]
     """Sensor indices per worker process (empty: every sensor runs in this process)."""
+    render_helpers: dict[str, int] = field(default_factory=dict)
+    """Render helper processes per event camera name
+    (:func:`~roslan.pipeline.worker.plan_helpers`)."""
     sensor_threads: int = 1
     """Threads of each frame/scan sensor for its per-instant work
     (:func:`~roslan.pipeline.threads.sensor_threads`)."""
@@ -167,7 +170,9 @@ def make_plan(
     # (children need an interpreter to start and a POSIX fd to talk through)
     posix = bool(sys.executable) and os.name == "posix"
     groups = plan_workers(config.sensors, n_workers) if posix else []
-    threads = sensor_threads(len(groups) + 1)  # the workers and this process
+    helpers = plan_helpers(config.sensors, n_workers) if posix else {}
+    # the workers, the render helpers and this process
+    threads = sensor_threads(len(groups) + sum(helpers.values()) + 1)
     return RunPlan(
         config=config,
         outdir=outdir,
@@ -182,6 +187,7 @@ def make_plan(
         bag_topics=bag_topics,
         groups=groups,
         sensor_threads=threads,
+        render_helpers=helpers,
     )
 
 

@@ -133,6 +133,15 @@ def run_simulation(
         return _Run(plan, options, wall0).execute()
 
 
+def _warm_up_plots() -> None:
+    """:func:`roslan.plots.overview.warm_up`, on a thread: a failure here is only a lost
+    head start (``write_overview`` reports any real problem)."""
+    with contextlib.suppress(Exception):
+        from roslan.plots.overview import warm_up
+
+        warm_up()
+
+
 @contextlib.contextmanager
 def _sigterm_as_interrupt() -> Iterator[None]:
     """Turn SIGTERM into KeyboardInterrupt while running, so cleanup runs (main thread only)."""
@@ -168,6 +177,7 @@ class _Run:
         self.writers: MultiBagWriter | None = None
         self.plot: BackgroundPlot | None = None
         self.export: BackgroundSink | None = None  # the scene export's thread
+        self.warm: threading.Thread | None = None  # overview.png's warm-up thread
         self.streams: list[CheckedStream] = []
         self.ticks: dict[str, float] = {}
         self.write_s = 0.0
@@ -265,6 +275,7 @@ class _Run:
                 profile=self.opts.profile,
                 nice=nices[g],
                 sensor_threads=plan.sensor_threads,
+                render_helpers=tuple(plan.render_helpers.items()),
             )
         )
 
@@ -280,6 +291,7 @@ class _Run:
             base_dir=self.plan.base_dir,
             scene=self.scene,
             sensor_threads=self.plan.sensor_threads,
+            render_helpers=self.plan.render_helpers,
         )
 
     # ------------------------------------------------------------------------- 3. merge
@@ -304,6 +316,9 @@ class _Run:
         ]
         if self.pool is not None:
             sources += self.pool.streams(plan.formats)
+        if self.opts.overview:  # matplotlib's first-draw costs, beside the streaming
+            self.warm = threading.Thread(target=_warm_up_plots, name="overview-warm-up")
+            self.warm.start()
         self.progress.start(self.traj.duration)
         self.write_s, self.build_s = pump(
             sources, self.writers, ctx.start_time_ns, self.progress, profile, plan.owners
@@ -318,6 +333,8 @@ class _Run:
         self.progress.phase("closing sensors and bags")
         if self.pool is not None:
             self.pool.finish()
+        if self.warm is not None:  # (before anything else draws with matplotlib)
+            self.warm.join()
         self.plot.finish()
         if self.export is not None:
             self.export.close()  # raises the export's error, if any
@@ -393,6 +410,7 @@ class _Run:
             "workers": len(plan.groups),
             "worker_sensors": [[plan.sensors[i].config.name for i in g] for g in plan.groups],
             "sensor_threads": plan.sensor_threads,
+            "render_helpers": dict(plan.render_helpers),
         }
         if self.opts.profile:
             timing["profile"] = self._profile()

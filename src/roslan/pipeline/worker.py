@@ -30,7 +30,8 @@ component (ground truth 0, then sensors in config order), the same total order a
 single-process merge, so the bags are byte-identical whatever the number of workers.
 
 Children ignore SIGINT (the parent handles Ctrl-C and terminates them), die with the
-parent (``PR_SET_PDEATHSIG`` on Linux) and get EPIPE if the parent goes away anyway.
+parent (``PR_SET_PDEATHSIG`` on Linux) and get EPIPE if the parent goes away anyway: the
+rules of every roslan child process, :mod:`roslan.io.child`.
 """
 
 from __future__ import annotations
@@ -40,13 +41,10 @@ import heapq
 import multiprocessing
 import os
 import pickle
-import signal
-import socket
 import subprocess
 import sys
 import threading
 import time
-import traceback
 from collections import deque
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
@@ -54,7 +52,17 @@ from multiprocessing.connection import Connection
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from roslan.errors import ConfigError, RoslanError
+from roslan.errors import ConfigError
+from roslan.io.child import (
+    JOIN_TIMEOUT_S,
+    ChildError,
+    child_connection,
+    death_message,
+    error_record,
+    raise_error_record,
+    spawn,
+    stop_child,
+)
 from roslan.pipeline.merge import MERGE_KEY, CheckedStream, MergeItem, tagged
 from roslan.pipeline.threads import usable_cpus
 from roslan.sensors.base import Message, SensorConfig
@@ -66,11 +74,13 @@ if TYPE_CHECKING:
     from roslan.trajectory.config import TrajectoryConfig
 
 __all__ = [
+    "MAX_RENDER_HELPERS",
     "QUEUE_BYTES",
     "ByteQueue",
     "WorkerError",
     "WorkerJob",
     "WorkerPool",
+    "plan_helpers",
     "plan_workers",
     "resolve_workers",
     "worker_nice",
@@ -85,51 +95,53 @@ the costliest): on a machine with fewer cores than busy threads, the scheduler t
 favours the worker that finishes last (the event camera in the default job), and the
 others fill the gaps instead of slowing it down. Outputs do not depend on it."""
 
-JOIN_TIMEOUT_S = 30.0
-"""Longest wait for a finished worker to exit, and for a terminated one (then SIGKILL)."""
 
-
-class WorkerError(RoslanError):
+class WorkerError(ChildError):
     """A sensor worker process died or broke the protocol (not a sensor's own error)."""
 
 
-class _RemoteTraceback(Exception):
-    """Carries a worker's traceback text as the ``__cause__`` of a re-raised error."""
-
-    def __init__(self, tb: str) -> None:
-        super().__init__(tb)
-        self.tb = tb
-
-    def __str__(self) -> str:
-        return f"\n\n(in the worker process)\n{self.tb}"
-
-
 # ---------------------------------------------------------------------------- planning
-def resolve_workers(workers: int | str, sensors: Sequence[SensorConfig]) -> int:
-    """Number of worker processes for ``workers`` (``'auto'``, 0 or N >= 1).
+MAX_RENDER_HELPERS = 8
+"""Most render helper processes of one event camera."""
 
-    ``auto``: one per render-heavy sensor, at most the usable CPUs, and none on a
-    single-CPU machine, for a job without render-heavy sensors, or when this process is
-    itself a multiprocessing worker (``roslan dataset`` / Dask already runs simulations
-    side by side: more processes would only oversubscribe the CPUs and memory). ``N``: at
-    most N (never more than there are render-heavy sensors). ``0``: everything in this
-    process.
+
+def _chained(s: SensorConfig) -> bool:
+    """An event camera whose renders split into independent chains (every sampling but
+    brightness, :mod:`roslan.sensors.cameras.event_chains`)."""
+    return s.type == "event_camera" and getattr(s, "sampling", "brightness") != "brightness"
+
+
+def resolve_workers(workers: int | str, sensors: Sequence[SensorConfig]) -> int:
+    """Number of processes beside the main one for ``workers`` (``'auto'``, 0 or N >= 1):
+    sensor worker processes first (at most one per render-heavy sensor), then render
+    helpers of the event cameras (:func:`plan_helpers`).
+
+    ``auto``: one per render-heavy sensor, at most the usable CPUs, plus render helpers
+    up to half the usable CPUs in all (none on machines with fewer than 8 CPUs: there the
+    renders already keep every core busy), and nothing on a single-CPU machine, for a job
+    without render-heavy sensors, or when this process is itself a multiprocessing
+    worker (``roslan dataset`` / Dask already runs simulations side by side: more
+    processes would only oversubscribe the CPUs and memory). ``N``: at most N (never more
+    than the render-heavy sensors plus :data:`MAX_RENDER_HELPERS` per event camera that
+    can use them). ``0``: everything in this process.
     """
     heavy = sum(1 for s in sensors if render_cost(s.type) > 0)
+    helpers = MAX_RENDER_HELPERS * sum(1 for s in sensors if _chained(s))
     if workers == "auto":
         cpus = usable_cpus()
         if cpus < 2 or multiprocessing.parent_process() is not None:
             return 0
-        return min(cpus, heavy)
+        return min(cpus, heavy) + min(helpers, max(0, cpus // 2 - heavy))
     if isinstance(workers, bool) or not isinstance(workers, int) or workers < 0:
         msg = f"workers = {workers!r}: allowed 'auto', 0 (no worker processes) or an integer >= 1"
         raise ConfigError(msg)
-    return min(workers, heavy)
+    return min(workers, heavy + helpers)
 
 
 def plan_workers(sensors: Sequence[SensorConfig], n_workers: int) -> list[list[int]]:
     """Split the render-heavy sensors (indices into ``sensors``) over ``n_workers``
-    processes: costliest first onto the least loaded worker; each group sorted."""
+    processes (at most one per sensor): costliest first onto the least loaded worker;
+    each group sorted."""
     heavy = [i for i, s in enumerate(sensors) if render_cost(s.type) > 0]
     n = min(n_workers, len(heavy))
     if n <= 0:
@@ -141,6 +153,19 @@ def plan_workers(sensors: Sequence[SensorConfig], n_workers: int) -> list[list[i
         groups[k].append(i)
         load[k] += render_cost(sensors[i].type)
     return sorted(sorted(g) for g in groups)
+
+
+def plan_helpers(sensors: Sequence[SensorConfig], n_workers: int) -> dict[str, int]:
+    """Render helpers per event camera (name): the processes of ``n_workers`` beyond one
+    per render-heavy sensor, dealt in turn to the event cameras whose renders form chains
+    (config order), at most :data:`MAX_RENDER_HELPERS` each."""
+    heavy = sum(1 for s in sensors if render_cost(s.type) > 0)
+    chained = [s.name for s in sensors if _chained(s)]
+    out = dict.fromkeys(chained, 0)
+    spare = max(0, n_workers - heavy)
+    for k in range(min(spare, MAX_RENDER_HELPERS * len(chained))):
+        out[chained[k % len(chained)]] += 1
+    return {name: n for name, n in out.items() if n > 0}
 
 
 def worker_nice(groups: Sequence[Sequence[int]], sensors: Sequence[SensorConfig]) -> list[int]:
@@ -177,6 +202,8 @@ class WorkerJob:
     queue_bytes: int = QUEUE_BYTES
     nice: int = 0
     sensor_threads: int = 1
+    render_helpers: tuple[tuple[str, int], ...] = ()
+    """Render helper processes per event camera name (:func:`plan_helpers`)."""
 
 
 class ByteQueue:
@@ -238,18 +265,6 @@ class ByteQueue:
 
 
 # ---------------------------------------------------------------------------- child side
-def _die_with_parent(parent_pid: int) -> None:
-    """Ask Linux to SIGTERM this process when its parent dies; exit if it already has."""
-    if sys.platform.startswith("linux"):
-        with contextlib.suppress(Exception):
-            import ctypes
-
-            libc = ctypes.CDLL(None, use_errno=True)
-            libc.prctl(1, int(signal.SIGTERM), 0, 0, 0)  # PR_SET_PDEATHSIG
-    if os.getppid() != parent_pid:
-        os._exit(1)
-
-
 def _sender(conn: Connection, queue: ByteQueue) -> None:
     try:
         while True:
@@ -259,17 +274,6 @@ def _sender(conn: Connection, queue: ByteQueue) -> None:
             conn.send_bytes(blob)
     except BaseException as err:  # parent gone (EPIPE): stop the producer
         queue.fail(err)
-
-
-def _error_record(err: BaseException) -> tuple[Any, ...]:
-    tb = "".join(traceback.format_exception(err))
-    blob: bytes | None
-    try:
-        blob = pickle.dumps(err, protocol=pickle.HIGHEST_PROTOCOL)
-        pickle.loads(blob)  # must come back whole in the parent
-    except Exception:
-        blob = None
-    return ("error", blob, type(err).__name__, str(err), tb)
 
 
 def _run_job(job: WorkerJob, put: Callable[[Any], None]) -> None:
@@ -292,6 +296,7 @@ def _run_job(job: WorkerJob, put: Callable[[Any], None]) -> None:
         base_dir=job.base_dir,
         scene=job.scene,
         sensor_threads=job.sensor_threads,
+        render_helpers=dict(job.render_helpers),
     )
     stores = [MessageStore(Flavor(f)) for f in job.formats]
     sensors = [cls(job.sensors[i]) for cls, i in zip(job.classes, job.assigned, strict=True)]
@@ -335,12 +340,7 @@ def _run_job(job: WorkerJob, put: Callable[[Any], None]) -> None:
 
 def main(argv: Sequence[str] | None = None) -> None:
     """Child entry point: ``python -c 'from roslan.pipeline.worker import main; main()' FD PID``."""
-    args = list(sys.argv[1:] if argv is None else argv)
-    fd, parent_pid = int(args[0]), int(args[1])
-    signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent handles Ctrl-C and stops us
-    signal.signal(signal.SIGTERM, signal.SIG_DFL)
-    _die_with_parent(parent_pid)
-    conn = Connection(fd)
+    conn = child_connection(argv)
     queue: ByteQueue | None = None
     sender: threading.Thread | None = None
     code = 0
@@ -352,7 +352,7 @@ def main(argv: Sequence[str] | None = None) -> None:
         _run_job(job, queue.put)
     except BaseException as err:
         code = 1
-        record = pickle.dumps(_error_record(err), protocol=pickle.HIGHEST_PROTOCOL)
+        record = pickle.dumps(error_record(err), protocol=pickle.HIGHEST_PROTOCOL)
         with contextlib.suppress(BaseException):
             if queue is not None:
                 queue.put(record)
@@ -391,26 +391,7 @@ class _Worker:
 
     def __init__(self, names: list[str]) -> None:
         self.names = names
-        parent_sock, child_sock = socket.socketpair()
-        self.conn = Connection(parent_sock.detach())
-        child_fd = child_sock.detach()
-        env = dict(os.environ)
-        # the child imports what this process can (tests, source trees on sys.path)
-        env["PYTHONPATH"] = os.pathsep.join(p or os.getcwd() for p in sys.path)
-        try:
-            self.proc = subprocess.Popen(
-                [sys.executable, "-c", _CHILD_CODE, str(child_fd), str(os.getpid())],
-                pass_fds=(child_fd,),
-                stdin=subprocess.DEVNULL,
-                stdout=subprocess.DEVNULL,
-                env=env,
-            )
-        except OSError as err:
-            self.conn.close()
-            msg = f"cannot start a sensor worker process ({sys.executable}): {err}"
-            raise WorkerError(msg) from err
-        finally:
-            os.close(child_fd)  # only the child holds its end: its death means EOF here
+        self.proc, self.conn = spawn(_CHILD_CODE, "a sensor worker process")
         self.profile: dict[str, dict[str, Any]] = {}
         self.wait_s = 0.0
         self.done = False
@@ -425,18 +406,9 @@ class _Worker:
             raise self._died() from err
 
     def _died(self) -> WorkerError:
-        try:
-            code = self.proc.wait(JOIN_TIMEOUT_S)
-        except subprocess.TimeoutExpired:
-            code = None
-        how = (
-            "is stuck"
-            if code is None
-            else f"was killed by signal {-code}"
-            if code < 0
-            else f"exited with status {code}"
+        return WorkerError(
+            death_message(self.proc, self.describe(), "before finishing its sensors")
         )
-        return WorkerError(f"{self.describe()} {how} before finishing its sensors")
 
     def records(self, fmts: Sequence[str]) -> Iterator[MergeItem]:
         """This worker's messages as merge items; ends after its ``done`` record."""
@@ -460,14 +432,7 @@ class _Worker:
                 self.done = True
                 return
             elif kind == "error":
-                _, exc_blob, type_name, text, tb = rec
-                exc: BaseException | None = None
-                if exc_blob is not None:
-                    with contextlib.suppress(Exception):
-                        exc = loads(exc_blob)
-                if exc is None:
-                    exc = WorkerError(f"{self.describe()} failed: {type_name}: {text}")
-                raise exc from _RemoteTraceback(tb)
+                raise_error_record(rec, self.describe(), "the worker process")
             else:  # pragma: no cover - protocol bug
                 msg = f"{self.describe()} sent an unknown record {kind!r}"
                 raise WorkerError(msg)
@@ -486,17 +451,7 @@ class _Worker:
 
     def kill(self) -> None:
         """Stop the child now (SIGTERM, then SIGKILL) and reap it."""
-        with contextlib.suppress(Exception):
-            self.conn.close()
-        if self.proc.poll() is None:
-            with contextlib.suppress(ProcessLookupError):
-                self.proc.terminate()
-            try:
-                self.proc.wait(5.0)
-            except subprocess.TimeoutExpired:
-                with contextlib.suppress(ProcessLookupError):
-                    self.proc.kill()
-                self.proc.wait(JOIN_TIMEOUT_S)
+        stop_child(self.proc, self.conn)
 
 
 class WorkerPool:

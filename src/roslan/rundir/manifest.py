@@ -93,6 +93,8 @@ class Timing(TypedDict):
     worker_sensors: list[list[str]]
     sensor_threads: NotRequired[int]
     """Threads of each frame/scan sensor for its per-instant work."""
+    render_helpers: NotRequired[dict[str, int]]
+    """Render helper processes per event camera (time-parallel chains)."""
     profile: NotRequired[dict[str, Any]]
     """Per-component seconds (``--profile``)."""
     overview_s: NotRequired[float]

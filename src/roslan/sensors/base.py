@@ -181,6 +181,11 @@ class SimContext(Protocol):
         """The process-wide Embree ray caster of the scene (created on first use)."""
         ...
 
+    def render_helpers(self, name: str) -> int:
+        """Render helper processes sensor ``name`` may start for its time-parallel
+        renders (:mod:`roslan.sensors.cameras.event_chains`); outputs do not depend on it."""
+        ...
+
 
 @runtime_checkable
 class Sensor(Protocol):

@@ -53,6 +53,7 @@ from roslan.sensors.base import (
     TopicSpec,
     sample_times_ns,
 )
+from roslan.sensors.cameras.event_chains import ChainFarm, brightness_instants
 from roslan.sensors.cameras.event_config import EventCameraConfig
 from roslan.sensors.cameras.event_stream import AfterRender
 from roslan.sensors.cameras.event_truth import DepthH5Writer, FlowPngWriter
@@ -152,9 +153,14 @@ class EventCamera:
         self.stats: dict[str, float] = {}
         self._T_body_cam: F64 | None = None
         self._stage: BackgroundSink | None = None
+        self._farm: ChainFarm | None = None
         self.pipelined = True
         """Run ESIM, packets and messages on a helper thread beside the renders (False:
         everything on the calling thread; same stream either way)."""
+        self.render_here = True
+        """With render helpers, render chains here while none is ready (False: only the
+        helpers render, :class:`~roslan.sensors.cameras.event_chains.ChainFarm`; same
+        stream either way)."""
 
     # -------------------------------------------------------------- interface
     @property
@@ -222,6 +228,9 @@ class EventCamera:
         try:
             yield from self._stream(ctx)
         except BaseException:  # failed or abandoned run: no more writes into its folder
+            if self._farm is not None:
+                farm, self._farm = self._farm, None
+                farm.kill()
             if self._stage is not None:
                 stage, self._stage = self._stage, None
                 stage.abort()
@@ -232,7 +241,7 @@ class EventCamera:
 
     def _stream(self, ctx: SimContext) -> Iterator[Message]:
         c = self.config
-        cam = self.camera
+        self.stats = {}
         end = int(ctx.trajectory.duration_ns)
         info_times = sample_times_ns(c.rate, end)
         gt_rate = c.ground_truth_rate or c.rate
@@ -254,57 +263,40 @@ class EventCamera:
         stage = None
         if pipelined:
             stage = self._stage = BackgroundSink(f"{c.name}-esim", backlog=_STAGE_BACKLOG)
-        need_depth = c.sampling == "optical_flow" or c.optic_flow or c.depthmap
-        gt_set = set(gt_times.tolist())
         n_frames = n_capped = 0
         t = 0
-        prev_L: F64 | None = None
-        t_prev = 0
-        while True:
-            lum, depth, v, w = self.render(ctx, t, need_depth=need_depth)
+        farm: ChainFarm | None = None
+        if c.sampling == "brightness":  # the next instant reads ESIM's state
+            instants = brightness_instants(self, ctx, sampler, set(gt_times.tolist()), post.gen)
+        else:  # independent chains, rendered here and by render helper processes
+            helpers = ctx.render_helpers(c.name)
+            farm = ChainFarm(self, ctx, sampler, gt_times, helpers, render_here=self.render_here)
+            self._farm = farm
+            instants = farm.instants()
+        for inst in instants:
+            t = inst.t
             n_frames += 1
-            flow = None
-            speed = 0.0  # max |flow|, px/s (optical_flow sampling)
-            if depth is not None and c.optic_flow and t in gt_set:
-                flow = cam.flow(depth, v, w)
-                speed = float(np.max(np.hypot(flow[..., 0], flow[..., 1])))
-            elif depth is not None and c.sampling == "optical_flow":
-                speed = cam.max_flow_speed(depth, v, w)
+            n_capped += inst.capped
             if stage is None:
-                post.step(t, lum, depth, flow)
+                post.step(t, inst.lum, inst.depth, inst.flow)
             else:
-                stage.submit(post.step, t, lum, depth, flow)
+                stage.submit(post.step, t, inst.lum, inst.depth, inst.flow)
             yield from post.take()
-            # next instant: ESIM's lambda / max rate of change
-            if c.sampling == "optical_flow":
-                rate = speed
-            elif c.sampling == "brightness":
-                L = post.gen.lp.copy()
-                if prev_L is None:
-                    rate = float("inf")  # no estimate yet: smallest step
-                else:
-                    rate = float(np.max(np.abs(L - prev_L))) / ((t - t_prev) * 1e-9)
-                prev_L, t_prev = L, t
-            else:
-                rate = 0.0
-            if 0 < rate < float("inf") and sampler.lam / rate * 1e9 < sampler.min_dt_ns:
-                n_capped += 1
-            nxt = sampler.next_ns(t, rate)
-            if nxt is None:
-                break
-            t = nxt
+        if farm is not None:
+            self._farm = None
+            farm.close()  # the helpers exit (and any failure to is an error)
         if stage is not None:
             self._stage = None
             stage.close()  # the instants still queued, and any error of one
         post.finish(t)
         yield from post.take()
-        self.stats = {
-            "frames": n_frames,
-            "events": post.n_events,
-            "dropped": post.gen.n_dropped,
-            "capped": n_capped,
-            "duration_s": end * 1e-9,
-        }
+        self.stats.update(
+            frames=n_frames,
+            events=post.n_events,
+            dropped=post.gen.n_dropped,
+            capped=n_capped + self.stats.get("capped", 0),
+            duration_s=end * 1e-9,
+        )
 
     def _open_files(self, ctx: SimContext) -> None:
         """Open the dataset files: events, APS listing, ground truth."""

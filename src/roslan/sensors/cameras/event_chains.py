@@ -1,0 +1,406 @@
+"""Time-parallel event camera: its render instants as independent chains.
+
+ESIM's adaptive sampler (:class:`~roslan.events.sampling.AdaptiveSampler`) steps from an
+instant by ``lambda / max |flow|`` of that instant's render, but never past the next
+*forced* instant (the camera_info / APS stamps and the ground-truth stamps), which it
+always samples exactly. So the instants from one forced instant up to the next, a
+**chain**, depend only on the renders inside the chain: chain ``k`` starts at ``s_k``
+(0, then every forced instant) and ends before ``s_(k+1)`` (the last one at the
+trajectory's end). Chains can be rendered by any process, in any order; in time order
+they are the serial sampler's instants exactly, and every render is the same pixels in
+every process. So every output is byte-identical whatever the number of render helpers,
+and ESIM still consumes the renders in time order.
+
+* :func:`render_chain` renders one chain: each instant's luminance, its flow speed, the
+  step to the next instant, and what the event stream needs of it (ground-truth flow
+  and depth at ground-truth instants only).
+* :class:`ChainFarm` hands chains to ``helpers`` render helper processes (fresh
+  interpreters with their own OpenGL context, :mod:`roslan.io.child`) and yields the
+  rendered instants in time order. This process renders a chain itself only while no
+  helper is ready (they take a few seconds to start): once they are, it only feeds their
+  renders to ESIM, packets and files, which are then its whole work (the critical path
+  on a GPU machine, docs/performance.md). At most :data:`IN_FLIGHT` chains per helper
+  and a look-ahead of ``IN_FLIGHT * (helpers + 1) + 2`` chains are outstanding (bounded
+  memory: a DAVIS346 chain is ~3 MB).
+
+Brightness sampling reads ESIM's state between renders, so it has no chains: the event
+camera renders it in one sequence (:func:`brightness_instants`).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import pickle
+import queue
+import subprocess
+import threading
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass
+from multiprocessing.connection import Connection
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, NamedTuple
+
+import numpy as np
+from numpy.typing import NDArray
+
+from roslan.events.sampling import AdaptiveSampler
+from roslan.io.child import (
+    JOIN_TIMEOUT_S,
+    ChildError,
+    child_connection,
+    death_message,
+    error_record,
+    raise_error_record,
+    spawn,
+    stop_child,
+)
+from roslan.sensors.base import SimContext
+
+if TYPE_CHECKING:
+    from roslan.events.model import EventGenerator
+    from roslan.scene.model import Scene
+    from roslan.sensors.cameras.event import EventCamera
+    from roslan.sensors.cameras.event_config import EventCameraConfig
+    from roslan.trajectory.base import Trajectory
+
+__all__ = [
+    "IN_FLIGHT",
+    "ChainFarm",
+    "ChainJob",
+    "Instant",
+    "brightness_instants",
+    "chain_starts",
+    "helper_main",
+    "render_chain",
+]
+
+IN_FLIGHT = 2
+"""Chains a render helper holds at most (assigned, not yet taken by the event stream)."""
+
+_HELPER_CODE = "from roslan.sensors.cameras.event_chains import helper_main; helper_main()"
+
+F32 = NDArray[np.float32]
+
+
+class Instant(NamedTuple):
+    """One rendered instant, as the event stream consumes it."""
+
+    t: int
+    lum: F32
+    depth: F32 | None
+    """Ground-truth depth (only at ground-truth instants of a camera with ``depthmap``)."""
+    flow: F32 | None
+    """Ground-truth flow (only at ground-truth instants of a camera with ``optic_flow``)."""
+    capped: bool
+    """The step after this instant was cut to ``1 / max_rate`` (ESIM's lambda not met)."""
+
+
+def chain_starts(sampler: AdaptiveSampler) -> list[int]:
+    """The first instant of every chain: 0, then every forced instant (ns)."""
+    return [0, *sampler.forced.tolist()]
+
+
+def _next(sampler: AdaptiveSampler, t: int, rate: float) -> tuple[int | None, bool]:
+    """The instant after ``t`` given the max rate of change there, and whether the step
+    was capped by ``max_rate``."""
+    capped = 0 < rate < math.inf and sampler.lam / rate * 1e9 < sampler.min_dt_ns
+    return sampler.next_ns(t, rate), capped
+
+
+def render_chain(
+    sensor: EventCamera,
+    ctx: SimContext,
+    sampler: AdaptiveSampler,
+    gt_set: set[int] | frozenset[int],
+    start: int,
+    stop: int | None,
+) -> list[Instant]:
+    """The instants from ``start`` until the sampler reaches ``stop`` (the next chain's
+    start; None: the trajectory's end), rendered (optical-flow or fixed sampling)."""
+    c, cam = sensor.config, sensor.camera
+    need_depth = c.sampling == "optical_flow" or c.optic_flow or c.depthmap
+    out: list[Instant] = []
+    t: int | None = start
+    while t is not None and (stop is None or t < stop):
+        lum, depth, v, w = sensor.render(ctx, t, need_depth=need_depth)
+        gt = t in gt_set
+        flow = None
+        speed = 0.0  # max |flow|, px/s
+        if depth is not None and c.optic_flow and gt:
+            flow = cam.flow(depth, v, w)
+            speed = float(np.max(np.hypot(flow[..., 0], flow[..., 1])))
+        elif depth is not None and c.sampling == "optical_flow":
+            speed = cam.max_flow_speed(depth, v, w)
+        nxt, capped = _next(sampler, t, speed if c.sampling == "optical_flow" else 0.0)
+        out.append(Instant(t, lum, depth if gt and c.depthmap else None, flow, capped))
+        t = nxt
+    return out
+
+
+def brightness_instants(
+    sensor: EventCamera,
+    ctx: SimContext,
+    sampler: AdaptiveSampler,
+    gt_set: set[int],
+    gen: EventGenerator,
+) -> Iterator[Instant]:
+    """The instants of brightness sampling, one at a time: the step after an instant reads
+    ESIM's log intensity (``gen``) after the consumer has fed it that instant's render."""
+    c, cam = sensor.config, sensor.camera
+    need_depth = c.optic_flow or c.depthmap
+    prev_L: NDArray[np.float64] | None = None
+    t_prev = 0
+    t: int | None = 0
+    while t is not None:
+        lum, depth, v, w = sensor.render(ctx, t, need_depth=need_depth)
+        gt = t in gt_set
+        flow = cam.flow(depth, v, w) if depth is not None and c.optic_flow and gt else None
+        inst = Instant(t, lum, depth if gt and c.depthmap else None, flow, False)
+        yield inst  # the consumer runs ESIM on it before asking for the next
+        L = gen.lp.copy()
+        if prev_L is None:
+            rate = math.inf  # no estimate yet: smallest step
+        else:
+            rate = float(np.max(np.abs(L - prev_L))) / ((t - t_prev) * 1e-9)
+        prev_L, t_prev = L, t
+        t, capped = _next(sampler, t, rate)
+        if capped:
+            sensor.stats["capped"] = sensor.stats.get("capped", 0) + 1
+
+
+# ---------------------------------------------------------------------------- helpers
+@dataclass(frozen=True)
+class ChainJob:
+    """What a render helper needs (pickled to it)."""
+
+    sensor_class: Any
+    config: EventCameraConfig
+    trajectory: Trajectory
+    scene: Scene
+    sampler: AdaptiveSampler
+    gt_times: tuple[int, ...]
+
+
+def helper_main(argv: Sequence[str] | None = None) -> None:
+    """Render helper entry point (``python -c ... FD PID``): gets a :class:`ChainJob`,
+    says ``("ready",)`` once its renderer exists, then answers each ``("chain", k, start,
+    stop)`` with ``("chain", k, instants)`` until ``("stop",)``."""
+    import os
+
+    from roslan.pipeline.context import Context
+
+    conn = child_connection(argv)
+    code = 0
+    try:
+        job: ChainJob = pickle.loads(conn.recv_bytes())
+        sensor = job.sensor_class(job.config)
+        # (renders only: an OUTDIR that cannot be written to)
+        ctx = Context(job.trajectory, Path(os.devnull), scene=job.scene)
+        ctx.renderer()  # the GL context and the scene's buffers, before saying ready
+        gt_set = frozenset(job.gt_times)
+        dumps = pickle.dumps
+        conn.send_bytes(dumps(("ready",)))
+        while True:
+            cmd = pickle.loads(conn.recv_bytes())
+            if cmd[0] == "stop":
+                break
+            _, k, start, stop = cmd
+            chain = render_chain(sensor, ctx, job.sampler, gt_set, start, stop)
+            conn.send_bytes(dumps(("chain", k, chain), protocol=pickle.HIGHEST_PROTOCOL))
+    except BaseException as err:
+        code = 1
+        with contextlib.suppress(BaseException):
+            conn.send_bytes(pickle.dumps(error_record(err), protocol=pickle.HIGHEST_PROTOCOL))
+    with contextlib.suppress(BaseException):
+        conn.close()
+    os._exit(code)  # skip interpreter teardown (EGL exit handlers add nothing)
+
+
+class _Helper:
+    """One render helper process (owner side) and the thread reading its answers."""
+
+    def __init__(self, name: str, index: int, inbox: queue.Queue[tuple[_Helper, Any]]) -> None:
+        self.name = name
+        self.proc: subprocess.Popen[bytes]
+        self.conn: Connection
+        self.proc, self.conn = spawn(_HELPER_CODE, f"a render helper process of {name}")
+        self.index = index
+        self.ready = False
+        self.in_flight = 0
+        self.inbox = inbox
+        self.reader = threading.Thread(target=self._read, name=f"{name}-helper{index}", daemon=True)
+
+    def describe(self) -> str:
+        return f"render helper {self.index} (pid {self.proc.pid}) of event camera {self.name}"
+
+    def start(self, job: ChainJob) -> None:
+        self.send(job)
+        self.reader.start()
+
+    def send(self, obj: Any) -> None:
+        try:
+            self.conn.send_bytes(pickle.dumps(obj, protocol=pickle.HIGHEST_PROTOCOL))
+        except OSError as err:
+            raise self.died() from err
+
+    def died(self) -> ChildError:
+        return ChildError(death_message(self.proc, self.describe(), "while rendering"))
+
+    def _read(self) -> None:
+        try:
+            while True:
+                rec = pickle.loads(self.conn.recv_bytes())
+                self.inbox.put((self, rec))
+                if rec[0] == "error":
+                    return
+        except (EOFError, OSError):
+            self.inbox.put((self, ("eof",)))
+
+    def finish(self) -> None:
+        """Ask it to stop and reap it (ChildError if it fails to exit cleanly)."""
+        self.send(("stop",))
+        try:
+            code = self.proc.wait(JOIN_TIMEOUT_S)
+        except subprocess.TimeoutExpired:
+            self.kill()
+            code = 0  # its chains were all delivered; only the exit hung
+        self.reader.join(JOIN_TIMEOUT_S)
+        self.conn.close()
+        if code != 0:
+            raise ChildError(f"{self.describe()} exited with status {code} after finishing")
+
+    def kill(self) -> None:
+        stop_child(self.proc, self.conn)
+
+
+class ChainFarm:
+    """The rendered instants of an optical-flow or fixed-rate event camera, in time order,
+    from this process and ``helpers`` render helper processes (see the module docstring).
+
+    ``render_here=False``: this process renders nothing, not even while its helpers start
+    (benchmarks, tests; with no helper it still renders everything itself). Use as a
+    context manager: leaving it stops the helpers (killed on an error)."""
+
+    def __init__(
+        self,
+        sensor: EventCamera,
+        ctx: SimContext,
+        sampler: AdaptiveSampler,
+        gt_times: NDArray[np.int64],
+        helpers: int,
+        *,
+        render_here: bool = True,
+    ) -> None:
+        self.sensor, self.ctx, self.sampler = sensor, ctx, sampler
+        self.gt_set = frozenset(int(t) for t in gt_times.tolist())
+        self.starts = chain_starts(sampler)
+        self.inbox: queue.Queue[tuple[_Helper, Any]] = queue.Queue()
+        self.helpers: list[_Helper] = []
+        self.results: dict[int, list[Instant]] = {}
+        self.pending: dict[int, _Helper] = {}
+        self.next_k = 0  # first chain not yet given to anybody
+        self.lookahead = IN_FLIGHT * (helpers + 1) + 2
+        self.rendered_here = 0
+        n = min(int(helpers), len(self.starts))
+        self.render_here = render_here or n == 0
+        if n > 0:
+            job = ChainJob(
+                type(sensor),
+                sensor.config,
+                ctx.trajectory,
+                ctx.scene,
+                sampler,
+                tuple(sorted(self.gt_set)),
+            )
+            try:
+                for i in range(n):
+                    self.helpers.append(_Helper(sensor.config.name, i, self.inbox))
+                for h in self.helpers:
+                    h.start(job)
+            except BaseException:
+                self.kill()
+                raise
+
+    def __enter__(self) -> ChainFarm:
+        return self
+
+    def __exit__(self, exc_type: object, exc: object, tb: object) -> None:
+        if exc_type is None:
+            self.close()
+        else:
+            self.kill()
+
+    # ------------------------------------------------------------------ the stream
+    def instants(self) -> Iterator[Instant]:
+        """Every rendered instant, in time order."""
+        for k in range(len(self.starts)):
+            yield from self._chain(k)
+
+    def _chain(self, k: int) -> list[Instant]:
+        while True:
+            self._drain(block=False)
+            self._assign(k)
+            if k in self.results:
+                return self.results.pop(k)
+            if self.render_here and k == self.next_k:  # no helper is ready to take it
+                self.next_k += 1
+                return self._render_here(k)
+            self._drain(block=True)
+
+    def _render_here(self, k: int) -> list[Instant]:
+        self.rendered_here += 1
+        stop = self.starts[k + 1] if k + 1 < len(self.starts) else None
+        return render_chain(self.sensor, self.ctx, self.sampler, self.gt_set, self.starts[k], stop)
+
+    def _assign(self, k: int) -> None:
+        """Give ready helpers chains, up to the look-ahead past chain ``k``."""
+        limit = min(len(self.starts), k + self.lookahead)
+        for h in self.helpers:
+            while h.ready and h.in_flight < IN_FLIGHT and self.next_k < limit:
+                j = self.next_k
+                self.next_k += 1
+                stop = self.starts[j + 1] if j + 1 < len(self.starts) else None
+                h.send(("chain", j, self.starts[j], stop))
+                h.in_flight += 1
+                self.pending[j] = h
+
+    def _drain(self, *, block: bool) -> None:
+        """Take the helpers' answers (wait for one if ``block``)."""
+        while True:
+            try:
+                h, rec = self.inbox.get(block=block, timeout=None)
+            except queue.Empty:
+                return
+            block = False
+            kind = rec[0]
+            if kind == "ready":
+                h.ready = True
+            elif kind == "chain":
+                _, j, chain = rec
+                self.results[j] = chain
+                self.pending.pop(j, None)
+                h.in_flight -= 1
+            elif kind == "error":
+                raise_error_record(rec, h.describe(), f"{h.describe()}")
+            else:  # eof: it died
+                raise h.died()
+
+    # ------------------------------------------------------------------ the end
+    def close(self) -> None:
+        """Stop the helpers after the last chain (ChildError if one fails)."""
+        helpers, self.helpers = self.helpers, []
+        try:
+            for h in helpers:
+                h.finish()
+        except BaseException:
+            for h in helpers:
+                h.kill()
+            raise
+        self.sensor.stats["chains"] = len(self.starts)
+        self.sensor.stats["chains_rendered_here"] = self.rendered_here
+
+    def kill(self) -> None:
+        helpers, self.helpers = self.helpers, []
+        for h in helpers:
+            h.kill()
