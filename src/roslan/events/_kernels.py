@@ -311,9 +311,7 @@ def gather_events(order, idx, t, p, width, to, xo, yo, po):  # type: ignore[no-u
 _PAIRS = np.array([[48 + i // 10, 48 + i % 10] for i in range(100)], np.uint8)
 """(100, 2) ASCII digits of 00..99."""
 
-_LEFT3 = np.array(
-    [[ord(c) for c in f"{i:<3d}"] + [len(str(i))] for i in range(1000)], np.uint8
-)
+_LEFT3 = np.array([[ord(c) for c in f"{i:<3d}"] + [len(str(i))] for i in range(1000)], np.uint8)
 """(1000, 4): the digits of 0..999 left-aligned in 3 bytes (then spaces), and their count."""
 
 _ZERO3 = np.array([[ord(c) for c in f"{i:03d}"] + [3] for i in range(1000)], np.uint8)
@@ -391,6 +389,7 @@ def format_txt(t, x, y, p, out):  # type: ignore[no-untyped-def]
         out[k + _2] = 10
         k += np.uint64(3)
     return k
+
 
 @kernel
 def pack_events(t, offset, x, y, p, first, rest):  # type: ignore[no-untyped-def]
