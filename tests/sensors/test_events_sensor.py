@@ -106,6 +106,13 @@ def test_event_array_bytes_match_rosbags(
         flavor, 1_700_000_000_123_456_789, frame_id, 720, 1280, t, x, y, p, seq=3
     )
     assert got == want
+    # the sensor's form: trajectory times plus an offset, its uint16 / int8 columns
+    u16 = np.uint16
+    got_off = pack_event_array(
+        flavor, 1_700_000_000_123_456_789, frame_id, 720, 1280, t - t0, x.astype(u16),
+        y.astype(u16), p.astype(np.int8), seq=3, t_offset=t0,
+    )  # fmt: skip
+    assert got_off == want
     back = (
         store.typestore.deserialize_ros1(got, EVENT_ARRAY)
         if store.is_ros1

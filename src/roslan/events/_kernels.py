@@ -311,29 +311,52 @@ def gather_events(order, idx, t, p, width, to, xo, yo, po):  # type: ignore[no-u
 _PAIRS = np.array([[48 + i // 10, 48 + i % 10] for i in range(100)], np.uint8)
 """(100, 2) ASCII digits of 00..99."""
 
+_LEFT3 = np.array([[ord(c) for c in f"{i:<3d}"] + [len(str(i))] for i in range(1000)], np.uint8)
+"""(1000, 4): the digits of 0..999 left-aligned in 3 bytes (then spaces), and their count."""
+
+_ZERO3 = np.array([[ord(c) for c in f"{i:03d}"] + [3] for i in range(1000)], np.uint8)
+"""(1000, 4): the digits of 000..999, zero-padded, and their count (3)."""
+
+# The formatter's byte positions are unsigned (np.uint64, constants too: an unsigned index
+# skips numba's negative-index wrap-around, a select per store).
+_1 = np.uint64(1)
+_2 = np.uint64(2)
+
+
+@numba.njit(inline="always")
+def _put3(out, k, row):  # type: ignore[no-untyped-def]
+    """The three bytes of a table ``row`` at ``out[k:]``; the index after its ``row[3]``
+    digits (a left-aligned number's trailing spaces are overwritten by what follows)."""
+    out[k] = row[0]
+    out[k + _1] = row[1]
+    out[k + _2] = row[2]
+    return k + np.uint64(row[3])
+
 
 @numba.njit(inline="always")
 def _put_int(out, k, v, pairs):  # type: ignore[no-untyped-def]
     """Decimal digits of ``v >= 0`` at ``out[k:]``; returns the index after them."""
-    nd = 1
+    if v < 1000:  # (nearly every value: a table row, no digit loop)
+        return _put3(out, k, _LEFT3[v])
+    nd = np.uint64(1)
     p10 = np.int64(10)
-    while nd < 19 and v >= p10:
-        nd += 1
+    while nd < np.uint64(19) and v >= p10:
+        nd += _1
         p10 *= 10
     e = k + nd
     j = e
     while v >= 100:
         q = v // 100
         r = v - q * 100
-        out[j - 2] = pairs[r, 0]
-        out[j - 1] = pairs[r, 1]
+        out[j - _2] = pairs[r, 0]
+        out[j - _1] = pairs[r, 1]
         v = q
-        j -= 2
+        j -= _2
     if v >= 10:
-        out[j - 2] = pairs[v, 0]
-        out[j - 1] = pairs[v, 1]
+        out[j - _2] = pairs[v, 0]
+        out[j - _1] = pairs[v, 1]
     else:
-        out[j - 1] = 48 + v
+        out[j - _1] = 48 + v
     return e
 
 
@@ -342,27 +365,54 @@ def format_txt(t, x, y, p, out):  # type: ignore[no-untyped-def]
     """``'%d.%09d %d %d %d\\n'`` per event into ``out`` (uint8, long enough); t, x, y
     non-negative integers (t ns). Returns the number of bytes written."""
     pairs = _PAIRS
-    k = 0
+    zero3 = _ZERO3
+    k = np.uint64(0)
     for j in range(t.shape[0]):
         v = t[j]
         sec = v // 1_000_000_000
         frac = v - sec * 1_000_000_000
         k = _put_int(out, k, sec, pairs)
         out[k] = 46  # '.'
-        # nine digits, zero-padded: four pairs and a leading digit
-        for e in (k + 9, k + 7, k + 5, k + 3):
-            q = frac // 100
-            r = frac - q * 100
-            out[e - 1] = pairs[r, 0]
-            out[e] = pairs[r, 1]
-            frac = q
-        out[k + 1] = 48 + frac
-        out[k + 10] = 32
-        k = _put_int(out, k + 11, np.int64(x[j]), pairs)
+        # nine digits, zero-padded: three groups of three
+        hi = frac // 1_000_000
+        rest = frac - hi * 1_000_000
+        mid = rest // 1000
+        _put3(out, k + _1, zero3[hi])
+        _put3(out, k + np.uint64(4), zero3[mid])
+        _put3(out, k + np.uint64(7), zero3[rest - mid * 1000])
+        out[k + np.uint64(10)] = 32
+        k = _put_int(out, k + np.uint64(11), np.int64(x[j]), pairs)
         out[k] = 32
-        k = _put_int(out, k + 1, np.int64(y[j]), pairs)
+        k = _put_int(out, k + _1, np.int64(y[j]), pairs)
         out[k] = 32
-        out[k + 1] = 49 if p[j] > 0 else 48
-        out[k + 2] = 10
-        k += 3
+        out[k + _1] = 49 if p[j] > 0 else 48
+        out[k + _2] = 10
+        k += np.uint64(3)
     return k
+
+
+@kernel
+def pack_events(t, offset, x, y, p, first, rest):  # type: ignore[no-untyped-def]
+    """``dvs_msgs/Event`` records (structured arrays, little endian): event 0 into
+    ``first`` (1,), the others into ``rest`` (N - 1,) (fields ``x, y, sec, nsec, p``; any
+    padding between them is left as it is). Stamps ``t + offset`` ns split into sec / nsec
+    (floor; low 32 bits of each), x, y (low 16 bits), polarity 1 where ``p > 0``. One
+    store per field (the structured-array assignments of NumPy take a pass per field)."""
+    if t.shape[0]:
+        _pack_records(t[:1], offset, x[:1], y[:1], p[:1], first)
+        _pack_records(t[1:], offset, x[1:], y[1:], p[1:], rest)
+
+
+@numba.njit(inline="always")
+def _pack_records(t, offset, x, y, p, rec):  # type: ignore[no-untyped-def]
+    ns = np.int64(1_000_000_000)
+    m32 = np.int64(0xFFFFFFFF)
+    for j in range(t.shape[0]):
+        tt = t[j] + offset
+        sec = tt // ns
+        r = rec[j]
+        r.x = np.uint16(np.int64(x[j]) & 0xFFFF)
+        r.y = np.uint16(np.int64(y[j]) & 0xFFFF)
+        r.sec = np.uint32(sec & m32)
+        r.nsec = np.uint32((tt - sec * ns) & m32)
+        r.p = 1 if p[j] > 0 else 0

@@ -62,9 +62,15 @@ def format_events_txt(
 
 
 def _format_txt(
-    t_ns: NDArray[np.int64], x: NDArray[Any], y: NDArray[Any], p: NDArray[Any]
+    t_ns: NDArray[np.int64],
+    x: NDArray[Any],
+    y: NDArray[Any],
+    p: NDArray[Any],
+    buf: NDArray[np.uint8] | None = None,
 ) -> NDArray[np.uint8]:
-    """As :func:`format_events_txt`, the bytes as a uint8 array (no copy to ``bytes``)."""
+    """As :func:`format_events_txt`, the bytes as a uint8 array (no copy to ``bytes``):
+    a view of ``buf`` when it is long enough (a buffer reused from call to call: no fresh
+    pages to fault in each time)."""
     n = int(t_ns.shape[0])
     if n == 0:
         return np.zeros(0, np.uint8)
@@ -79,7 +85,7 @@ def _format_txt(
     # bytes a line at most: seconds '.' 9 digits, ' x', ' y', ' p\n'
     width = len(str(int(t.max()) // _NS)) + 10 + 2 + len(str(int(xs.max())))
     width += len(str(int(ys.max()))) + 3
-    out = np.empty(n * width, np.uint8)
+    out = buf if buf is not None and buf.shape[0] >= n * width else np.empty(n * width, np.uint8)
     k = _kernels.format_txt(t, xs, ys, np.ascontiguousarray(p), out)
     return out[:k]
 
@@ -131,12 +137,17 @@ class EventTextWriter:
         self.path = path
         self._fh = path.open("wb")
         self.count = 0
+        self._buf = np.empty(0, np.uint8)  # the text of a batch, reused
 
     def write(self, batch: EventBatch) -> None:
-        step = 1 << 18  # bounds the temporary character matrix
+        step = 1 << 18  # bounds the text buffer
         for a in range(0, batch.size, step):
             b = batch.slice(a, a + step)
-            self._fh.write(_format_txt(b.t, b.x, b.y, b.p).data)
+            text = _format_txt(b.t, b.x, b.y, b.p, self._buf)
+            self._fh.write(text.data)  # (copied by the write: the buffer is free again)
+            base = text.base
+            if isinstance(base, np.ndarray) and base.shape[0] > self._buf.shape[0]:
+                self._buf = base  # a larger buffer was needed: keep it
         self.count += batch.size
 
     def close(self) -> None:

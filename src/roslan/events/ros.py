@@ -1,7 +1,8 @@
 """``dvs_msgs/EventArray`` (rpg_dvs_ros) wire bytes packed straight from NumPy arrays.
 
-One structured-dtype assignment per packet, never one Python object per event; the
-bytes equal what ``rosbags`` serializes for the same message (tests compare them).
+One numba pass per packet writes the events' bytes into the message buffer, never one
+Python object per event; the bytes equal what ``rosbags`` serializes for the same
+message (tests compare them).
 
 ROS 1: header (seq, stamp, frame_id), height, width, uint32 count, then 13 packed bytes
 per event (x, y: uint16; ts: uint32 sec, uint32 nsec; polarity: uint8).
@@ -14,6 +15,10 @@ no padding follows the last one.
 """
 
 from __future__ import annotations
+
+import functools
+import struct
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -28,36 +33,22 @@ _ROS1_EVENT = np.dtype([("x", "<u2"), ("y", "<u2"), ("sec", "<u4"), ("nsec", "<u
 _CDR_EVENT = np.dtype(
     {
         "names": ["x", "y", "sec", "nsec", "p"],
-        "formats": ["<u2", "<u2", "<i4", "<u4", "u1"],
+        "formats": ["<u2", "<u2", "<u4", "<u4", "u1"],
         "offsets": [1, 3, 7, 11, 15],
         "itemsize": 16,
     }
 )
+"""A CDR event after the first (``ts.sec`` is int32 on the wire: the same bytes)."""
 _NS = 1_000_000_000
 
 
-def _sec_nsec(t: NDArray[np.int64]) -> tuple[int | NDArray[np.int64], NDArray[np.int64]]:
-    """``t // 1e9, t % 1e9`` of sorted stamps: a packet within one second (nearly every
-    one) takes one subtraction instead of two integer divisions (the same values)."""
-    s0 = int(t[0]) // _NS
-    if int(t[-1]) // _NS == s0:
-        return s0, t - s0 * _NS
-    return t // _NS, t % _NS
+@functools.cache
+def _pack_events() -> Any:
+    """The numba packing kernel (imported, i.e. compiled or loaded from numba's cache, on
+    first use)."""
+    from roslan.events._kernels import pack_events
 
-
-def _fill(
-    rec: NDArray[np.void],
-    x: NDArray[np.integer],
-    y: NDArray[np.integer],
-    sec: int | NDArray[np.int64],
-    nsec: NDArray[np.int64],
-    p: NDArray[np.integer],
-) -> None:
-    rec["x"] = x
-    rec["y"] = y
-    rec["sec"] = sec
-    rec["nsec"] = nsec
-    rec["p"] = np.asarray(p) > 0
+    return pack_events
 
 
 def pack_event_array(
@@ -71,6 +62,7 @@ def pack_event_array(
     y: NDArray[np.integer],
     p: NDArray[np.integer],
     seq: int = 0,
+    t_offset: int = 0,
 ) -> bytes:
     """Serialize one EventArray.
 
@@ -79,36 +71,34 @@ def pack_event_array(
         stamp_ns: absolute header stamp, ns.
         frame_id: header frame.
         height, width: sensor size, px.
-        t_ns: (N,) absolute event stamps, ns, sorted.
+        t_ns: (N,) event stamps, ns (absolute once ``t_offset`` is added).
         x, y: (N,) pixel column / row; p: (N,) polarity (> 0: ON).
         seq: ROS 1 header sequence number.
+        t_offset: ns added to every ``t_ns`` (e.g. trajectory times to absolute stamps).
     """
     n = int(t_ns.shape[0])
-    t = np.asarray(t_ns, dtype=np.int64)
-    sec, nsec = _sec_nsec(t) if n else (t, t)
     fid = frame_id.encode()
     s_sec, s_nsec = divmod(int(stamp_ns), _NS)
     if flavor is Flavor.ROS1:
-        head = np.array([seq, s_sec, s_nsec, len(fid)], dtype="<u4").tobytes() + fid
-        head += np.array([height, width, n], dtype="<u4").tobytes()
-        rec = np.empty(n, dtype=_ROS1_EVENT)
-        _fill(rec, x, y, sec, nsec, p)
-        return head + rec.tobytes()
-    # CDR: positions relative to the byte after the encapsulation header
-    head = (
-        b"\x00\x01\x00\x00"
-        + np.array([s_sec], "<i4").tobytes()
-        + np.array([s_nsec, len(fid) + 1], "<u4").tobytes()
-    )
-    head += fid + b"\x00"
-    pos = 12 + len(fid) + 1
-    head += b"\x00" * (-pos % 4)
-    head += np.array([height, width, n], dtype="<u4").tobytes()
+        head = struct.pack("<4I", seq, s_sec, s_nsec, len(fid)) + fid
+        body = 13 * n
+    else:
+        # CDR: positions relative to the byte after the encapsulation header
+        head = b"\x00\x01\x00\x00" + struct.pack("<i2I", s_sec, s_nsec, len(fid) + 1) + fid
+        head += b"\x00" * (1 + (-(13 + len(fid)) % 4))  # the string's NUL, then alignment
+        body = 13 + 16 * (n - 1) if n else 0
+    head += struct.pack("<3I", height, width, n)
     if n == 0:
         return head
-    first = np.empty(1, dtype=_ROS1_EVENT)
-    sec0, sec1 = (sec, sec) if isinstance(sec, int) else (sec[:1], sec[1:])
-    _fill(first, x[:1], y[:1], sec0, nsec[:1], p[:1])
-    rest = np.zeros(n - 1, dtype=_CDR_EVENT)
-    _fill(rest, x[1:], y[1:], sec1, nsec[1:], p[1:])
-    return head + first.tobytes() + rest.tobytes()
+    h = len(head)
+    if flavor is Flavor.ROS1:
+        out = np.empty(h + body, np.uint8)
+        rec = _ROS1_EVENT
+    else:
+        out = np.zeros(h + body, np.uint8)  # CDR's padding bytes
+        rec = _CDR_EVENT
+    out[:h] = np.frombuffer(head, np.uint8)
+    first, rest = out[h : h + 13].view(_ROS1_EVENT), out[h + 13 :].view(rec)
+    t = np.asarray(t_ns, dtype=np.int64)
+    _pack_events()(t, t_offset, np.asarray(x), np.asarray(y), np.asarray(p), first, rest)
+    return out.tobytes()

@@ -78,17 +78,19 @@ def _max_flow_speed(d, xr, yc, fx, fy, vx, vy, vz, wx, wy, wz):  # type: ignore[
     # A pinhole ray's x depends on the column only, y on the row only: the products of one
     # of them alone are made once per column / row (the same products, the same sums).
     # float32(sqrt(q)) never decreases with q: the largest q gives the largest speed, so
-    # the one sqrt is taken at the end.
+    # the one sqrt is taken at the end. The maximum is kept per column (no dependence from
+    # one pixel to the next: the row loop vectorizes), then over the columns; a NaN q is
+    # never kept (``q > a`` is false), as in one running maximum.
     H, W = d.shape
     c1 = np.empty(W)
     c2 = np.empty(W)
     c3 = np.empty(W)
+    acc = np.zeros(W)
     for j in range(W):
         a = xr[j]
         c1[j] = -vx + a * vz
         c2[j] = (1.0 + a * a) * wy
         c3[j] = a * wz
-    best = 0.0
     for i in range(H):
         b = yc[i]
         r1 = -vy + b * vz
@@ -103,8 +105,12 @@ def _max_flow_speed(d, xr, yc, fx, fy, vx, vy, vz, wx, wy, wz):  # type: ignore[
             u = np.float64(np.float32(fx * dx))
             v = np.float64(np.float32(fy * dy))
             q = u * u + v * v
-            if q > best:
-                best = q
+            a = acc[j]
+            acc[j] = q if q > a else a
+    best = 0.0
+    for j in range(W):
+        if acc[j] > best:
+            best = acc[j]
     return np.float32(np.sqrt(best))
 
 

@@ -9,6 +9,7 @@ stream order through :meth:`AfterRender.take`.
 
 from __future__ import annotations
 
+import bisect
 import collections
 import heapq
 import itertools
@@ -80,7 +81,9 @@ class AfterRender:
         assert sink is not None
         batch = self.gen.update(lum, t)
         if batch.size and self.tick > 1:
-            batch.t[:] -= batch.t % self.tick  # the sensor's timestamp counter (order kept)
+            # the sensor's timestamp counter (order kept): floor to the tick, in place
+            np.floor_divide(batch.t, self.tick, out=batch.t)
+            batch.t[:] *= self.tick
         if batch.size:
             self.n_events += batch.size
             if s._writers:
@@ -147,33 +150,37 @@ class Packetizer:
     def split(
         self, buf: list[EventBatch], t_ns: int, *, final: bool
     ) -> tuple[list[EventBatch], list[Message]]:
-        """Messages for every complete packet (all of them when ``final``) and the rest."""
+        """Messages for every complete packet (all of them when ``final``) and the rest.
+
+        ``buf`` holds the buffered events, in time order, as batches that are never
+        joined as a whole: a packet is a view of its batch, or the join of its pieces when
+        it spans batches, and the rest stays views of the batches it is in."""
         if not buf:
             return buf, []
-        ev = EventBatch.concatenate(buf)
+        starts = list(itertools.accumulate((b.size for b in buf), initial=0))
+        total = starts[-1]
         cuts: list[int]
         if self.count is not None:
-            n_full = ev.size // self.count
+            n_full = total // self.count
             cuts = [i * self.count for i in range(n_full + 1)]
-            if final and ev.size > cuts[-1]:
-                cuts.append(ev.size)
+            if final and total > cuts[-1]:
+                cuts.append(total)
         else:
             # packet j = [j d, (j+1) d) is complete once the frame time reaches its end
-            limit = (
-                ev.size
-                if final
-                else int(np.searchsorted(ev.t, (t_ns // self.d_ns) * self.d_ns, side="left"))
-            )
-            if limit == 0:
-                return [ev], []
-            # the first event of each later packet: a few binary searches, not a pass
             d = self.d_ns
-            j0, j1 = int(ev.t[0]) // d, int(ev.t[limit - 1]) // d
-            starts = np.arange(j0 + 1, j1 + 1, dtype=np.int64) * d
-            cuts = [0, *np.searchsorted(ev.t[:limit], starts, side="left").tolist(), limit]
-        msgs = [self._message(ev.slice(a, b)) for a, b in itertools.pairwise(cuts) if b > a]
-        rest = ev.slice(cuts[-1], ev.size)
-        return ([rest] if rest.size else []), msgs
+            end = np.array([(t_ns // d) * d], np.int64)
+            limit = total if final else int(_count_before(buf, end)[0])
+            if limit == 0:
+                return buf, []
+            # the first event of each later packet: a few binary searches, not a pass
+            j0 = int(buf[0].t[0]) // d
+            j1 = int(_take(buf, starts, limit - 1, limit).t[0]) // d
+            bounds = np.arange(j0 + 1, j1 + 1, dtype=np.int64) * d
+            cuts = [0, *_count_before(buf, bounds).tolist(), limit]
+        msgs = [
+            self._message(_take(buf, starts, a, b)) for a, b in itertools.pairwise(cuts) if b > a
+        ]
+        return _pieces(buf, starts, cuts[-1], total), msgs
 
     def _message(self, ev: EventBatch) -> Message:
         s = self.sensor
@@ -183,12 +190,12 @@ class Packetizer:
         self.seq += 1
         cam = s.camera
         frame = s.optical_frame
-        t_abs = ev.t + ctx.start_time_ns
+        t0 = ctx.start_time_ns
         stamp = ctx.stamp(t_last)
 
         def pack(flavor: Flavor) -> bytes:
             return pack_event_array(
-                flavor, stamp, frame, cam.height, cam.width, t_abs, ev.x, ev.y, ev.p, seq
+                flavor, stamp, frame, cam.height, cam.width, ev.t, ev.x, ev.y, ev.p, seq, t0
             )
 
         ready = {f: pack(f) for f in tuple(self.flavors)} if self.prebuild else {}
@@ -202,3 +209,31 @@ class Packetizer:
             return data
 
         return Message(t_last, f"{s.config.topic}/events", EVENT_ARRAY, build)
+
+
+def _count_before(buf: list[EventBatch], bounds: NDArray[np.int64]) -> NDArray[np.int64]:
+    """The number of buffered events (``buf``: batches in time order) earlier than each of
+    ``bounds``: the sum of the batches' binary searches."""
+    n = np.zeros(bounds.shape, np.int64)
+    for b in buf:
+        n += np.searchsorted(b.t, bounds, side="left")
+    return n
+
+
+def _pieces(buf: list[EventBatch], starts: list[int], a: int, b: int) -> list[EventBatch]:
+    """Events ``a:b`` of the batches ``buf`` (``starts``: their first indices, and the
+    total) as views of the batches they are in."""
+    out = []
+    for k in range(max(bisect.bisect_right(starts, a) - 1, 0), len(buf)):
+        s = starts[k]
+        if s >= b:
+            break
+        piece = buf[k].slice(max(a - s, 0), min(b - s, buf[k].size))
+        if piece.size:
+            out.append(piece)
+    return out
+
+
+def _take(buf: list[EventBatch], starts: list[int], a: int, b: int) -> EventBatch:
+    """Events ``a:b`` of the batches ``buf`` as one batch (a view when they lie in one)."""
+    return EventBatch.concatenate(_pieces(buf, starts, a, b))
