@@ -400,10 +400,12 @@ def test_bag_writer_failure_leaves_no_outdir(
     assert _children() == []
 
 
-@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGKILL])
-def test_stopping_the_parent_stops_the_children(tmp_path: Path, sig: signal.Signals) -> None:
-    """SIGTERM: the parent terminates its children and removes its partial folder; SIGKILL:
-    the children die with it (no orphans either way)."""
+def _patched_run(
+    out: Path, sensor_type: str, cls: str, workers: int, env: dict[str, str]
+) -> subprocess.Popen[bytes]:
+    """A child interpreter running :func:`tiny_config` into ``out`` with ``workers``, the
+    sensors of ``sensor_type`` replaced by this module's class ``cls``; it exits 130 on
+    SIGTERM (the run's KeyboardInterrupt)."""
     script = textwrap.dedent(
         f"""
         import sys
@@ -411,21 +413,28 @@ def test_stopping_the_parent_stops_the_children(tmp_path: Path, sig: signal.Sign
         from pathlib import Path
         import roslan.pipeline.plan as plan
         from roslan.pipeline import run_simulation
-        from roslan.sensors.registry import SENSOR_TYPES, sensor_class
-        from test_pipeline_parallel import SlowCamera, tiny_config
-        plan.sensor_class = lambda n: SlowCamera if n == "camera" else sensor_class(n)
+        from roslan.sensors.registry import sensor_class
+        from test_pipeline_parallel import {cls}, tiny_config
+        plan.sensor_class = lambda n: {cls} if n == {sensor_type!r} else sensor_class(n)
         try:
-            run_simulation(tiny_config(), Path(sys.argv[1]), quiet=True, workers=2,
-                               overview=False)
+            run_simulation(tiny_config(), Path(sys.argv[1]), quiet=True, workers={workers},
+                           overview=False)
         except KeyboardInterrupt:
             sys.exit(130)
         """
     )
+    return subprocess.Popen([sys.executable, "-c", script, str(out)], env=env)
+
+
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGKILL])
+def test_stopping_the_parent_stops_the_children(tmp_path: Path, sig: signal.Signals) -> None:
+    """SIGTERM: the parent terminates its children and removes its partial folder; SIGKILL:
+    the children die with it (no orphans either way)."""
     pidfile = tmp_path / "pid"
     out = tmp_path / "runs"
     out.mkdir()
     env = {**os.environ, "ROSLAN_TEST_PIDFILE": str(pidfile)}
-    proc = subprocess.Popen([sys.executable, "-c", script, str(out / "o")], env=env)
+    proc = _patched_run(out / "o", "camera", "SlowCamera", 2, env)
     deadline = time.monotonic() + 60
     while not pidfile.exists() or not pidfile.read_text():
         assert proc.poll() is None, "the run ended before the slow camera started"
@@ -468,29 +477,12 @@ class HangingEventCamera(EventCamera):
 def test_stopping_the_parent_stops_the_render_helpers(tmp_path: Path, sig: signal.Signals) -> None:
     """The event camera's render helpers are grandchildren (the camera runs in a worker):
     stopping the run stops them too."""
-    script = textwrap.dedent(
-        f"""
-        import sys
-        sys.path[:0] = [{str(HERE)!r}, {str(HERE.parent / "helpers")!r}]
-        from pathlib import Path
-        import roslan.pipeline.plan as plan
-        from roslan.pipeline import run_simulation
-        from roslan.sensors.registry import sensor_class
-        from test_pipeline_parallel import HangingEventCamera, tiny_config
-        plan.sensor_class = lambda n: HangingEventCamera if n == "event_camera" else sensor_class(n)
-        try:
-            run_simulation(tiny_config(), Path(sys.argv[1]), quiet=True, workers=4,
-                           overview=False)
-        except KeyboardInterrupt:
-            sys.exit(130)
-        """
-    )
     piddir = tmp_path / "pids"
     piddir.mkdir()
     out = tmp_path / "runs"
     out.mkdir()
     env = {**os.environ, "ROSLAN_TEST_PIDDIR": str(piddir)}
-    proc = subprocess.Popen([sys.executable, "-c", script, str(out / "o")], env=env)
+    proc = _patched_run(out / "o", "event_camera", "HangingEventCamera", 4, env)
     deadline = time.monotonic() + 90
     while len(list(piddir.iterdir())) < 2:  # both helpers render
         assert proc.poll() is None, "the run ended before the renders hung"
