@@ -64,11 +64,20 @@ def _children() -> list[psutil.Process]:
     return [p for p in kids if p.pid not in _BEFORE and p.status() != "zombie"]
 
 
-def _is_worker(p: psutil.Process) -> bool:
+def _runs(p: psutil.Process, module: str) -> bool:
+    """Whether process ``p`` is a child interpreter running roslan module ``module``."""
     try:
-        return "roslan.pipeline.worker" in " ".join(p.cmdline())
+        return f"roslan.{module}" in " ".join(p.cmdline())
     except psutil.Error:  # a finished (zombie) helper such as the background plot
         return False
+
+
+def _is_worker(p: psutil.Process) -> bool:
+    return _runs(p, "pipeline.worker")
+
+
+def _is_helper(p: psutil.Process) -> bool:
+    return _runs(p, "sensors.cameras.event_chains")
 
 
 # ------------------------------------------------------------------ failing sensors (in a child)
@@ -453,13 +462,6 @@ def test_stopping_the_parent_stops_the_children(tmp_path: Path, sig: signal.Sign
         assert list(out.iterdir()) == []
     else:
         assert not (out / "o").exists()
-
-
-def _is_helper(p: psutil.Process) -> bool:
-    try:
-        return "event_chains" in " ".join(p.cmdline())
-    except psutil.Error:  # a finished (zombie) helper such as the background plot
-        return False
 
 
 class HangingEventCamera(EventCamera):
