@@ -118,8 +118,9 @@ def resolve_workers(workers: int | str, sensors: Sequence[SensorConfig]) -> int:
     helpers of the event cameras (:func:`plan_helpers`).
 
     ``auto``: one per render-heavy sensor, at most the usable CPUs, plus render helpers
-    up to half the usable CPUs in all (none on machines with fewer than 8 CPUs: there the
-    renders already keep every core busy), and nothing on a single-CPU machine, for a job
+    while the processes together stay within half the usable CPUs (with the default
+    suite's three render-heavy sensors none below 8 CPUs, where the renders already keep
+    every core busy, and 5 on 16), and nothing on a single-CPU machine, for a job
     without render-heavy sensors, or when this process is itself a multiprocessing
     worker (``roslan dataset`` / Dask already runs simulations side by side: more
     processes would only oversubscribe the CPUs and memory). ``N``: at most N (never more
