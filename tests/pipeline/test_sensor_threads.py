@@ -152,3 +152,26 @@ def test_a_bad_variable_is_refused_before_anything_is_written(
     with pytest.raises(ConfigError, match="ROSLAN_SENSOR_THREADS = 'many'"):
         run_simulation(short_config(), out, quiet=True)
     assert list(tmp_path.iterdir()) == []
+
+
+def test_render_helpers_leave_the_sensor_threads_as_they_were(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The default job on 16 CPUs: three sensor workers, five render helpers of the event
+    camera (processes within half the CPUs), and 3 threads for each frame/scan sensor, as
+    without helpers (16 // (3 workers + main + 1))."""
+    from roslan.cli.simulate import load_config
+    from roslan.pipeline import worker as worker_mod
+    from roslan.pipeline.plan import make_plan
+
+    monkeypatch.delenv(SENSOR_THREADS_ENV, raising=False)
+    monkeypatch.setattr(threads_mod, "usable_cpus", lambda: 16)
+    monkeypatch.setattr(worker_mod, "usable_cpus", lambda: 16)
+    cfg, _ = load_config(None)
+    plan = make_plan(cfg, tmp_path / "out", workers="auto")
+    dvs = next(s.name for s in cfg.sensors if s.type == "event_camera")
+    assert len(plan.groups) == 3
+    assert plan.render_helpers == {dvs: 5}
+    assert plan.sensor_threads == 3
+    plan = make_plan(cfg, tmp_path / "out", workers=3)
+    assert (plan.render_helpers, plan.sensor_threads) == ({}, 3)

@@ -171,8 +171,9 @@ def make_plan(
     posix = bool(sys.executable) and os.name == "posix"
     groups = plan_workers(config.sensors, n_workers) if posix else []
     helpers = plan_helpers(config.sensors, n_workers) if posix else {}
-    # the workers, the render helpers and this process
-    threads = sensor_threads(len(groups) + sum(helpers.values()) + 1)
+    # the sensor workers and this process (not the render helpers: `auto` leaves them the
+    # other half of the CPUs, and on a GPU machine they mostly wait for their renders)
+    threads = sensor_threads(len(groups) + 1)
     return RunPlan(
         config=config,
         outdir=outdir,
