@@ -38,10 +38,11 @@ def test_max_flow_speed_of_pure_translation_towards_a_wall() -> None:
 
 def test_camera_twist_fast_path_equals_the_full_state() -> None:
     """camera_twist through the tau landing's one-instant path and through the generic
-    State of any Trajectory (a wrapper without the fast path) give the same bits; and the
+    State of any Trajectory (the protocol's own pose_twist_ns) give the same bits; and the
     twist is the finite difference of the pose."""
     from roslan.events.sampling import camera_twist
     from roslan.trajectory import TauTrajectory, TrajectoryConfig
+    from roslan.trajectory.base import Trajectory
 
     tau = TauTrajectory(
         TrajectoryConfig.model_validate(
@@ -58,9 +59,9 @@ def test_camera_twist_fast_path_equals_the_full_state() -> None:
         warn=False,
     )
 
-    class Generic:  # the Trajectory protocol's state_ns only
-        def state_ns(self, t: object) -> object:
-            return tau.state_ns(t)
+    class Generic:  # the Trajectory protocol's own pose_twist_ns (through state_ns)
+        def pose_twist_ns(self, t: int) -> object:
+            return Trajectory.pose_twist_ns(tau, t)
 
     T_bc = np.eye(4)
     T_bc[:3, :3] = [[0.0, -1.0, 0.0], [0.0, 0.0, -1.0], [1.0, 0.0, 0.0]]

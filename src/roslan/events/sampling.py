@@ -161,12 +161,7 @@ def camera_twist(
         ``T_world_cam`` (4, 4), ``v_cam`` (3,) m/s and ``w_cam`` (3,) rad/s, both in the
         optical frame (velocity of the optical centre relative to the world).
     """
-    fast = getattr(trajectory, "pose_twist_ns", None)
-    if fast is not None:  # one instant without the full State (same values, bit for bit)
-        p_wb, v_wb, R_wb, w_b = fast(t_ns)
-    else:
-        st = trajectory.state_ns(np.array([t_ns], dtype=np.int64))
-        p_wb, v_wb, R_wb, w_b = st.position[0], st.velocity[0], st.R_world_body[0], st.omega_body[0]
+    p_wb, v_wb, R_wb, w_b = trajectory.pose_twist_ns(t_ns)
     Tbc = np.asarray(T_body_cam, dtype=np.float64)
     R_bc, p_bc = Tbc[:3, :3], Tbc[:3, 3]
     T_wb = np.eye(4)

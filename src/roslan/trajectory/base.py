@@ -163,6 +163,13 @@ class Trajectory(Protocol):
         """Full state at integer-nanosecond trajectory times."""
         return self.state(np.asarray(t_ns, dtype=np.int64).astype(np.float64) * 1e-9)
 
+    def pose_twist_ns(self, t_ns: int) -> tuple[F64, F64, F64, F64]:
+        """(3,) position, (3,) velocity, (3, 3) R_world_body and (3,) omega_body at one
+        integer-nanosecond instant: :meth:`state_ns`'s values (an implementation may
+        compute them more cheaply, bit for bit the same)."""
+        st = self.state_ns(np.array([t_ns], dtype=np.int64))
+        return st.position[0], st.velocity[0], st.R_world_body[0], st.omega_body[0]
+
     @property
     def duration_ns(self) -> int:
         """``duration`` in integer nanoseconds (rounded)."""

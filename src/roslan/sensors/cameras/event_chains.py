@@ -113,6 +113,19 @@ def _next(sampler: AdaptiveSampler, t: int, rate: float) -> tuple[int | None, bo
     return sampler.next_ns(t, rate), capped
 
 
+def _render(
+    sensor: EventCamera, ctx: SimContext, t: int, gt: bool, *, need_depth: bool
+) -> tuple[Instant, F32 | None, NDArray[np.float64], NDArray[np.float64]]:
+    """The instant ``t`` rendered (``capped`` still False), with its depth (when
+    ``need_depth`` or the ground truth needs it) and the camera's v and w: what the
+    stream needs of it keeps the ground-truth flow and depth at ground-truth instants
+    (``gt``) only."""
+    c = sensor.config
+    lum, depth, v, w = sensor.render(ctx, t, need_depth=need_depth or c.optic_flow or c.depthmap)
+    flow = sensor.camera.flow(depth, v, w) if depth is not None and c.optic_flow and gt else None
+    return Instant(t, lum, depth if gt and c.depthmap else None, flow, False), depth, v, w
+
+
 def render_chain(
     sensor: EventCamera,
     ctx: SimContext,
@@ -123,23 +136,19 @@ def render_chain(
 ) -> list[Instant]:
     """The instants from ``start`` until the sampler reaches ``stop`` (the next chain's
     start; None: the trajectory's end), rendered (optical-flow or fixed sampling)."""
-    c, cam = sensor.config, sensor.camera
-    need_depth = c.sampling == "optical_flow" or c.optic_flow or c.depthmap
+    c = sensor.config
+    flow_sampling = c.sampling == "optical_flow"
     out: list[Instant] = []
     t: int | None = start
     while t is not None and (stop is None or t < stop):
-        lum, depth, v, w = sensor.render(ctx, t, need_depth=need_depth)
-        gt = t in gt_set
-        flow = None
+        inst, depth, v, w = _render(sensor, ctx, t, t in gt_set, need_depth=flow_sampling)
         speed = 0.0  # max |flow|, px/s
-        if depth is not None and c.optic_flow and gt:
-            flow = cam.flow(depth, v, w)
-            speed = float(np.max(np.hypot(flow[..., 0], flow[..., 1])))
-        elif depth is not None and c.sampling == "optical_flow":
-            speed = cam.max_flow_speed(depth, v, w)
-        nxt, capped = _next(sampler, t, speed if c.sampling == "optical_flow" else 0.0)
-        out.append(Instant(t, lum, depth if gt and c.depthmap else None, flow, capped))
-        t = nxt
+        if inst.flow is not None:  # (the ground-truth flow is at hand)
+            speed = float(np.max(np.hypot(inst.flow[..., 0], inst.flow[..., 1])))
+        elif depth is not None and flow_sampling:
+            speed = sensor.camera.max_flow_speed(depth, v, w)
+        t, capped = _next(sampler, t, speed if flow_sampling else 0.0)
+        out.append(inst._replace(capped=capped))
     return out
 
 
@@ -152,16 +161,11 @@ def brightness_instants(
 ) -> Iterator[Instant]:
     """The instants of brightness sampling, one at a time: the step after an instant reads
     ESIM's log intensity (``gen``) after the consumer has fed it that instant's render."""
-    c, cam = sensor.config, sensor.camera
-    need_depth = c.optic_flow or c.depthmap
     prev_L: NDArray[np.float64] | None = None
     t_prev = 0
     t: int | None = 0
     while t is not None:
-        lum, depth, v, w = sensor.render(ctx, t, need_depth=need_depth)
-        gt = t in gt_set
-        flow = cam.flow(depth, v, w) if depth is not None and c.optic_flow and gt else None
-        inst = Instant(t, lum, depth if gt and c.depthmap else None, flow, False)
+        inst, _, _, _ = _render(sensor, ctx, t, t in gt_set, need_depth=False)
         yield inst  # the consumer runs ESIM on it before asking for the next
         L = gen.lp.copy()
         if prev_L is None:
