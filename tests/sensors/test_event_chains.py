@@ -12,8 +12,10 @@ import psutil  # type: ignore[import-untyped]
 import pytest
 
 from event_helpers import event_camera_and_context
+from roslan.errors import SensorError
 from roslan.events.sampling import AdaptiveSampler
 from roslan.sensors.base import sample_times_ns
+from roslan.sensors.cameras import EventCamera
 from roslan.sensors.cameras.event_chains import ChainFarm, chain_starts, render_chain
 
 
@@ -102,3 +104,29 @@ def test_render_helpers_give_the_same_instants(tmp_path: Path, over: dict[str, A
         gt_set = set(gt.tolist())
         assert {i.t for i in got if i.flow is not None} == gt_set
         assert {i.t for i in got if i.depth is not None} == gt_set
+
+
+class FailingInHelperCamera(EventCamera):
+    """Renders fail in a render helper process (which imports this class by name)."""
+
+    def render(self, ctx: Any, t_ns: int, *, need_depth: bool) -> Any:
+        if "event_chains" in " ".join(psutil.Process().cmdline()):
+            raise SensorError(f"lens cracked at {t_ns} ns")
+        return super().render(ctx, t_ns, need_depth=need_depth)
+
+
+def test_an_error_in_a_helper_is_raised_here_with_its_traceback(tmp_path: Path) -> None:
+    """A sensor error inside a helper comes back as the same exception type and message,
+    with the helper's traceback attached; no helper is left."""
+    sensor, ctx = event_camera_and_context(tmp_path, 1)
+    failing = FailingInHelperCamera(sensor.config)
+    sampler, gt = _sampler(failing, ctx)
+    with (
+        pytest.raises(SensorError, match=r"lens cracked at \d+ ns") as info,
+        ChainFarm(failing, ctx, sampler, gt, 1, render_here=False) as farm,
+    ):
+        list(farm.instants())
+    cause = str(info.value.__cause__)
+    assert "in the render helper process" in cause
+    assert "raise SensorError" in cause
+    assert _helpers() == []

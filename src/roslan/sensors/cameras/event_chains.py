@@ -355,7 +355,6 @@ class ChainFarm:
         self.inbox: queue.Queue[tuple[_Helper, Any]] = queue.Queue()
         self.helpers: list[_Helper] = []
         self.results: dict[int, list[Instant]] = {}
-        self.pending: dict[int, _Helper] = {}
         self.next_k = 0  # first chain not yet given to anybody
         self.lookahead = IN_FLIGHT * (helpers + 1) + 2
         self.rendered_here = 0
@@ -404,10 +403,13 @@ class ChainFarm:
                 return self._render_here(k)
             self._drain(block=True)
 
+    def _span(self, k: int) -> tuple[int, int | None]:
+        """Chain ``k``'s first instant and the next chain's (None: the last chain)."""
+        return self.starts[k], self.starts[k + 1] if k + 1 < len(self.starts) else None
+
     def _render_here(self, k: int) -> list[Instant]:
         self.rendered_here += 1
-        stop = self.starts[k + 1] if k + 1 < len(self.starts) else None
-        return render_chain(self.sensor, self.ctx, self.sampler, self.gt_set, self.starts[k], stop)
+        return render_chain(self.sensor, self.ctx, self.sampler, self.gt_set, *self._span(k))
 
     def _assign(self, k: int) -> None:
         """Give ready helpers chains, up to the look-ahead past chain ``k``."""
@@ -416,10 +418,8 @@ class ChainFarm:
             while h.ready and h.in_flight < IN_FLIGHT and self.next_k < limit:
                 j = self.next_k
                 self.next_k += 1
-                stop = self.starts[j + 1] if j + 1 < len(self.starts) else None
-                h.send(("chain", j, self.starts[j], stop))
+                h.send(("chain", j, *self._span(j)))
                 h.in_flight += 1
-                self.pending[j] = h
 
     def _drain(self, *, block: bool) -> None:
         """Take the helpers' answers (wait for one if ``block``)."""
@@ -435,10 +435,9 @@ class ChainFarm:
             elif kind == "chain":
                 _, j, chain = rec
                 self.results[j] = chain
-                self.pending.pop(j, None)
                 h.in_flight -= 1
             elif kind == "error":
-                raise_error_record(rec, h.describe(), f"{h.describe()}")
+                raise_error_record(rec, h.describe(), "the render helper process")
             else:  # eof: it died
                 raise h.died()
 
