@@ -6,8 +6,10 @@ intensity ``I`` (its mean APS level / 255),
 
     OFF rate = S(I) / 2,   ON rate = leak + S(I) / 2,   S(I) = R / (1 + I / I_k)
 
-(shot noise ``S``, both polarities alike; the leak ON only). The leak is the ON excess
-``(N_on - N_off) / (n T)``; ``R`` and the knee ``I_k`` are the Poisson maximum likelihood of
+(shot noise ``S``, both polarities alike; the leak ON only). The leak events are the ON
+excess ``N_on - N_off``; since every event resets the pixel's leak clock, the leak rate
+reported is the one that yields that excess among the fitted shot events
+(:func:`_leak_rate`); ``R`` and the knee ``I_k`` are the Poisson maximum likelihood of
 the OFF counts (closed form in ``R`` for each ``I_k``, a bounded 1-D search in ``log I_k``).
 Without intensities (a quiet span of a file with no APS frames) the shot noise is taken as
 intensity-independent (``shot_noise_intensity_factor: 1``). Hot pixels (counts a Poisson
@@ -214,9 +216,28 @@ def fit_static_counts(
 
 def _fit_arrays(on: F64, off: F64, T: float, level: F64 | None) -> tuple[float, float, float]:
     """``(leak, R, knee)`` of the ON / OFF counts."""
-    leak = max(0.0, float(on.sum() - off.sum()) / (on.size * T))
     R, knee = _fit_shot(off, level, T)
-    return leak, R, knee
+    g = np.ones(on.size) if level is None or knee == 0 else 1.0 / (1.0 + level / knee)
+    return _leak_rate(float(on.sum() - off.sum()) / T, R * g), R, knee
+
+
+def _leak_rate(excess: float, shot: F64) -> float:
+    """The configured leak rate whose events come at ``excess`` per second over pixels of
+    shot-noise rates ``shot`` (n,) Hz. Any event resets the pixel, so its leak clock restarts
+    at each shot event: a pixel leaking every ``1 / r`` s fires ``s / (exp(s / r) - 1)`` leak
+    events per second among shot events at ``s`` Hz (``r`` as ``s -> 0``)."""
+    if excess <= 0:
+        return 0.0
+
+    def measured(r: float) -> float:
+        with np.errstate(over="ignore"):
+            x = np.where(shot > 0, shot / np.expm1(shot / r), r)
+        return float(x.sum()) - excess
+
+    hi = excess / shot.size
+    while measured(hi) < 0:
+        hi *= 2.0
+    return float(optimize.brentq(measured, excess / shot.size * 1e-3, hi, rtol=1e-10))
 
 
 def fit_noise(

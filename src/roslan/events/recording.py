@@ -7,6 +7,7 @@ Times are integer ns from the first event; polarity 1 ON, 0 OFF; x, y pixel colu
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -177,7 +178,9 @@ def _read_h5(path: Path) -> Recording:
 
 def _read_txt(path: Path, size: tuple[int, int] | None) -> Recording:
     try:
-        a = np.loadtxt(path, ndmin=2, dtype=np.float64, comments="#")
+        with warnings.catch_warnings():  # an empty file: reported below
+            warnings.simplefilter("ignore", UserWarning)
+            a = np.loadtxt(path, ndmin=2, dtype=np.float64, comments="#")
     except ValueError as err:
         msg = f"{path}: not an events.txt ('t x y p' per line, t in s): {err}"
         raise RecordingError(msg) from err
