@@ -80,7 +80,7 @@ def _envelope(t: F64, T: float, fade: float) -> tuple[F64, F64, F64]:
     e = 1.0 - u**3 * (10.0 - 15.0 * u + 6.0 * u * u)
     de = -30.0 * u * u * (1.0 - u) ** 2 / fade
     dde = -60.0 * u * (1.0 - u) * (1.0 - 2.0 * u) / (fade * fade)
-    inside = (t >= 0.0) & (t <= T)
+    inside = (t >= 0.0) & (t < T) & (u < 1.0)  # exactly 0 from T on
     return np.where(inside, e, 0.0), np.where(inside, de, 0.0), np.where(inside, dde, 0.0)
 
 
