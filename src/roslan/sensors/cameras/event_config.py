@@ -43,8 +43,8 @@ SENSOR_PRESETS: dict[str, SensorPreset] = {
     "davis346": SensorPreset(
         346, 260, 216.0, True,
         {"threshold_pos": 0.25, "threshold_neg": 0.25, "threshold_sigma": 0.03, "refractory": 5e-4,
-         "cutoff_hz": 300.0, "leak_rate": 0.0025, "shot_noise_rate": 0.0059,
-         "shot_noise_knee": 0.06},
+         "cutoff_hz": 300.0, "leak_rate": 0.0026, "shot_noise_rate": 0.015,
+         "shot_noise_knee": 0.0022},
     ),
     # iniVation DVXplorer: 9 um pixels, 4 mm lens; events only
     "dvxplorer": SensorPreset(
