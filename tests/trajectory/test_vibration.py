@@ -142,3 +142,16 @@ def test_bad_blocks_are_config_errors(block: dict[str, Any], expect: str) -> Non
     with pytest.raises(ConfigError, match="sim.yaml") as err:
         validate_model(TrajectoryConfig, {**SHORT_TRAJECTORY, "vibration": block}, "sim.yaml")
     assert "vibration" in str(err.value) and expect in str(err.value)
+
+
+def test_shipped_euroc_example_validates_and_runs() -> None:
+    """docs/examples/vibration_euroc_v1_02.yaml (fitted by benchmarks/sim_to_real.py) is
+    a valid block whose 10-80 Hz acceleration level is the sum of its bands."""
+    import yaml
+
+    path = Path(__file__).resolve().parents[2] / "docs" / "examples" / "vibration_euroc_v1_02.yaml"
+    block = yaml.safe_load(path.read_text())["trajectory"]["vibration"]
+    traj = make_trajectory(_cfg(block))
+    assert isinstance(traj, VibratingTrajectory)
+    acc = np.array([b["accel_rms"] for b in block["broadband"]])
+    assert 1.0 < float(np.sqrt((acc**2).sum(0)).min()) < 4.0  # ~2 m/s^2 RMS per axis
