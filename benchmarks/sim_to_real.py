@@ -21,6 +21,7 @@ Usage:
 from __future__ import annotations
 
 import argparse
+import itertools
 import math
 import sys
 import tempfile
@@ -119,23 +120,36 @@ def events_part(path: Path, out: Path) -> None:
     print(f"\n## DAVIS346: {path.name}, {W}x{H}, frames {rec.frames.shape[0]}, span {T:.3f} s")
     print(f"real events in span {real.size}, simulated {sim.size}")
     # --- background per APS-level bin
-    for name, still in (("APS std < 2 DN, 3 px from moving pixels", still3), ("APS std < 2 DN (issue 39)", still0)):
+    for name, still in (
+        ("APS std < 2 DN, 3 px from moving pixels", still3),
+        ("APS std < 2 DN (issue 39)", still0),
+    ):
         print(f"\n### Background rate per static pixel ({name}; {int(still.sum())} pixels)")
-        print("| APS level (DN) | pixels | real (Hz) | simulated, same span (Hz) | simulated, 60 s (Hz) | 60 s / real |")
+        print(
+            "| APS level (DN) | pixels | real (Hz) | simulated, same span (Hz) "
+            "| simulated, 60 s (Hz) | 60 s / real |"
+        )
         print("|---|---|---|---|---|---|")
-        for lo, hi in zip(DN_BINS[:-1], DN_BINS[1:], strict=True):
+        for lo, hi in itertools.pairwise(DN_BINS):
             b = still & (mean >= lo) & (mean < hi)
             n = int(b.sum())
             rr = (r_on[b].sum() + r_off[b].sum()) / max(n, 1) / T
             ss = (s_on[b].sum() + s_off[b].sum()) / max(n, 1) / T
             ll = (l_on[b].sum() + l_off[b].sum()) / max(n, 1) / LONG
             flag = "" if n >= 1000 else " (< 1,000 px)"
-            print(f"| {lo:.0f}-{hi:.0f} | {n} | {rr:.4f} | {ss:.4f} | {ll:.4f} | {ll / rr if rr else float('nan'):.2f}{flag} |")
+            print(
+                f"| {lo:.0f}-{hi:.0f} | {n} | {rr:.4f} | {ss:.4f} | {ll:.4f} "
+                f"| {ll / rr if rr else float('nan'):.2f}{flag} |"
+            )
     # --- ON/OFF
     print("\n### ON/OFF balance")
     print("| pixels | real ON fraction | simulated ON fraction |")
     print("|---|---|---|")
-    for name, m in (("static", still3), ("moving region and the rest", ~still3), ("all", np.ones_like(still3))):
+    for name, m in (
+        ("static", still3),
+        ("moving region and the rest", ~still3),
+        ("all", np.ones_like(still3)),
+    ):
         rf = r_on[m].sum() / max(r_on[m].sum() + r_off[m].sum(), 1)
         sf = s_on[m].sum() / max(s_on[m].sum() + s_off[m].sum(), 1)
         print(f"| {name} | {rf:.3f} | {sf:.3f} |")
@@ -147,7 +161,10 @@ def events_part(path: Path, out: Path) -> None:
     print("|---|---|---|---|---|---|")
     for name, c in (("real", rc), ("simulated", sc)):
         q = np.percentile(c, [99.9, 99.99])
-        print(f"| {name} | {c.mean():.4f} | {q[0]:.0f} | {q[1]:.0f} | {c.max()} | {(c >= 3).sum()} |")
+        print(
+            f"| {name} | {c.mean():.4f} | {q[0]:.0f} | {q[1]:.0f} | {c.max()} | {(c >= 3).sum()} |"
+        )
+
     # --- inter-event intervals of noise events (array-wide, static pixels)
     def static_times(ev: EventBatch) -> np.ndarray:
         keep = still3[np.asarray(ev.y, np.int64), np.asarray(ev.x, np.int64)]
@@ -167,35 +184,55 @@ def events_part(path: Path, out: Path) -> None:
     tot_r, tot_s = w_r[0] + w_r[1], w_s[0] + w_s[1]
     cc = np.corrcoef(tot_r, tot_s)[0, 1]
     print(f"\n### Moving region ({int(moving.sum())} px): events per 40 ms window")
-    print(f"real mean {tot_r.mean():.0f} (ON {w_r[0].sum()}, OFF {w_r[1].sum()}), simulated mean "
-          f"{tot_s.mean():.0f} (ON {w_s[0].sum()}, OFF {w_s[1].sum()}); correlation {cc:.3f}; "
-          f"simulated / real {tot_s.sum() / tot_r.sum():.2f}")
+    print(
+        f"real mean {tot_r.mean():.0f} (ON {w_r[0].sum()}, OFF {w_r[1].sum()}), simulated mean "
+        f"{tot_s.mean():.0f} (ON {w_s[0].sum()}, OFF {w_s[1].sum()}); correlation {cc:.3f}; "
+        f"simulated / real {tot_s.sum() / tot_r.sum():.2f}"
+    )
     # --- figures
     fig, ax = plt.subplots(1, 2, figsize=(10, 3.6))
     e = np.array([0, 2, 5, 10, 15, 20, 30, 40, 60, 80, 100, 120, 160, 200, 256])
     mids, rows = [], []
-    for lo, hi in zip(e[:-1], e[1:], strict=True):
+    for lo, hi in itertools.pairwise(e):
         b = still3 & (mean >= lo) & (mean < hi)
         n = b.sum()
         if n < 200:
             continue
         mids.append((lo + hi) / 2)
-        rows.append([r_on[b].sum() / n / T, r_off[b].sum() / n / T, l_on[b].sum() / n / LONG, l_off[b].sum() / n / LONG, n])
+        rows.append(
+            [
+                r_on[b].sum() / n / T,
+                r_off[b].sum() / n / T,
+                l_on[b].sum() / n / LONG,
+                l_off[b].sum() / n / LONG,
+                n,
+            ]
+        )
     rows_a = np.array(rows)
     for k, (lab, c) in enumerate((("ON", "tab:blue"), ("OFF", "tab:red"))):
         shown = np.where(rows_a[:, k] > 0, rows_a[:, k], np.nan)  # no event: not drawn
         ax[0].plot(mids, shown, "o-", color=c, label=f"real {lab}")
         ax[0].plot(mids, rows_a[:, k + 2], "s--", color=c, alpha=0.6, label=f"roslan {lab}")
-    ax[0].set(yscale="log", xlabel="APS level (DN)", ylabel="events / s per pixel",
-              title="Static-pixel background (bins with no event not drawn)")
+    ax[0].set(
+        yscale="log",
+        xlabel="APS level (DN)",
+        ylabel="events / s per pixel",
+        title="Static-pixel background (bins with no event not drawn)",
+    )
     ax[0].legend(fontsize=7)
     for iei, lab in ((iei_r, "real"), (iei_s, "roslan")):
         v = np.sort(iei)
-        ax[1].plot(np.maximum(v, 1e-7), np.arange(1, v.size + 1) / v.size, label=f"{lab} ({v.size})")
+        ax[1].plot(
+            np.maximum(v, 1e-7), np.arange(1, v.size + 1) / v.size, label=f"{lab} ({v.size})"
+        )
     grid = np.logspace(-7, 0, 200)
     ax[1].plot(grid, -np.expm1(-grid / iei_r.mean()), "k:", label="Poisson, real mean rate")
-    ax[1].set(xscale="log", xlabel="interval between static-pixel events (s)", ylabel="cumulative fraction",
-              title="Noise-event intervals (array-wide)")
+    ax[1].set(
+        xscale="log",
+        xlabel="interval between static-pixel events (s)",
+        ylabel="cumulative fraction",
+        title="Noise-event intervals (array-wide)",
+    )
     ax[1].legend(fontsize=7)
     fig.tight_layout()
     save(fig, out, "realism_events_background.png")
@@ -204,7 +241,9 @@ def events_part(path: Path, out: Path) -> None:
     kmax = int(max(rc.max(), sc.max())) + 1
     ax[0].bar(np.arange(kmax) - 0.2, np.bincount(rc, minlength=kmax), 0.4, label="real", log=True)
     ax[0].bar(np.arange(kmax) + 0.2, np.bincount(sc, minlength=kmax), 0.4, label="roslan", log=True)
-    ax[0].set(xlabel="events per static pixel over the span", ylabel="pixels", title="Hot-pixel tail")
+    ax[0].set(
+        xlabel="events per static pixel over the span", ylabel="pixels", title="Hot-pixel tail"
+    )
     ax[0].legend(fontsize=7)
     tt = (edges[:-1] - t0) * 1e-9
     ax[1].step(tt, tot_r, where="post", label="real")
@@ -238,9 +277,13 @@ def ideal_imu(traj, t_ns: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 def kalibr_noise(n: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
     dt = 1.0 / FS
     acc = KALIBR["accelerometer_noise_density"] * math.sqrt(FS) * rng.standard_normal((n, 3))
-    acc += np.cumsum(KALIBR["accelerometer_random_walk"] * math.sqrt(dt) * rng.standard_normal((n, 3)), 0)
+    acc += np.cumsum(
+        KALIBR["accelerometer_random_walk"] * math.sqrt(dt) * rng.standard_normal((n, 3)), 0
+    )
     gyr = KALIBR["gyroscope_noise_density"] * math.sqrt(FS) * rng.standard_normal((n, 3))
-    gyr += np.cumsum(KALIBR["gyroscope_random_walk"] * math.sqrt(dt) * rng.standard_normal((n, 3)), 0)
+    gyr += np.cumsum(
+        KALIBR["gyroscope_random_walk"] * math.sqrt(dt) * rng.standard_normal((n, 3)), 0
+    )
     return acc, gyr
 
 
@@ -252,7 +295,10 @@ def band_rms(x: np.ndarray, lo: float, hi: float) -> np.ndarray:
 
 def best_lag(a: np.ndarray, b: np.ndarray, max_lag: int = 20) -> int:
     """Samples by which ``b`` lags ``a`` maximising the correlation."""
-    c = [np.corrcoef(a[max_lag + k : a.size - max_lag + k], b[max_lag : b.size - max_lag])[0, 1] for k in range(-max_lag, max_lag + 1)]
+    c = [
+        np.corrcoef(a[max_lag + k : a.size - max_lag + k], b[max_lag : b.size - max_lag])[0, 1]
+        for k in range(-max_lag, max_lag + 1)
+    ]
     return int(np.argmax(c)) - max_lag
 
 
@@ -278,7 +324,10 @@ def imu_part(gt_path: Path, imu_path: Path, out: Path, vib_yaml: Path | None) ->
     a_id, g_id = ideal_imu(traj, t_ns)
     n = t_ns.size
     print(f"\n## EuRoC V1_02_medium: {n} IMU samples ({n / FS:.1f} s) against the ideal IMU")
-    print("| axis | gyro corr | gyro residual RMS (rad/s) | gyro best lag (ms) | acc corr raw | acc corr 0.5 s mean | acc residual RMS raw (m/s^2) | 0.5 s mean (m/s^2) |")
+    print(
+        "| axis | gyro corr | gyro residual RMS (rad/s) | gyro best lag (ms) | acc corr raw "
+        "| acc corr 0.5 s mean | acc residual RMS raw (m/s^2) | 0.5 s mean (m/s^2) |"
+    )
     print("|---|---|---|---|---|---|---|---|")
     box = np.ones(100) / 100.0
     for i, ax_ in enumerate("xyz"):
@@ -290,17 +339,31 @@ def imu_part(gt_path: Path, imu_path: Path, out: Path, vib_yaml: Path | None) ->
         cas = np.corrcoef(sr, si)[0, 1]
         ra = np.sqrt(np.mean((a_real[:, i] - a_id[:, i]) ** 2))
         ras = np.sqrt(np.mean((sr - si) ** 2))
-        print(f"| {ax_} | {cg:.4f} | {rg:.4f} | {lag:.0f} | {ca:.3f} | {cas:.4f} | {ra:.3f} | {ras:.3f} |")
+        print(
+            f"| {ax_} | {cg:.4f} | {rg:.4f} | {lag:.0f} | {ca:.3f} | {cas:.4f} "
+            f"| {ra:.3f} | {ras:.3f} |"
+        )
     res_a, res_g = a_real - a_id, g_real - g_id
     # --- fit the vibration block: band RMS of the real residual per axis
     vib = {"broadband": [], "seed": 0, "fade": 0.2}
     for lo, hi in BANDS:
         ra, rg = band_rms(res_a, lo, hi), band_rms(res_g, lo, hi)
-        vib["broadband"].append({"band": [lo, hi], "accel_rms": [round(float(v), 4) for v in ra],
-                                 "gyro_rms": [round(float(v), 5) for v in rg], "components": 16})
-    text = yaml.safe_dump({"trajectory": {"vibration": vib}}, sort_keys=False, default_flow_style=None)
+        vib["broadband"].append(
+            {
+                "band": [lo, hi],
+                "accel_rms": [round(float(v), 4) for v in ra],
+                "gyro_rms": [round(float(v), 5) for v in rg],
+                "components": 16,
+            }
+        )
+    text = yaml.safe_dump(
+        {"trajectory": {"vibration": vib}}, sort_keys=False, default_flow_style=None
+    )
     if vib_yaml is not None:
-        vib_yaml.write_text("# EuRoC V1_02_medium (AscTec Firefly): vibration fitted by benchmarks/sim_to_real.py\n" + text)
+        vib_yaml.write_text(
+            "# EuRoC V1_02_medium (AscTec Firefly): vibration fitted by benchmarks/sim_to_real.py\n"
+            + text
+        )
         print(f"wrote {vib_yaml}")
     vtraj = VibratingTrajectory(traj, VibrationConfig.model_validate(vib))
     a_v, g_v = ideal_imu(vtraj, t_ns)
@@ -311,7 +374,10 @@ def imu_part(gt_path: Path, imu_path: Path, out: Path, vib_yaml: Path | None) ->
     f, p_real = signal.welch(res_a, FS, nperseg=1024, axis=0)
     _, p_noise = signal.welch(sim_a - a_id, FS, nperseg=1024, axis=0)
     _, p_vib = signal.welch(simv_a - a_id, FS, nperseg=1024, axis=0)
-    print("\n### Accelerometer residual PSD, 10-80 Hz, simulated (noise + vibration) / real, per 5 Hz band")
+    print(
+        "\n### Accelerometer residual PSD, 10-80 Hz, simulated (noise + vibration) / real, "
+        "per 5 Hz band"
+    )
     print("| band (Hz) | x | y | z |")
     print("|---|---|---|---|")
     worst = 1.0
@@ -323,7 +389,12 @@ def imu_part(gt_path: Path, imu_path: Path, out: Path, vib_yaml: Path | None) ->
     print(f"worst factor over 10-80 Hz (5 Hz bands, 3 axes): {worst:.2f}")
     # --- figures: Allan deviations, residual spectra
     fig, ax = plt.subplots(1, 2, figsize=(10, 3.6))
-    for k, (name, real_r, sn, sv) in enumerate((("gyroscope (rad/s)", res_g, sim_g - g_id, simv_g - g_id), ("accelerometer (m/s^2)", res_a, sim_a - a_id, simv_a - a_id))):
+    for k, (name, real_r, sn, sv) in enumerate(
+        (
+            ("gyroscope (rad/s)", res_g, sim_g - g_id, simv_g - g_id),
+            ("accelerometer (m/s^2)", res_a, sim_a - a_id, simv_a - a_id),
+        )
+    ):
         for i, c in enumerate(("tab:blue", "tab:orange", "tab:green")):
             tr, dr = allan(real_r[:, i], FS)
             ax[k].loglog(tr, dr, color=c, label=f"real - ideal {'xyz'[i]}")

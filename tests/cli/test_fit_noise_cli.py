@@ -64,7 +64,8 @@ def test_fit_noise_bad_inputs(tmp_path: Path, capsys: pytest.CaptureFixture[str]
     bad.write_bytes(b"garbage")
     assert main(["fit-noise", str(bad)]) == 2
     err = capsys.readouterr().err
-    assert err.startswith(f"error: {bad}: ") and "Traceback" not in err
+    assert err.startswith(f"error: {bad}: ")
+    assert "Traceback" not in err
     txt = tmp_path / "events.txt"
     txt.write_text("0.1 1 1 1\n0.5 2 2 0\n")
     assert main(["fit-noise", str(txt)]) == 2

@@ -70,7 +70,9 @@ def test_imu_with_vibration_equals_finite_difference_of_pose(tmp_path: Path) -> 
     f_fd = np.einsum("nji,nj->ni", R_0, a_w + np.array([0.0, 0.0, 9.81]))
     w_fd = rotation_log(np.swapaxes(R_m, 1, 2) @ R_p) / (2 * h)
     # the vibration dominates: its accelerations reach several m/s^2
-    base = imu_measurements(make_trajectory(_cfg(None)), np.rint(ts * 1e9).astype(np.int64), cfg.pose.matrix())
+    base = imu_measurements(
+        make_trajectory(_cfg(None)), np.rint(ts * 1e9).astype(np.int64), cfg.pose.matrix()
+    )
     assert np.abs(acc[inner] - base[0]).max() > 3.0
     np.testing.assert_allclose(acc[inner], f_fd, atol=2e-3 * (1 + np.abs(f_fd).max()))
     np.testing.assert_allclose(gyro[inner], w_fd, atol=1e-5 * (1 + np.abs(w_fd).max()))
@@ -83,15 +85,22 @@ def test_gap_components_follow_the_vibrated_pose() -> None:
     t = np.linspace(0.05, traj.T - 0.05, 40)
     h = 1e-5
     sm, s0, sp = (traj.state(t + d) for d in (-h, 0.0, h))
-    np.testing.assert_allclose(s0.gaps[:, :3], (s0.position - traj.p_world_goal) @ traj.R_world_goal)
-    np.testing.assert_allclose((sp.gaps - sm.gaps) / (2 * h), s0.rates, atol=1e-6 * (1 + np.abs(s0.rates).max()))
-    np.testing.assert_allclose((sp.rates - sm.rates) / (2 * h), s0.accels, atol=1e-5 * (1 + np.abs(s0.accels).max()))
+    np.testing.assert_allclose(
+        s0.gaps[:, :3], (s0.position - traj.p_world_goal) @ traj.R_world_goal
+    )
+    np.testing.assert_allclose(
+        (sp.gaps - sm.gaps) / (2 * h), s0.rates, atol=1e-6 * (1 + np.abs(s0.rates).max())
+    )
+    np.testing.assert_allclose(
+        (sp.rates - sm.rates) / (2 * h), s0.accels, atol=1e-5 * (1 + np.abs(s0.accels).max())
+    )
 
 
 def test_vibration_levels_are_the_configured_ones() -> None:
     """The body acceleration and rate added have the configured RMS per axis (harmonic:
     amplitude / sqrt 2; band: its RMS), before the fade."""
-    vib = {"broadband": [{"band": [20.0, 80.0], "accel_rms": [1.5, 1.0, 2.5], "gyro_rms": [0.05, 0.1, 0.02], "components": 200}],
+    vib = {"broadband": [{"band": [20.0, 80.0], "accel_rms": [1.5, 1.0, 2.5],
+                          "gyro_rms": [0.05, 0.1, 0.02], "components": 200}],
            "harmonics": [{"frequency": 9.0, "accel": [0.0, 0.0, 2.0]}]}  # fmt: skip
     plain = make_trajectory(_cfg(None))
     traj = make_trajectory(_cfg(vib))
@@ -139,9 +148,10 @@ def test_absent_block_leaves_the_trajectory_untouched() -> None:
     ],
 )
 def test_bad_blocks_are_config_errors(block: dict[str, Any], expect: str) -> None:
-    with pytest.raises(ConfigError, match="sim.yaml") as err:
+    with pytest.raises(ConfigError, match=r"sim\.yaml") as err:
         validate_model(TrajectoryConfig, {**SHORT_TRAJECTORY, "vibration": block}, "sim.yaml")
-    assert "vibration" in str(err.value) and expect in str(err.value)
+    assert "vibration" in str(err.value)
+    assert expect in str(err.value)
 
 
 def test_shipped_euroc_example_validates_and_runs() -> None:

@@ -228,7 +228,8 @@ def shot_noise(  # type: ignore[no-untyped-def]
 ):
     """The shot-noise candidates (pixels ``sidx``, times ``t0 + 1 + traw``, ON where
     ``u < 0.5``) kept where ``v * smax < g * C_nom / C``, ``g = 1 - (1 - f) c`` (or
-    ``1 / (1 + c / knee)`` where ``knee > 0``), ``c = clip(expl - eps, 0, 1)`` (``expl = exp(lp)`` of each candidate, ``shot_on``/``shot_off`` the per-pixel
+    ``1 / (1 + c / knee)`` where ``knee > 0``), ``c = clip(expl - eps, 0, 1)`` (``expl =
+    exp(lp)`` of each candidate, ``shot_on``/``shot_off`` the per-pixel
     ``C_nom / C``) into ``idx``, ``t``, ``p`` from ``n`` on, sorted by pixel (stable: ties in
     draw order); each sets its pixel's ``ref`` to the signal ``s1`` and ``last`` to at least
     its time. Returns ``(n, ties)``: the new count, and whether two kept events share pixel

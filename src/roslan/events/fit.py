@@ -19,6 +19,7 @@ counted, reported and left out of the fit. docs/realism.md shows it on a real DA
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass, field
 
@@ -183,19 +184,25 @@ def fit_static_counts(
     on_f, off_f = on.astype(np.float64), off.astype(np.float64)
     keep = np.ones(on.size, bool)
     for _ in range(2):  # fit, flag hot pixels against it, refit without them
-        fit = _fit_arrays(on_f[keep], off_f[keep], duration_s, None if level is None else level[keep])
+        fit = _fit_arrays(
+            on_f[keep], off_f[keep], duration_s, None if level is None else level[keep]
+        )
         leak, R, knee = fit
         g = np.ones(on.size) if level is None or knee == 0 else 1.0 / (1.0 + level / knee)
         mu = (leak + R * g) * duration_s
         p_tail = special.pdtrc(on_f + off_f - 1.0, mu)  # P(N >= k), k >= 1
         keep = ~((on_f + off_f >= 1) & (p_tail < HOT_P / on.size))
-    leak, R, knee = _fit_arrays(on_f[keep], off_f[keep], duration_s, None if level is None else level[keep])
+    leak, R, knee = _fit_arrays(
+        on_f[keep], off_f[keep], duration_s, None if level is None else level[keep]
+    )
     bins: list[LevelBin] = []
     if level is not None:
         dn = level * 255.0
-        for lo, hi in zip(DN_BINS[:-1], DN_BINS[1:], strict=True):
+        for lo, hi in itertools.pairwise(DN_BINS):
             b = keep & (dn >= lo) & (dn < hi)
-            bins.append(LevelBin(lo, hi, int(b.sum()), int(on[b].sum()), int(off[b].sum()), duration_s))
+            bins.append(
+                LevelBin(lo, hi, int(b.sum()), int(on[b].sum()), int(off[b].sum()), duration_s)
+            )
     hot = ~keep
     return NoiseFit(
         leak_rate=leak,
@@ -248,7 +255,8 @@ def fit_noise(
     margin: int = 3,
 ) -> NoiseFit:
     """Fit ``rec``'s background: from its first to its last APS frame on the pixels the
-    frames show static (:func:`static_mask`), or over ``quiet_span`` (s from the first event) on every
+    frames show static (:func:`static_mask`), or over ``quiet_span`` (s from the first
+    event) on every
     pixel. Intensities come from the mean APS frame where the recording has frames."""
     H, W = rec.height, rec.width
     if quiet_span is not None:

@@ -479,7 +479,8 @@ class EventGenerator:
         Thinning of a Poisson process: candidates at the bound rate ``shot_noise_rate *
         max(C_nominal / C)`` per pixel (uniform pixel, instant in ``(t0, t1]``, polarity),
         each kept with probability ``g(I) * (C_nominal / C) / max(C_nominal / C)``, ``g(I) =
-        1 - (1 - f) * clip(I, 0, 1)`` (or ``1 / (1 + clip(I, 0, 1) / knee)`` with a knee) (``I = exp(lp) - eps``, the photoreceptor's present linear
+        1 - (1 - f) * clip(I, 0, 1)`` (or ``1 / (1 + clip(I, 0, 1) / knee)`` with a knee)
+        (``I = exp(lp) - eps``, the photoreceptor's present linear
         intensity): ON and OFF events at ``rate / 2 * (1 - (1 - f) I) * C_nominal / C``.
         """
         p = self.params

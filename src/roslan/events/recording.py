@@ -119,7 +119,8 @@ def _read_aedat(path: Path) -> Recording:
         streams = decoder.id_to_stream()
         ev = [s for s in streams.values() if s.get("type") == "events"]
         if not ev:
-            msg = f"{path}: no event stream (streams: {sorted(s.get('type') for s in streams.values())})"
+            kinds = sorted(str(s.get("type")) for s in streams.values())
+            msg = f"{path}: no event stream (streams: {kinds})"
             raise RecordingError(msg)
         width, height = int(ev[0]["width"]), int(ev[0]["height"])
         events, frames, frame_t = [], [], []
@@ -140,7 +141,11 @@ def _read_aedat(path: Path) -> Recording:
     except Exception as err:  # the decoder's own errors (corrupt file, bad header)
         msg = f"{path}: cannot read as AEDAT 4: {err}"
         raise RecordingError(msg) from err
-    e = np.concatenate(events) if events else np.zeros(0, [("t", "u8"), ("x", "u2"), ("y", "u2"), ("on", "?")])
+    e = (
+        np.concatenate(events)
+        if events
+        else np.zeros(0, [("t", "u8"), ("x", "u2"), ("y", "u2"), ("on", "?")])
+    )
     return _finish(
         path,
         width,
@@ -160,7 +165,11 @@ def _read_h5(path: Path) -> Recording:
     try:
         with h5py.File(path, "r") as f:
             g = f["events"]
-            t = np.asarray(g["t_ns"], np.int64) if "t_ns" in g else np.asarray(g["t"], np.int64) * 1000
+            t = (
+                np.asarray(g["t_ns"], np.int64)
+                if "t_ns" in g
+                else np.asarray(g["t"], np.int64) * 1000
+            )
             x, y, p = (np.asarray(g[k]) for k in ("x", "y", "p"))
             width = int(f.attrs.get("width", g.attrs.get("width", 0)))
             height = int(f.attrs.get("height", g.attrs.get("height", 0)))

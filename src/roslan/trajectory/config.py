@@ -5,7 +5,13 @@ from __future__ import annotations
 import math
 from typing import Annotated, Any
 
-from pydantic import Field, SerializerFunctionWrapHandler, field_validator, model_serializer, model_validator
+from pydantic import (
+    Field,
+    SerializerFunctionWrapHandler,
+    field_validator,
+    model_serializer,
+    model_validator,
+)
 
 from roslan.config.base import Angle, Angles3, FiniteFloat, Pose, StrictModel, Vec3
 from roslan.config.units import RADIANS

@@ -60,16 +60,18 @@ def vibration_components(cfg: VibrationConfig) -> tuple[F64, F64, F64]:
         lo, hi = b.band
         n = b.components
         f = lo + (np.arange(n) + rng.random(n)) * (hi - lo) / n  # one per stratum
-        w = 2.0 * math.pi * f[:, None]
+        wb = 2.0 * math.pi * f[:, None]
         scale = math.sqrt(2.0 / n)  # n sinusoids of amplitude A have RMS A sqrt(n / 2)
-        acc = scale * np.asarray(b.accel_rms)[None, :] / (w * w)
-        gyr = scale * np.asarray(b.gyro_rms)[None, :] / w
+        acc = scale * np.asarray(b.accel_rms)[None, :] / (wb * wb)
+        gyr = scale * np.asarray(b.gyro_rms)[None, :] / wb
         freqs.extend(f.tolist())
         amps.extend(np.concatenate([acc, gyr], axis=1))
         phases.extend(rng.uniform(0.0, 2.0 * math.pi, (n, 6)))
-    return np.asarray(freqs, float), np.asarray(amps, float).reshape(-1, 6), np.asarray(
-        phases, float
-    ).reshape(-1, 6)
+    return (
+        np.asarray(freqs, float),
+        np.asarray(amps, float).reshape(-1, 6),
+        np.asarray(phases, float).reshape(-1, 6),
+    )
 
 
 def _envelope(t: F64, T: float, fade: float) -> tuple[F64, F64, F64]:
@@ -103,12 +105,12 @@ def _axis_rotations(th: F64) -> tuple[F64, F64, F64]:
 
 def _mv(R: F64, v: F64) -> F64:
     """R v, row-wise: (n, 3, 3), (n, 3) -> (n, 3)."""
-    return np.einsum("nij,nj->ni", R, v)
+    return np.asarray(np.einsum("nij,nj->ni", R, v), dtype=np.float64)
 
 
 def _mtv(R: F64, v: F64) -> F64:
     """R^T v, row-wise."""
-    return np.einsum("nji,nj->ni", R, v)
+    return np.asarray(np.einsum("nji,nj->ni", R, v), dtype=np.float64)
 
 
 class VibratingTrajectory(Trajectory):
@@ -173,7 +175,9 @@ class VibratingTrajectory(Trajectory):
         omega = Etw + w_E
         alpha = _mtv(E, al) - np.cross(w_E, Etw) + al_E
         R_new = R @ E
-        gaps, rates, accels = self._components(st, position, velocity, acceleration, E, omega, alpha)
+        gaps, rates, accels = self._components(
+            st, position, velocity, acceleration, E, omega, alpha
+        )
         return State(
             t=st.t,
             gaps=gaps,
