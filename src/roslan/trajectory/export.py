@@ -32,6 +32,7 @@ from roslan.trajectory.base import (
     ground_truth_times_ns,
 )
 from roslan.trajectory.generator import TauTrajectory
+from roslan.trajectory.vibration import VibratingTrajectory
 
 __all__ = [
     "CSV_HEADER",
@@ -130,10 +131,12 @@ def plot_trajectory(traj: Trajectory, path: Path) -> None:
     ax3.set_xlabel("x [m]")
     ax3.set_ylabel("y [m]")
     ax3.set_zlabel("z [m]")
-    if isinstance(traj, TauTrajectory):
-        ax3.set_title(f"path in goal frame F (k = {traj.k:g}, T = {traj.T:.3f} s)")
+    base = traj.inner if isinstance(traj, VibratingTrajectory) else traj
+    shaken = " + vibration" if base is not traj else ""
+    if isinstance(base, TauTrajectory):
+        ax3.set_title(f"path in goal frame F (k = {base.k:g}, T = {traj.T:.3f} s{shaken})")
     else:
-        ax3.set_title(f"path relative to the last pose (file, {traj.T:.3f} s)")
+        ax3.set_title(f"path relative to the last pose (file, {traj.T:.3f} s{shaken})")
     ax3.legend(loc="upper right", fontsize=8)  # the start is usually upper left
     units = {"x": "m", "y": "m", "z": "m", "roll": "rad", "pitch": "rad", "yaw": "rad"}
     for i, name in enumerate(GAPS):
