@@ -130,6 +130,7 @@ def events_part(path: Path, out: Path) -> None:
             "| simulated, 60 s (Hz) | 60 s / real |"
         )
         print("|---|---|---|---|---|---|")
+        ok = True
         for lo, hi in itertools.pairwise(DN_BINS):
             b = still & (mean >= lo) & (mean < hi)
             n = int(b.sum())
@@ -141,6 +142,9 @@ def events_part(path: Path, out: Path) -> None:
                 f"| {lo:.0f}-{hi:.0f} | {n} | {rr:.4f} | {ss:.4f} | {ll:.4f} "
                 f"| {ll / rr if rr else float('nan'):.2f}{flag} |"
             )
+            if n >= 1000:
+                ok &= bool(rr > 0 and 0.5 <= ll / rr <= 2.0)
+        print(f"CHECK background within 2x in every bin of >= 1,000 px: {'PASS' if ok else 'FAIL'}")
     # --- ON/OFF
     print("\n### ON/OFF balance")
     print("| pixels | real ON fraction | simulated ON fraction |")
@@ -330,6 +334,7 @@ def imu_part(gt_path: Path, imu_path: Path, out: Path, vib_yaml: Path | None) ->
     )
     print("|---|---|---|---|---|---|---|---|")
     box = np.ones(100) / 100.0
+    gyro_ok = True
     for i, ax_ in enumerate("xyz"):
         cg = np.corrcoef(g_real[:, i], g_id[:, i])[0, 1]
         rg = np.sqrt(np.mean((g_real[:, i] - g_id[:, i]) ** 2))
@@ -343,6 +348,9 @@ def imu_part(gt_path: Path, imu_path: Path, out: Path, vib_yaml: Path | None) ->
             f"| {ax_} | {cg:.4f} | {rg:.4f} | {lag:.0f} | {ca:.3f} | {cas:.4f} "
             f"| {ra:.3f} | {ras:.3f} |"
         )
+        gyro_ok &= bool(cg >= 0.98 and lag == 0)
+    verdict = "PASS" if gyro_ok else "FAIL"
+    print(f"CHECK gyro correlation >= 0.98 and zero lag on every axis: {verdict}")
     res_a, res_g = a_real - a_id, g_real - g_id
     # --- fit the vibration block: band RMS of the real residual per axis
     vib = {"broadband": [], "seed": 0, "fade": 0.2}
@@ -387,6 +395,7 @@ def imu_part(gt_path: Path, imu_path: Path, out: Path, vib_yaml: Path | None) ->
         worst = max(worst, float(np.max(np.maximum(r, 1 / r))))
         print(f"| {lo}-{lo + 5} | " + " | ".join(f"{v:.2f}" for v in r) + " |")
     print(f"worst factor over 10-80 Hz (5 Hz bands, 3 axes): {worst:.2f}")
+    print(f"CHECK residual spectrum within 2x in 10-80 Hz: {'PASS' if worst <= 2 else 'FAIL'}")
     # --- figures: Allan deviations, residual spectra
     fig, ax = plt.subplots(1, 2, figsize=(10, 3.6))
     for k, (name, real_r, sn, sv) in enumerate(
