@@ -30,11 +30,6 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-try:
-    import aedat  # noqa: F401
-except ImportError:
-    sys.exit("benchmarks/sim_to_real.py reads AEDAT 4 with the aedat package: pip install aedat")
-
 import matplotlib
 
 matplotlib.use("Agg")
@@ -99,6 +94,10 @@ def per_pixel(x, y, p, W, H) -> tuple[np.ndarray, np.ndarray]:
 
 
 def events_part(path: Path, out: Path) -> None:
+    try:
+        import aedat  # noqa: F401
+    except ImportError:
+        sys.exit("--davis reads AEDAT 4 with the aedat package: pip install aedat")
     rec = read_recording(path)
     H, W = rec.height, rec.width
     fr = rec.frames.astype(np.float64)
