@@ -27,10 +27,9 @@ import sys
 import tempfile
 from pathlib import Path
 
+import matplotlib
 import numpy as np
 import yaml
-
-import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
