@@ -11,6 +11,7 @@ __all__ = [
     "ConfigError",
     "OutputError",
     "PlotError",
+    "RecordingError",
     "RenderError",
     "RoslanError",
     "SceneError",
@@ -53,3 +54,7 @@ class RenderError(RoslanError):
 
 class PlotError(RoslanError):
     """A plot cannot be drawn: an input it needs is missing or unreadable."""
+
+
+class RecordingError(RoslanError):
+    """An event recording that cannot be read, or whose noise cannot be fitted."""

@@ -115,8 +115,9 @@ def assert_same_state(a: EventGenerator, b: EventGenerator) -> None:
         EVENT_PRESETS["realistic"],
         NOISY,
         NOISY.with_overrides(intensity_dependent=False, leak_rate=0.0),
+        NOISY.with_overrides(shot_noise_knee=0.05),
     ],
-    ids=["clean", "realistic", "noisy", "fixed-lowpass"],
+    ids=["clean", "realistic", "noisy", "fixed-lowpass", "shot-knee"],
 )
 @pytest.mark.parametrize("dtype", [np.float32, np.float64, np.uint8])
 def test_kernels_equal_numpy_reference(params: EventModelParams, dtype: type) -> None:

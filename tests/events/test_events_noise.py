@@ -32,19 +32,21 @@ GENERATORS = [EventGenerator, NumpyEventGenerator]
 
 @pytest.mark.parametrize("gen_cls", GENERATORS, ids=["numba", "numpy"])
 @pytest.mark.parametrize("sigma", [0.0, 0.04], ids=["equal", "mismatch"])
+@pytest.mark.parametrize("knee", [0.0, 0.2], ids=["linear", "knee"])
 def test_shot_noise_rate_intensity_and_threshold_dependence(
-    gen_cls: type[EventGenerator], sigma: float
+    gen_cls: type[EventGenerator], sigma: float, knee: float
 ) -> None:
     rate, f = 2.0, 0.25
     p = EventModelParams(
         threshold_pos=0.2, threshold_neg=0.3, threshold_sigma=sigma, shot_noise_rate=rate,
-        shot_noise_intensity_factor=f, refractory=1e-3,
+        shot_noise_intensity_factor=f, shot_noise_knee=knee, refractory=1e-3,
     )  # fmt: skip
     gen = gen_cls(W, H, p, np.random.default_rng(3))
     ev = static_run(gen, p.log_eps)
-    # independent expectation per band and polarity: rate/2 (1 - (1 - f) I) C_nom / C
+    # independent expectation per band and polarity: rate/2 g(I) C_nom / C, g(I) v2e's
+    # line 1 - (1 - f) I, or 1 / (1 + I / knee)
     band = np.arange(H * W) % W // (W // LEVELS.size)
-    g = 1.0 - (1.0 - f) * LEVELS
+    g = 1.0 / (1.0 + LEVELS / knee) if knee else 1.0 - (1.0 - f) * LEVELS
     T = T_NS * 1e-9
     for pol, nominal, c in ((1, 0.2, gen.c_pos), (0, 0.3, gen.c_neg)):
         expect = rate / 2 * T * g * np.bincount(band, weights=nominal / c)
@@ -57,7 +59,7 @@ def test_shot_noise_rate_intensity_and_threshold_dependence(
     # darker pixels are noisier: the I = 0 band over the I = 1 band is 1 / f
     tot = band_counts(ev, 0) + band_counts(ev, 1)
     if sigma == 0:
-        assert tot[0] / tot[-1] == pytest.approx(1 / f, rel=0.06)
+        assert tot[0] / tot[-1] == pytest.approx(1 / g[-1], rel=0.06)
     else:
         # mismatch raises the mean rate (E[C_nom / C] > 1): the measured rate says so
         assert tot.sum() > rate * T * H * W * g.mean() * 1.01

@@ -26,6 +26,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "roslan.cli.preview",
     "roslan.cli.scene",
     "roslan.cli.view",
+    "roslan.cli.fitnoise",
 )
 
 

@@ -18,6 +18,7 @@ from roslan.trajectory.base import DEFAULT_GROUND_TRUTH_RATE, Trajectory
 from roslan.trajectory.config import TrajectoryConfig
 from roslan.trajectory.export import write_trajectory_files
 from roslan.trajectory.generator import TauTrajectory, TrajectoryWarning
+from roslan.trajectory.vibration import VibratingTrajectory
 
 __all__ = ["register", "write_into"]
 
@@ -160,8 +161,9 @@ def _run(args: argparse.Namespace) -> int:
     files = "trajectory.csv, groundtruth.txt, summary.json"
     if not args.no_plot:
         files += ", trajectory.png"
-    if isinstance(traj, TauTrajectory):
-        head = f"touchdown T = {traj.T:.6f} s, tau(0) = {traj.tau0:.6f} s"
+    base = traj.inner if isinstance(traj, VibratingTrajectory) else traj
+    if isinstance(base, TauTrajectory):
+        head = f"touchdown T = {traj.T:.6f} s, tau(0) = {base.tau0:.6f} s"
     else:
         head = f"duration {traj.T:.6f} s (spline through {trajectory.file})"
     print(f"{head}, {len(traj.table_times())} samples -> {args.output}/ ({files})")

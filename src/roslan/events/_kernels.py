@@ -224,11 +224,12 @@ def emit_more(  # type: ignore[no-untyped-def]
 
 @kernel
 def shot_noise(  # type: ignore[no-untyped-def]
-    sidx, traw, u, v, expl, eps, f, smax, shot_on, shot_off, s1, ref, last, t0, idx, t, p, n
+    sidx, traw, u, v, expl, eps, f, knee, smax, shot_on, shot_off, s1, ref, last, t0, idx, t, p, n
 ):
     """The shot-noise candidates (pixels ``sidx``, times ``t0 + 1 + traw``, ON where
-    ``u < 0.5``) kept where ``v * smax < (1 - (1 - f) clip(expl - eps, 0, 1)) * C_nom / C``
-    (``expl = exp(lp)`` of each candidate, ``shot_on``/``shot_off`` the per-pixel
+    ``u < 0.5``) kept where ``v * smax < g * C_nom / C``, ``g = 1 - (1 - f) c`` (or
+    ``1 / (1 + c / knee)`` where ``knee > 0``), ``c = clip(expl - eps, 0, 1)`` (``expl =
+    exp(lp)`` of each candidate, ``shot_on``/``shot_off`` the per-pixel
     ``C_nom / C``) into ``idx``, ``t``, ``p`` from ``n`` on, sorted by pixel (stable: ties in
     draw order); each sets its pixel's ``ref`` to the signal ``s1`` and ``last`` to at least
     its time. Returns ``(n, ties)``: the new count, and whether two kept events share pixel
@@ -239,7 +240,7 @@ def shot_noise(  # type: ignore[no-untyped-def]
         on = u[j] < 0.5
         c = expl[j] - eps
         c = 0.0 if c < 0.0 else (1.0 if c > 1.0 else c)
-        g = 1.0 - (1.0 - f) * c
+        g = 1.0 / (1.0 + c / knee) if knee > 0.0 else 1.0 - (1.0 - f) * c
         ratio = shot_on[i] if on else shot_off[i]
         if v[j] * smax < g * ratio:
             tj = t0 + 1 + traw[j]

@@ -95,6 +95,10 @@ class EventModelParams:
             it, roslan's black pixel at all of it; docs/event-model.md).
         shot_noise_intensity_factor: the shot-noise rate of a pixel at intensity 1 relative
             to one at 0 (linear in between; v2e's 0.25).
+        shot_noise_knee: 0 for v2e's linear intensity dependence above; > 0 for
+            ``shot_noise_rate / (1 + I / shot_noise_knee)`` instead (the rate halves at
+            ``I = shot_noise_knee``): the steep fall with light of a real DAVIS346
+            (docs/realism.md); ``shot_noise_intensity_factor`` is then unused.
         leak_phase: ``steady`` (references start a uniform random fraction of ``C+`` below
             the signal) or ``zero`` (at the signal).
         log_eps: eps of ``L = log(eps + I)``, I linear luminance in [0, 1].
@@ -110,6 +114,7 @@ class EventModelParams:
     leak_jitter: float = 0.1
     shot_noise_rate: float = 0.0
     shot_noise_intensity_factor: float = 0.25
+    shot_noise_knee: float = 0.0
     leak_phase: str = "steady"
     log_eps: float = 1e-3
 
@@ -406,7 +411,7 @@ class EventGenerator:
                 expl = np.exp(self.lp[sidx])  # NumPy's exp, as the reference's
                 n, shot_ties = k.shot_noise(
                     sidx, traw, u, v, expl, p.log_eps, p.shot_noise_intensity_factor,
-                    self._shot_max, self._shot_on, self._shot_off, s1, self.ref,
+                    p.shot_noise_knee, self._shot_max, self._shot_on, self._shot_off, s1, self.ref,
                     self.last_event_ns, t0, idx, t, pol, n,
                 )  # fmt: skip
                 # two shot events of one pixel at one ns (practically never): keys would tie
@@ -473,8 +478,9 @@ class EventGenerator:
 
         Thinning of a Poisson process: candidates at the bound rate ``shot_noise_rate *
         max(C_nominal / C)`` per pixel (uniform pixel, instant in ``(t0, t1]``, polarity),
-        each kept with probability ``(1 - (1 - f) * clip(I, 0, 1)) * (C_nominal / C) /
-        max(C_nominal / C)`` (``I = exp(lp) - eps``, the photoreceptor's present linear
+        each kept with probability ``g(I) * (C_nominal / C) / max(C_nominal / C)``, ``g(I) =
+        1 - (1 - f) * clip(I, 0, 1)`` (or ``1 / (1 + clip(I, 0, 1) / knee)`` with a knee)
+        (``I = exp(lp) - eps``, the photoreceptor's present linear
         intensity): ON and OFF events at ``rate / 2 * (1 - (1 - f) I) * C_nominal / C``.
         """
         p = self.params
@@ -485,7 +491,10 @@ class EventGenerator:
         t = t0 + 1 + traw  # in (t0, t1]
         on = u < 0.5
         inten = np.clip(np.exp(self.lp[idx]) - p.log_eps, 0.0, 1.0)
-        g = 1.0 - (1.0 - p.shot_noise_intensity_factor) * inten
+        if p.shot_noise_knee > 0:
+            g = 1.0 / (1.0 + inten / p.shot_noise_knee)
+        else:
+            g = 1.0 - (1.0 - p.shot_noise_intensity_factor) * inten
         ratio = np.where(on, self._shot_on[idx], self._shot_off[idx])
         keep = v * self._shot_max < g * ratio
         order = np.argsort(idx[keep], kind="stable")

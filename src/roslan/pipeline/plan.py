@@ -37,7 +37,6 @@ from roslan.sensors.ground_truth import GroundTruth
 from roslan.sensors.registry import sensor_class
 from roslan.trajectory.base import Trajectory
 from roslan.trajectory.config import TrajectoryConfig
-from roslan.trajectory.generator import TauTrajectory
 from roslan.trajectory.spline import make_trajectory
 from roslan.vehicle import base_link_trajectory
 
@@ -224,7 +223,7 @@ def load_checked_scene(
     traj_config = base_link_trajectory(config.trajectory, config.vehicle, scene)
     traj = plan.traj
     if traj_config is not config.trajectory:
-        traj = TauTrajectory(traj_config, warn=False)
+        traj = make_trajectory(traj_config, base_dir=plan.base_dir, warn=False)
     checked = CheckedScene(scene, traj_config, traj)
     if scene is None or allow_collision:
         return checked

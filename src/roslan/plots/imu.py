@@ -73,14 +73,15 @@ def imu_truth(outdir: Path, data: ImuData) -> ImuTruth:
         from roslan.config.base import Pose
         from roslan.errors import RoslanError
         from roslan.sensors.imu import imu_measurements
-        from roslan.trajectory import TauTrajectory, TrajectoryConfig
+        from roslan.trajectory import TrajectoryConfig, make_trajectory
 
         imus = [
             s for s in cfg.get("sensors") or [] if isinstance(s, dict) and s.get("type") == "imu"
         ]
         icfg = _imu_name(outdir, data.path, imus) or {}
         try:
-            traj = TauTrajectory(TrajectoryConfig.model_validate(cfg["trajectory"]), warn=False)
+            # the run's motion, vibration included (make_trajectory wraps it)
+            traj = make_trajectory(TrajectoryConfig.model_validate(cfg["trajectory"]), warn=False)
             pose = Pose.model_validate(icfg.get("pose") or {})
         except (ValidationError, RoslanError, ValueError) as err:
             msg = f"{outdir / 'run.json'}: cannot rebuild the trajectory / IMU pose: {err}"

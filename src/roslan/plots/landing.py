@@ -13,6 +13,7 @@ from roslan.io.files import atomic_write
 from roslan.plots.style import DPI, GAP_COLORS, velocity_arrows
 from roslan.trajectory.base import GAPS, Trajectory
 from roslan.trajectory.generator import TauTrajectory
+from roslan.trajectory.vibration import VibratingTrajectory
 
 __all__ = ["write_trajectory_plot"]
 
@@ -39,10 +40,12 @@ def write_trajectory_plot(traj: Trajectory, path: Path) -> None:
     ax3.set_xlabel("x [m]")
     ax3.set_ylabel("y [m]")
     ax3.set_zlabel("z [m]")
-    if isinstance(traj, TauTrajectory):
-        ax3.set_title(f"path in goal frame F (k = {traj.k:g}, T = {traj.T:.3f} s)")
+    base = traj.inner if isinstance(traj, VibratingTrajectory) else traj
+    shaken = " + vibration" if base is not traj else ""
+    if isinstance(base, TauTrajectory):
+        ax3.set_title(f"path in goal frame F (k = {base.k:g}, T = {traj.T:.3f} s{shaken})")
     else:
-        ax3.set_title(f"path relative to the last pose (file, {traj.T:.3f} s)")
+        ax3.set_title(f"path relative to the last pose (file, {traj.T:.3f} s{shaken})")
     ax3.legend(loc="upper right", fontsize=8)  # the start is usually upper left
     units = {"x": "m", "y": "m", "z": "m", "roll": "rad", "pitch": "rad", "yaw": "rad"}
     for i, name in enumerate(GAPS):

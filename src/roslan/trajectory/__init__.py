@@ -9,6 +9,8 @@ from roslan.trajectory.config import Approach, Flapping, Initial, Kappa, Traject
 from roslan.trajectory.generator import TauTrajectory, TrajectoryWarning
 from roslan.trajectory.spline import FileTrajectory, make_trajectory
 from roslan.trajectory.tau import Terminal
+from roslan.trajectory.vibration import VibratingTrajectory
+from roslan.trajectory.vibration_config import Harmonic, VibrationBand, VibrationConfig
 
 __all__ = [
     "COMPONENTS",
@@ -16,6 +18,7 @@ __all__ = [
     "Approach",
     "FileTrajectory",
     "Flapping",
+    "Harmonic",
     "Initial",
     "Kappa",
     "State",
@@ -24,5 +27,8 @@ __all__ = [
     "Trajectory",
     "TrajectoryConfig",
     "TrajectoryWarning",
+    "VibratingTrajectory",
+    "VibrationBand",
+    "VibrationConfig",
     "make_trajectory",
 ]

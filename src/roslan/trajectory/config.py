@@ -5,11 +5,18 @@ from __future__ import annotations
 import math
 from typing import Annotated, Any
 
-from pydantic import Field, field_validator, model_validator
+from pydantic import (
+    Field,
+    SerializerFunctionWrapHandler,
+    field_validator,
+    model_serializer,
+    model_validator,
+)
 
 from roslan.config.base import Angle, Angles3, FiniteFloat, Pose, StrictModel, Vec3
 from roslan.config.units import RADIANS
 from roslan.limits import MAX_DURATION_S, MAX_FLAP_HZ, MIN_SAMPLE_DT_S
+from roslan.trajectory.vibration_config import VibrationConfig
 
 __all__ = ["Approach", "Flapping", "Initial", "Kappa", "TrajectoryConfig"]
 
@@ -94,6 +101,16 @@ class TrajectoryConfig(StrictModel):
     spline's penalty (``scipy.interpolate.make_smoothing_spline`` ``lam``) per axis."""
     max_gap: Annotated[FiniteFloat, Field(gt=0, le=MAX_DURATION_S)] = 1.0
     """File trajectories: the longest time (s) allowed between consecutive poses."""
+    vibration: VibrationConfig | None = None
+    """Body vibration every sensor sees (:mod:`roslan.trajectory.vibration`); none by default."""
+
+    @model_serializer(mode="wrap")
+    def _without_absent_vibration(self, handler: SerializerFunctionWrapHandler) -> Any:
+        # no `vibration: null` in saved configs: runs without the block stay byte-identical
+        data = handler(self)
+        if self.vibration is None and isinstance(data, dict):
+            data.pop("vibration", None)
+        return data
 
     @field_validator("k")
     @classmethod

@@ -28,6 +28,7 @@ from roslan.trajectory.config import TrajectoryConfig
 from roslan.trajectory.frames import matrix_to_rpy, rpy_to_matrix
 from roslan.trajectory.gaps import bridge_gaps
 from roslan.trajectory.generator import TauTrajectory
+from roslan.trajectory.vibration import VibratingTrajectory
 
 __all__ = ["FileTrajectory", "make_trajectory", "read_pose_file"]
 
@@ -269,7 +270,13 @@ def _euler_rates(rpy: F64, omega: F64) -> F64:
 def make_trajectory(
     config: TrajectoryConfig, *, base_dir: Path | None = None, warn: bool = True
 ) -> Trajectory:
-    """The trajectory a ``trajectory:`` block asks for: a pose file's spline or a tau landing."""
+    """The trajectory a ``trajectory:`` block asks for: a pose file's spline or a tau landing,
+    with the block's ``vibration`` superimposed when it has one."""
+    inner: Trajectory
     if config.file is not None:
-        return FileTrajectory(config, base_dir=base_dir)
-    return TauTrajectory(config, warn=warn)
+        inner = FileTrajectory(config, base_dir=base_dir)
+    else:
+        inner = TauTrajectory(config, warn=warn)
+    if config.vibration is None:
+        return inner
+    return VibratingTrajectory(inner, config.vibration)

@@ -38,11 +38,13 @@ class SensorPreset:
 
 
 SENSOR_PRESETS: dict[str, SensorPreset] = {
-    # iniVation DAVIS346: 18.5 um pixels, 4 mm lens; APS frames
+    # iniVation DAVIS346: 18.5 um pixels, 4 mm lens; APS frames. Noise: `roslan fit-noise` of
+    # a real DAVIS346 in daylight (docs/realism.md, docs/event-model.md)
     "davis346": SensorPreset(
         346, 260, 216.0, True,
         {"threshold_pos": 0.25, "threshold_neg": 0.25, "threshold_sigma": 0.03, "refractory": 5e-4,
-         "cutoff_hz": 300.0, "leak_rate": 0.1, "shot_noise_rate": 0.2},
+         "cutoff_hz": 300.0, "leak_rate": 0.0026, "shot_noise_rate": 0.015,
+         "shot_noise_knee": 0.0022},
     ),
     # iniVation DVXplorer: 9 um pixels, 4 mm lens; events only
     "dvxplorer": SensorPreset(
@@ -84,6 +86,12 @@ class EventCameraConfig(SensorConfig, CameraIntrinsics):
     """Shot-noise events per pixel, Hz, of a dark pixel at nominal thresholds (v2e: the
     rate falls linearly to a quarter at intensity 1, and scales with nominal / actual
     threshold)."""
+    shot_noise_intensity_factor: Annotated[FiniteFloat, Field(ge=0, le=1)] | None = None
+    """Shot-noise rate at intensity 1 relative to intensity 0 (v2e's linear form: 0.25)."""
+    shot_noise_knee: Annotated[FiniteFloat, Field(ge=0, le=1)] | None = None
+    """0: v2e's linear intensity dependence; > 0: the rate is ``shot_noise_rate / (1 + I /
+    shot_noise_knee)`` (halved at ``I = shot_noise_knee``; fitted to a real DAVIS346 by
+    ``roslan fit-noise``, docs/realism.md)."""
     leak_phase: Literal["steady", "zero"] | None = None
     """Initial phase of the leak: ``steady`` (default; as if the sensor had been running)
     or ``zero`` (every pixel reset at the start: no leak event before ``1 / leak_rate``)."""
@@ -185,6 +193,8 @@ class EventCameraConfig(SensorConfig, CameraIntrinsics):
             intensity_dependent=self.intensity_dependent_lowpass,
             leak_rate=self.leak_rate,
             shot_noise_rate=self.shot_noise_rate,
+            shot_noise_intensity_factor=self.shot_noise_intensity_factor,
+            shot_noise_knee=self.shot_noise_knee,
             leak_phase=self.leak_phase,
             log_eps=self.log_eps,
         )
