@@ -126,19 +126,13 @@ def depth_on_rays(depth: NDArray[np.floating], mapx: F32, mapy: F32, nearest: F3
     return out
 
 
-def _farthest(inv: F64, u: F64, v: F64) -> F64:
+def _farthest(inv: F64) -> F64:
     """The smallest inverse depth (the farthest surface; 0: nothing hit) of the 3x3 pixels
-    around the pixel nearest to each point ``(u, v)`` (N,), px."""
-    H, W = inv.shape
-    pad = np.pad(inv, 1, mode="edge")
-    i = np.clip(np.rint(u).astype(np.intp), 0, W - 1) + 1
-    j = np.clip(np.rint(v).astype(np.intp), 0, H - 1) + 1
-    out: F64 = pad[j, i]
-    for dj in (-1, 0, 1):
-        for di in (-1, 0, 1):
-            if di or dj:
-                out = np.minimum(out, pad[j + dj, i + di])
-    return out
+    around each pixel (a min filter, edges replicated)."""
+    import cv2
+
+    out = cv2.erode(inv, np.ones((3, 3), np.uint8), borderType=cv2.BORDER_REPLICATE)
+    return np.asarray(out, np.float64)
 
 
 class _Rays(NamedTuple):
@@ -188,16 +182,18 @@ def displacement_flow(
     d0 = np.asarray(depth0, np.float64)
     H, W = d0.shape
     hit = np.isfinite(d0) & (d0 > 0)
-    keep = hit | sky_valid
-    idx = np.flatnonzero(keep.ravel())
+    idx = np.flatnonzero((hit | sky_valid).ravel())
     z0 = np.where(hit, d0, 1.0).ravel()[idx]
     w = hit.ravel()[idx].astype(np.float64)  # homogeneous weight: 0 = point at infinity
-    P0 = np.stack([r.x.ravel()[idx] * z0, r.y.ravel()[idx] * z0, z0], axis=1)
+    p0 = (r.x.ravel()[idx] * z0, r.y.ravel()[idx] * z0, z0)
     T = np.asarray(T_c1_c0, np.float64)
-    P1 = P0 @ T[:3, :3].T + w[:, None] * T[:3, 3]
-    z1 = P1[:, 2]
+    # P1 = R P0 + w t, written out per axis (a BLAS product of an (N, 3) array is slow
+    # when the BLAS threads compete for the CPUs)
+    x1, y1, z1 = (
+        p0[0] * T[k, 0] + p0[1] * T[k, 1] + p0[2] * T[k, 2] + w * T[k, 3] for k in range(3)
+    )
     with np.errstate(divide="ignore", invalid="ignore"):
-        xn, yn = P1[:, 0] / z1, P1[:, 1] / z1
+        xn, yn = x1 / z1, y1 / z1
     ok = (
         (z1 > 0)
         & (xn >= r.x_range[0])
@@ -206,7 +202,7 @@ def displacement_flow(
         & (yn <= r.y_range[1])
     )
     p1 = np.full((idx.size, 2), np.nan)
-    p1[ok] = model.project(P1[ok])
+    p1[ok] = model.project(np.stack([x1[ok], y1[ok], z1[ok]], axis=1))
     u1, v1 = p1[:, 0], p1[:, 1]
     with np.errstate(invalid="ignore"):
         ok &= (u1 >= -0.5) & (u1 < W - 0.5) & (v1 >= -0.5) & (v1 < H - 0.5)
@@ -214,17 +210,17 @@ def displacement_flow(
     with np.errstate(divide="ignore"):
         inv1 = np.where(np.isfinite(d1) & (d1 > 0), 1.0 / d1, 0.0)
     sel = np.flatnonzero(ok)
-    us, vs = u1[sel], v1[sel]
-    inv_far = _farthest(inv1, us, vs)
+    # the farthest surface on the 3x3 pixels around p1's nearest pixel
+    i1 = np.clip(np.rint(u1[sel]).astype(np.intp), 0, W - 1)
+    j1 = np.clip(np.rint(v1[sel]).astype(np.intp), 0, H - 1)
+    inv_far = _farthest(inv1)[j1, i1]
     # behind all nine surfaces around p1 (a point at infinity: behind any surface)
     occluded = np.where(w[sel] > 0, z1[sel] * inv_far > 1.0 + OCCLUSION_TOLERANCE, inv_far > 0)
     ok[sel[occluded]] = False
     out = np.full((H * W, 2), np.nan)
-    grid_u = (idx % W).astype(np.float64)
-    grid_v = (idx // W).astype(np.float64)
     good = idx[ok]
-    out[good, 0] = u1[ok] - grid_u[ok]
-    out[good, 1] = v1[ok] - grid_v[ok]
+    out[good, 0] = u1[ok] - (good % W)
+    out[good, 1] = v1[ok] - (good // W)
     return out.reshape(H, W, 2)
 
 
