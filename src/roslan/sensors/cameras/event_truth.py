@@ -28,7 +28,8 @@ Event Camera Dataset", RA-L 2018; its ``*_data.hdf5`` files):
   start (roslan's addition; MVSEC readers ignore it).
 
 Both are written by the camera's background writer thread, in order, one sample at a time
-(memory bounded by one image).
+(memory bounded by one image; the flow maps' open intervals:
+:class:`~roslan.sensors.cameras.flow_truth.FlowTruth`).
 """
 
 from __future__ import annotations
