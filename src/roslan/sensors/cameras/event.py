@@ -77,9 +77,9 @@ class _Camera:
 
     A pinhole camera renders directly; a distorted one renders the virtual pinhole view
     of :meth:`CameraModel.render_plan` and remaps it (bilinear for luminance, nearest
-    for depth but at ground-truth instants: :meth:`remap_depth`). The flow of a
-    distorted camera is the motion field of each output pixel's ray pushed through the
-    lens model (central differences of ``project``).
+    for depth; the ground truth's depth is ray cast along the output pixels' rays). The
+    flow of a distorted camera is the motion field of each output pixel's ray pushed
+    through the lens model (central differences of ``project``).
     """
 
     def __init__(self, model: CameraModel) -> None:
@@ -115,16 +115,6 @@ class _Camera:
             img, plan.map1, plan.map2, interp, borderMode=cv2.BORDER_REPLICATE
         )
         return out
-
-    def remap_depth(self, depth: F32, *, exact: bool) -> F32:
-        """The output pixels' depth: the nearest virtual pixel's, or (``exact``, for the
-        ground truth) the depth along each pixel's own ray where the surface is planar
-        (:func:`~roslan.sensors.cameras.flow_truth.depth_on_rays`)."""
-        nearest = self.remap(depth, nearest=True)
-        plan = self.plan
-        if not exact or plan is None or plan.mapx is None or plan.mapy is None:
-            return nearest
-        return depth_on_rays(depth, plan.mapx, plan.mapy, nearest)
 
     def max_flow_speed(self, depth: NDArray[np.floating], v: F64, w: F64) -> float:
         """``max |flow|`` of the output pixels, px/s (one pass for a pinhole camera)."""
@@ -216,8 +206,8 @@ class EventCamera:
         self, ctx: SimContext, t_ns: int, *, need_depth: bool, exact_depth: bool = False
     ) -> tuple[F32, F32 | None, F64, F64]:
         """Luminance (H, W), depth (H, W) or None, camera v and w (optical frame) at ``t_ns``
-        (``exact_depth``: a distorted camera's depth along each pixel's own ray, for the
-        ground truth; else that of the nearest ray of the virtual render)."""
+        (``exact_depth``: a distorted camera's depth along each pixel's own ray, ray cast,
+        for the ground truth; else that of the nearest ray of the virtual render)."""
         cam = self.camera
         renderer = ctx.renderer()
         plan = cam.render_plan(renderer.max_size)
@@ -238,7 +228,9 @@ class EventCamera:
         )
         assert res.luminance is not None
         lum = cam.remap(res.luminance)
-        depth = None if res.depth is None else cam.remap_depth(res.depth, exact=exact_depth)
+        depth = None if res.depth is None else cam.remap(res.depth, nearest=True)
+        if depth is not None and exact_depth and not cam.model.is_pinhole:
+            depth = depth_on_rays(ctx.raycaster(), T_wc, cam.rays)
         return lum, depth, v, w
 
     # -------------------------------------------------------------- stream

@@ -7,7 +7,8 @@ the event camera renders anyway:
 1. every output pixel ``(u, v)`` (integer coordinates at pixel centres, the pixel
    coordinates of ``events.h5``'s ``x, y``: *distorted*, raw sensor pixels) is
    back-projected along its ray through the lens model with the depth at ``t0``
-   (z along the optical axis): a 3-D point, fixed in the world;
+   (z along the optical axis; a distorted camera's ground-truth depth is ray cast along
+   each output ray, :func:`depth_on_rays`): a 3-D point, fixed in the world;
 2. the point is moved into the camera at ``t1`` (the ground-truth poses at ``t0`` and
    ``t1`` and the camera's mount, exactly what ``groundtruth.txt`` and
    ``calib/extrinsics.yaml`` hold) and projected through the same lens model,
@@ -23,11 +24,10 @@ A pixel is **invalid** (DSEC's ``valid = 0``) where
 * its point is **occluded** at ``t1``: it lies more than :data:`OCCLUSION_TOLERANCE`
   (relative) behind every one of the surfaces the camera sees at ``t1`` on the 3x3 pixels
   around ``p1``'s nearest pixel (the depth test against the ``t1`` depth; nothing hit
-  counts as infinitely far). Comparing with the farthest of the nine keeps a smooth
-  surface seen at a grazing angle visible (where one pixel spans metres of floor, and
-  at creases, where a distorted camera's depth is that of its virtual render's nearest
-  ray); the price is that a point hidden by about a pixel or less behind an occluding
-  edge counts as visible (its flow is still its true displacement);
+  counts as infinitely far). Comparing with the farthest of the nine keeps a surface
+  seen at a grazing angle visible (where one pixel spans metres of floor); the price is
+  that a point hidden by about a pixel or less behind an occluding edge counts as
+  visible (its flow is still its true displacement);
 * the displacement is outside the PNG's range (``-256 <= flow < 256`` px);
 * nothing is hit at ``t0`` (sky) with ``flow_sky: invalid`` (the default, as DSEC marks
   pixels without ground truth). With ``flow_sky: valid`` the flow of such a pixel is that
@@ -50,6 +50,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 if TYPE_CHECKING:
+    from roslan.render.base import BeamCaster
     from roslan.sensors.cameras.event_truth import FlowPngWriter
     from roslan.sensors.cameras.model import CameraModel
 
@@ -77,52 +78,27 @@ def flow_end_times(gt_times: NDArray[np.int64], interval_ns: int, end_ns: int) -
     return out
 
 
-PLANAR_TOLERANCE = 1e-4
-"""The virtual render's inverse depth ``q`` is affine (one plane) on the 2x2 pixels around
-a ray where their cross difference, and their second differences with the next pixel on
-one side at least along each axis, are at most ``PLANAR_TOLERANCE * max(q)`` (float32
-1/z is exact to ~1e-7)."""
+def depth_on_rays(caster: BeamCaster, T_world_cam: F64, rays: tuple[F64, F64]) -> F32:
+    """z-depth (m, optical axis; ``inf``: nothing hit) of the scene along each output
+    pixel's own ray, ray cast (Embree: the triangles the rasterizer draws).
 
-
-def depth_on_rays(depth: NDArray[np.floating], mapx: F32, mapy: F32, nearest: F32) -> F32:
-    """A distorted camera's depth along each output pixel's own ray.
+    A distorted camera renders a virtual pinhole view and remaps it; a remapped depth is
+    that of a neighbouring ray, up to half a virtual pixel off, which puts the
+    back-projected points beside the surfaces where the depth varies fast (a floor seen
+    at a grazing angle, edges). The ground truth casts the output pixels' rays instead.
 
     Args:
-        depth: (Hv, Wv) z-depth of the virtual pinhole render (``inf``: nothing hit).
-        mapx, mapy: (H, W) virtual pixel coordinates of each output pixel's ray.
-        nearest: (H, W) ``depth`` remapped to the nearest virtual pixel.
-    Returns:
-        (H, W) float32: inverse depth interpolated bilinearly where the 2x2 virtual pixels
-        around the ray lie on one plane (:data:`PLANAR_TOLERANCE`; exact there: 1/z is
-        affine in pinhole pixel coordinates on a plane), ``nearest`` elsewhere (edges and
-        creases through the cell, sky).
+        caster: the scene's ray caster.
+        T_world_cam: (4, 4) pose of the optical frame.
+        rays: (H, W) normalized pinhole ``x``, ``y`` of each output pixel's ray.
     """
-    d = np.asarray(depth, np.float64)
-    Hv, Wv = d.shape
-    with np.errstate(divide="ignore"):
-        inv = np.pad(np.where(np.isfinite(d) & (d > 0), 1.0 / d, 0.0), 1, mode="edge")
-    x = mapx.astype(np.float64)
-    y = mapy.astype(np.float64)
-    # cell (i0, j0)-(i0 + 1, j0 + 1) in the padded image; its 4x4 stencil from (i0-1, j0-1)
-    i0 = np.clip(np.floor(x).astype(np.intp), 0, max(Wv - 2, 0)) + 1
-    j0 = np.clip(np.floor(y).astype(np.intp), 0, max(Hv - 2, 0)) + 1
-    a = np.clip(x + 1 - i0, 0.0, 1.0)
-    b = np.clip(y + 1 - j0, 0.0, 1.0)
-    q = [[inv[j0 + r - 1, i0 + c - 1] for c in range(4)] for r in range(4)]
-    core = (q[1][1], q[1][2], q[2][1], q[2][2])
-    lo = np.minimum(np.minimum(core[0], core[1]), np.minimum(core[2], core[3]))
-    hi = np.maximum(np.maximum(core[0], core[1]), np.maximum(core[2], core[3]))
-    tol = PLANAR_TOLERANCE * hi
-    planar = (lo > 0) & (np.abs(core[0] + core[3] - core[1] - core[2]) <= tol)
-    # one side at least along each axis: a crease or edge just beside the cell is no
-    # reason to give up its plane; one through the cell breaks both sides
-    for k in (1, 2):
-        sides_x = [np.abs(q[k][m] - 2 * q[k][m + 1] + q[k][m + 2]) <= tol for m in (0, 1)]
-        sides_y = [np.abs(q[m][k] - 2 * q[m + 1][k] + q[m + 2][k]) <= tol for m in (0, 1)]
-        planar &= (sides_x[0] | sides_x[1]) & (sides_y[0] | sides_y[1])
-    qi = (core[0] * (1 - a) + core[1] * a) * (1 - b) + (core[2] * (1 - a) + core[3] * a) * b
-    with np.errstate(divide="ignore"):
-        out: F32 = np.where(planar, 1.0 / np.where(planar, qi, 1.0), nearest).astype(np.float32)
+    x, y = rays
+    T = np.asarray(T_world_cam, np.float64)
+    # direction (x, y, 1) in the camera, in the world: the distance along it is z
+    d = np.stack([T[k, 0] * x.ravel() + T[k, 1] * y.ravel() + T[k, 2] for k in range(3)], 1)
+    o = np.broadcast_to(T[:3, 3], d.shape)
+    hits = caster.cast(o, d)
+    out: F32 = np.asarray(hits.distance, np.float32).reshape(x.shape)
     return out
 
 
