@@ -261,3 +261,49 @@ def test_flow_keys_are_validated(tmp_path: Path, key: str, value: object, says: 
     assert str(f) in msg
     assert key in msg
     assert says in msg
+
+
+def test_render_helpers_give_the_same_ground_truth_depth(tmp_path: Path) -> None:
+    """A distorted camera's ground-truth depth is ray cast along its output rays; a render
+    helper process (its own ray caster) gives the same instants, depths and flow fields
+    as this process, and the depth is the ray-cast one only at the truth instants."""
+    pytest.importorskip("roslan.render.gl")
+    from event_helpers import event_camera_and_context
+    from roslan.events.sampling import AdaptiveSampler
+    from roslan.sensors.base import sample_times_ns
+    from roslan.sensors.cameras.event_chains import ChainFarm, chain_starts, render_chain
+    from roslan.sensors.cameras.flow_truth import flow_end_times
+
+    sensor, ctx = event_camera_and_context(
+        tmp_path, 1, optic_flow=True, flow_interval=0.06, max_rate=100,
+        distortion_model="plumb_bob", distortion_coeffs=[-0.2, 0.03, 0.0, 0.0, 0.0],
+    )  # fmt: skip
+    c = sensor.config
+    end = int(ctx.trajectory.duration_ns)
+    gt = sample_times_ns(c.rate, end)
+    truth = np.union1d(gt, flow_end_times(gt, c.flow_interval_ns, end))
+    assert truth.size > gt.size  # the intervals' ends are instants of their own
+    sampler = AdaptiveSampler(c.sampling, c.adaptive_lambda, c.min_rate, c.max_rate, end, truth)
+    starts = chain_starts(sampler)
+    here = [
+        inst
+        for a, b in zip(starts, [*starts[1:], None], strict=True)
+        for inst in render_chain(sensor, ctx, sampler, frozenset(truth.tolist()), a, b)
+    ]
+    with ChainFarm(sensor, ctx, sampler, truth, 1, render_here=False) as farm:
+        helper = list(farm.instants())
+    assert [i.t for i in helper] == [i.t for i in here]
+    truth_set = set(truth.tolist())
+    for a, b in zip(here, helper, strict=True):
+        assert (a.depth is not None) == (a.t in truth_set)
+        for x, y in ((a.lum, b.lum), (a.depth, b.depth), (a.flow, b.flow)):
+            assert (x is None) == (y is None)
+            if x is not None:
+                np.testing.assert_array_equal(x, y)
+    # ray cast: the depth of the surface on each pixel's own ray, not a remapped one
+    inst = next(i for i in here if i.t in truth_set and i.t > 0)
+    _, remapped, _, _ = sensor.render(ctx, inst.t, need_depth=True)
+    assert inst.depth is not None
+    assert remapped is not None
+    differ = np.isfinite(inst.depth) & (inst.depth != remapped)
+    assert 0 < differ.sum()
