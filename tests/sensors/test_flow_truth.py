@@ -306,4 +306,42 @@ def test_render_helpers_give_the_same_ground_truth_depth(tmp_path: Path) -> None
     assert inst.depth is not None
     assert remapped is not None
     differ = np.isfinite(inst.depth) & (inst.depth != remapped)
-    assert 0 < differ.sum()
+    assert differ.sum() > 0
+
+
+def test_displacement_of_a_frontal_wall_in_closed_form() -> None:
+    """Pinhole camera before a wall at z = 2 m: no motion, no flow; a sideways step of
+    the camera by b moves every pixel by -f b / z; a nearer surface at t1 hides the
+    points behind it (invalid), a farther one does not; sky invalid unless flow_sky."""
+    from roslan.sensors.cameras.flow_truth import displacement_flow
+    from roslan.sensors.cameras.model import CameraModel
+
+    K = np.array([[50.0, 0.0, 15.5], [0.0, 50.0, 11.5], [0.0, 0.0, 1.0]])
+    model = CameraModel(32, 24, K)
+    u, v = np.meshgrid(np.arange(32.0), np.arange(24.0))
+    rays = ((u - 15.5) / 50.0, (v - 11.5) / 50.0)
+    wall = np.full((24, 32), 2.0, np.float32)
+    still = displacement_flow(model, rays, wall, wall, np.eye(4))
+    np.testing.assert_allclose(still, 0.0, atol=1e-12)
+    T = np.eye(4)
+    T[0, 3] = -0.04  # the camera moved 4 cm to +x: points move by -50 * 0.04 / 2 = -1 px
+    flow = displacement_flow(model, rays, wall, wall, T)
+    ok = np.isfinite(flow[..., 0])
+    np.testing.assert_allclose(flow[ok], np.broadcast_to([-1.0, 0.0], flow[ok].shape), atol=1e-9)
+    assert ok[:, 1:].all()
+    assert not ok[:, 0].any()  # the first column leaves the image
+    near = wall.copy()
+    near[5:10, 5:10] = 1.0  # something 1 m away at t1
+    far = wall.copy()
+    far[5:10, 5:10] = 2.03  # 1.5 % farther: within the tolerance, still visible
+    hidden = ~np.isfinite(displacement_flow(model, rays, wall, near, T)[..., 0]) & ok
+    # hidden: the points (x, y) whose 3x3 pixels around (x - 1, y) are all on the patch
+    expect = np.zeros((24, 32), bool)
+    expect[6:9, 7:10] = True
+    np.testing.assert_array_equal(hidden, expect)
+    np.testing.assert_array_equal(displacement_flow(model, rays, wall, far, T), flow)
+    sky = wall.copy()
+    sky[:, :4] = np.inf
+    assert np.isnan(displacement_flow(model, rays, sky, sky, T)[:, :4]).all()
+    rot = displacement_flow(model, rays, sky, sky, T, sky_valid=True)
+    np.testing.assert_allclose(rot[:, :4], 0.0, atol=1e-12)  # translation: nothing at infinity
