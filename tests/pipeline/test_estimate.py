@@ -6,6 +6,7 @@ import shutil
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pytest
 import yaml
 
@@ -164,5 +165,26 @@ def test_estimate_counts_optic_flow_and_depthmap(tmp_path: Path) -> None:
     n = TauTrajectory(cfg.trajectory, warn=False).duration * 25.0
     raw = n * 160 * 120 * (8 + 4)
     added = est.bytes - estimate_run(_flow_config()).bytes
-    assert 0.6 * 2 * raw <= added <= 2 * raw
+    # plus the files: flow PNGs (6 bytes per pixel) and depth.h5 (4), compressed
+    assert 0.6 * 2 * raw <= added <= 2 * raw + n * 160 * 120 * (6 + 4)
     assert added > 0.4 * real  # they dominate: leaving them out is a factor > 1.3 off
+
+
+def test_estimate_counts_the_flow_maps_of_their_interval() -> None:
+    """One DSEC flow PNG per ground-truth instant after the first whose flow_interval
+    ends by the end of the run (independent count), at the measured PNG ratio."""
+    from roslan.pipeline.estimate import _PNG_RATIO
+    from roslan.trajectory import TauTrajectory
+
+    parts = {}
+    for interval in (0.04, 1.0):
+        cfg = _flow_config(optic_flow=True, flow_interval=interval)
+        parts[interval] = estimate_run(cfg).parts["flow"]
+    duration = TauTrajectory(cfg.trajectory, warn=False).duration
+    t0 = np.arange(1, round(duration * 25) + 1) / 25.0  # (t = 0 has no event before it)
+    maps = {i: int(np.sum(t0 + i <= duration + 1e-9)) for i in (0.04, 1.0)}
+    assert maps[0.04] - maps[1.0] == 24
+    per_map = 160 * 120 * 6 * _PNG_RATIO["flow"]
+    for i, nbytes in parts.items():
+        assert nbytes == pytest.approx(maps[i] * per_map)
+    assert "flow" not in estimate_run(_flow_config()).parts

@@ -468,11 +468,11 @@ class HangingEventCamera(EventCamera):
     """In a render helper (which imports this class by name), every render notes the
     helper's pid in $ROSLAN_TEST_PIDDIR, then hangs."""
 
-    def render(self, ctx: Any, t_ns: int, *, need_depth: bool) -> Any:
+    def render(self, ctx: Any, t_ns: int, *, need_depth: bool, **kw: Any) -> Any:
         if "event_chains" in " ".join(psutil.Process().cmdline()):
             (Path(os.environ["ROSLAN_TEST_PIDDIR"]) / str(os.getpid())).write_text("")
             time.sleep(120)
-        return super().render(ctx, t_ns, need_depth=need_depth)
+        return super().render(ctx, t_ns, need_depth=need_depth, **kw)
 
 
 @pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGKILL])

@@ -109,10 +109,10 @@ def test_render_helpers_give_the_same_instants(tmp_path: Path, over: dict[str, A
 class FailingInHelperCamera(EventCamera):
     """Renders fail in a render helper process (which imports this class by name)."""
 
-    def render(self, ctx: Any, t_ns: int, *, need_depth: bool) -> Any:
+    def render(self, ctx: Any, t_ns: int, *, need_depth: bool, **kw: Any) -> Any:
         if "event_chains" in " ".join(psutil.Process().cmdline()):
             raise SensorError(f"lens cracked at {t_ns} ns")
-        return super().render(ctx, t_ns, need_depth=need_depth)
+        return super().render(ctx, t_ns, need_depth=need_depth, **kw)
 
 
 def test_an_error_in_a_helper_is_raised_here_with_its_traceback(tmp_path: Path) -> None:

@@ -65,7 +65,13 @@ def _read_png16(path: Path) -> np.ndarray:
     return np.ascontiguousarray(img[..., ::-1])  # DSEC's loaders read RGB
 
 
-def test_dsec_flow_pngs_match_the_bag(truth_run: tuple[Path, list[Any]]) -> None:
+def test_dsec_flow_pngs_beside_the_bag(truth_run: tuple[Path, list[Any]]) -> None:
+    """The flow maps start at ground-truth stamps of the bag's ``optic_flow`` (the motion
+    field, px/s), span ``flow_interval`` (0.1 s) and end by the end of the run; where
+    nothing is hit (the sky, ``flow_sky: invalid`` by default) they are invalid.
+    (Their values: tests/sensors/test_flow_truth.py, against an independent reference.)"""
+    import h5py
+
     tmp, msgs = truth_run
     bag = _images(msgs, "/dvs/optic_flow")
     assert len(bag) >= 5
@@ -73,24 +79,26 @@ def test_dsec_flow_pngs_match_the_bag(truth_run: tuple[Path, list[Any]]) -> None
     assert lines[0] == "# from_timestamp_us, to_timestamp_us"
     rows = np.array([[int(v) for v in ln.split(", ")] for ln in lines[1:]], dtype=np.int64)
     pngs = sorted((tmp / "flow" / "forward").glob("*.png"))
-    assert len(pngs) == rows.shape[0] == len(bag)
+    assert len(pngs) == rows.shape[0] >= 3
     assert [p.name for p in pngs] == [f"{i:06d}.png" for i in range(len(pngs))]
-    stamps = np.array([s for s, _ in bag], dtype=np.int64)
-    np.testing.assert_array_equal(rows[:, 0], stamps // 1000)  # same instants
-    np.testing.assert_array_equal(rows[1:, 0], rows[:-1, 1])  # each to the next sample
-    n_valid = 0
-    for (stamp, flow_px_s), path, (a, b) in zip(bag, pngs, rows, strict=True):
+    stamps = np.array([s for s, _ in bag], dtype=np.int64) // 1000
+    assert set(rows[:, 0].tolist()) <= set(stamps.tolist())
+    np.testing.assert_array_equal(rows[:, 1] - rows[:, 0], 100_000)
+    assert rows[-1, 1] <= stamps[-1]  # (the last ground-truth stamp is the run's end)
+    assert rows[-1, 1] + 50_000 > stamps[-1]  # the last one that fits (20 Hz)
+    with h5py.File(tmp / "depth.h5", "r") as f:
+        depth = f["davis/left/depth_image_raw"][:]
+        depth_us = (f["davis/left/depth_image_raw_t_ns"][:] + START_NS) // 1000
+    n_valid = n_sky = 0
+    for path, (a, _) in zip(pngs, rows, strict=True):
         disp, valid = decode_dsec_flow(_read_png16(path))
-        dt = (b - a) * 1e-6
-        expect = flow_px_s.astype(np.float64) * dt
-        ok = np.all(np.isfinite(expect), axis=-1)
-        np.testing.assert_array_equal(valid, ok & np.all(np.abs(expect) < 255.0, axis=-1))
-        diff = np.abs(disp[valid] - expect[valid])
-        assert float(np.median(diff)) < 0.01
-        assert float(diff.max()) <= 0.5 / 128 + 1e-3 * np.abs(expect[valid]).max()
+        sky = np.isnan(depth[int(np.flatnonzero(depth_us == a)[0])])
+        assert not np.any(valid & sky)
+        assert np.all(disp[~valid] == 0)  # DSEC's invalid pixels: code 2**15, flow 0
         n_valid += int(valid.sum())
-        assert stamp // 1000 == a
-    assert n_valid > 0.9 * len(bag) * 30 * 40
+        n_sky += int(sky.sum())
+    assert n_sky > 0
+    assert n_valid > 0.4 * len(pngs) * 30 * 40
 
 
 def test_depth_h5_matches_the_bag(truth_run: tuple[Path, list[Any]]) -> None:

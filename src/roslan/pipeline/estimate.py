@@ -59,7 +59,11 @@ _RATIO: dict[str, dict[str, float]] = {
 }
 _FLOW_PX = 8  # bytes per pixel of a 32FC2 optic_flow image (vx, vy float32, px/s)
 _DEPTH_PX = 4  # bytes per pixel of a 32FC1 depthmap image (float32, m)
-_PNG_RATIO = {"image": 0.33, "mono": 0.36, "depth": 0.5}
+_PNG_RATIO = {"image": 0.33, "mono": 0.36, "depth": 0.5, "flow": 0.11}
+# (flow: DSEC 16-bit RGB flow PNGs, 6 bytes per pixel raw; depth.h5: gzip-1 float32 with
+# shuffle, 4 bytes per pixel raw; both measured 2026-11-28 on benchmarks/flow_epe.py's
+# warehouse run, DAVIS346: 0.11 and 0.30)
+_DEPTH_H5_RATIO = 0.3
 _EVENT_TXT = 21.5  # bytes per events.txt line
 _EVENT_H5 = {False: 2.9, True: 4.7}  # bytes per event in events.h5 (gzip), with t_ns?
 _EVENT_ROS = {"ros1": 13.0, "ros2": 16.0}  # bytes per dvs_msgs/Event
@@ -95,6 +99,13 @@ class RunEstimate:
 
 def _scene_key(scene: Any) -> str | None:
     return scene if scene in EVENTS_PER_PIXEL_S else "other"
+
+
+def _flow_maps(s: Any, duration: float) -> int:
+    """DSEC flow maps of an event camera: its ground-truth instants after the first (the
+    first event comes after it) whose ``flow_interval`` ends by the end of the run."""
+    rate = float(s.ground_truth_rate or s.rate)
+    return max(0, math.floor((duration - float(s.flow_interval)) * rate + 1e-9))
 
 
 def estimate_run(config: SimConfig, formats: tuple[str, ...] | None = None) -> RunEstimate:
@@ -139,8 +150,10 @@ def estimate_run(config: SimConfig, formats: tuple[str, ...] | None = None) -> R
                 n_truth = duration * float(s.ground_truth_rate or s.rate)  # type: ignore[attr-defined]
                 if getattr(s, "optic_flow", False):
                     bag("flow", n_truth * (w * h * _FLOW_PX + 300.0))
+                    add("flow", _flow_maps(s, duration) * w * h * 6 * _PNG_RATIO["flow"])
                 if getattr(s, "depthmap", False):
                     bag("depth", n_truth * (w * h * _DEPTH_PX + 300.0))
+                    add("depth.h5", n_truth * w * h * _DEPTH_PX * _DEPTH_H5_RATIO)
                 if getattr(s, "aps", None) is not False:
                     bag("mono", n * w * h)
                     add("images", n * w * h * _PNG_RATIO["mono"])

@@ -63,7 +63,7 @@ from roslan.rundir.manifest import (
     make_manifest,
     write_json,
 )
-from roslan.rundir.readme import outdir_readme
+from roslan.rundir.readme import flow_notes, outdir_readme
 from roslan.sensors.registry import sensor_spec
 from roslan.trajectory.base import Trajectory
 
@@ -388,7 +388,8 @@ class _Run:
         )
         if plan.formats:
             write_layouts(tmp, {t: e["type"] for t, e in topics.items()})
-        readme = outdir_readme(tmp, root_camera(self.config.sensors))
+        sensors = self.config.sensors
+        readme = outdir_readme(tmp, root_camera(sensors), flow_notes(sensors))
         (tmp / "README.md").write_text(readme, encoding="utf-8")
         write_json(tmp / RUN_FILE, manifest)  # last: its presence marks a complete folder
         return manifest

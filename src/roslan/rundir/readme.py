@@ -8,9 +8,59 @@ The text depends only on the files present and the root camera, so it is determi
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from pathlib import Path
+from typing import Any, NamedTuple
 
-__all__ = ["outdir_readme"]
+__all__ = ["FlowNote", "flow_notes", "flow_text", "outdir_readme"]
+
+
+class FlowNote(NamedTuple):
+    """The settings behind an event camera's DSEC flow maps, for the README."""
+
+    interval: float
+    """``flow_interval``, s."""
+    sky: str
+    """``flow_sky``: ``valid`` or ``invalid``."""
+    distorted: bool
+    """The camera has lens distortion."""
+
+
+def flow_notes(sensors: Sequence[Any]) -> dict[str, FlowNote]:
+    """:class:`FlowNote` of every event camera with ``optic_flow`` (sensor configs)."""
+    return {
+        str(s.name): FlowNote(
+            float(s.flow_interval), str(s.flow_sky), not s.camera_model().is_pinhole
+        )
+        for s in sensors
+        if s.type == "event_camera" and getattr(s, "optic_flow", False)
+    }
+
+
+def flow_text(note: FlowNote | None) -> str:
+    """The README's description of a ``flow`` folder (DSEC layout) and its settings."""
+    interval = f"`flow_interval`: {note.interval:g} s" if note else "`flow_interval`"
+    sky = f"`flow_sky: {note.sky}`" if note else "`flow_sky`"
+    lens = (
+        "this camera has no lens distortion, so they are rectified too"
+        if note is not None and not note.distorted
+        else "with the lens distortion: not rectified"
+    )
+    return (
+        "DSEC optical-flow layout: `flow/forward/NNNNNN.png` 16-bit RGB, R = flow_x * 128 + "
+        "2^15, G = flow_y * 128 + 2^15, B = valid (1/0), decoded `flow = (png[..., :2] - "
+        "2**15) / 128`, listed in `flow/forward_timestamps.txt` (header line, then `from, to` "
+        "absolute microseconds per PNG). The PNG is the true displacement (px) of each "
+        "pixel's scene point from `from_timestamp_us` to `to_timestamp_us` "
+        f"({interval}), in the pixel coordinates of `events.h5`'s `x, y`: raw, distorted "
+        f"sensor pixels ({lens}). valid = 0 where the point is occluded at `to` (more than "
+        "2 % behind every surface seen on the 3x3 pixels around its new position), leaves "
+        "the image, moves 256 px or more, or where nothing is hit "
+        f"({sky}). The bag's `<topic>/optic_flow` is another quantity: the instantaneous "
+        "motion field (px/s) at its stamp. Maps start at the ground-truth instants after "
+        "the first event whose interval ends by the end of the run."
+    )
+
 
 _ROOT_FILES: tuple[tuple[str, str], ...] = (
     (
@@ -66,15 +116,7 @@ _ROOT_FILES: tuple[tuple[str, str], ...] = (
         "(N,) float64 absolute s (bag stamps), `davis/left/depth_image_raw_t_ns` (N,) int64 ns "
         "since the trajectory start; the same images as `<topic>/depthmap`.",
     ),
-    (
-        "flow",
-        "DSEC optical-flow layout of the root event camera: `flow/forward/NNNNNN.png` 16-bit "
-        "RGB, R = flow_x * 128 + 2^15, G = flow_y * 128 + 2^15, B = valid (1/0); decode "
-        "`flow = (png[..., :2] - 2**15) / 128`: the displacement (px) from `from_timestamp_us` "
-        "to `to_timestamp_us` of `flow/forward_timestamps.txt` (header line, then "
-        "`from, to` absolute microseconds per PNG), the instantaneous motion field of "
-        "`<topic>/optic_flow` (px/s) times that interval.",
-    ),
+    ("flow", ""),  # (flow_text: the camera's settings)
     ("landing.rviz", "RViz layout of the bag's topics: `rviz -d landing.rviz`."),
     (
         "landing.foxglove.json",
@@ -123,8 +165,11 @@ _PATTERNS: tuple[tuple[str, str], ...] = (
 )
 
 
-def outdir_readme(outdir: Path, root_camera: str | None) -> str:
-    """The README text for the files now in ``outdir``."""
+def outdir_readme(
+    outdir: Path, root_camera: str | None, flow: Mapping[str, FlowNote] | None = None
+) -> str:
+    """The README text for the files now in ``outdir`` (``flow``: :func:`flow_notes`)."""
+    flow = flow or {}
     names = {p.name for p in outdir.iterdir() if not p.name.startswith(".")} | {"run.json"}
     lines = [
         "# roslan simulation output",
@@ -145,7 +190,10 @@ def outdir_readme(outdir: Path, root_camera: str | None) -> str:
         ]
     lines += ["| file | content |", "|---|---|"]
     for name, text in _ROOT_FILES:
-        if name in names:
+        if name == "flow" and name in names:
+            note = flow.get(root_camera) if root_camera is not None else None
+            lines.append(f"| `flow` | the root event camera's {flow_text(note)} |")
+        elif name in names:
             lines.append(f"| `{name}` | {text} |")
     for pattern, text in _PATTERNS:
         for p in sorted(outdir.glob(pattern)):
@@ -164,5 +212,8 @@ def outdir_readme(outdir: Path, root_camera: str | None) -> str:
             )
             if (d / f).exists()
         )
-        lines.append(f"| `{d.name}/` | camera `{d.name}`: {files}, `images/` (as at the root) |")
+        text = f"camera `{d.name}`: {files}, `images/` (as at the root)"
+        if (d / "flow").is_dir():
+            text += f"; its `flow`: {flow_text(flow.get(d.name))}"
+        lines.append(f"| `{d.name}/` | {text} |")
     return "\n".join(lines) + "\n"

@@ -14,7 +14,9 @@ from depth + camera twist), feeds the frames to the vectorized pixel model
   :mod:`roslan.sensors.cameras.event_image`) at ``rate`` when ``event_image``;
   ``<topic>/optic_flow`` (32FC2, px/s) and ``<topic>/depthmap``
   (32FC1, m) at ``ground_truth_rate`` when enabled, also as files: DSEC optical-flow PNGs
-  in ``flow/`` and an MVSEC-style ``depth.h5`` (:mod:`roslan.sensors.cameras.event_truth`);
+  in ``flow/`` (the true displacement over ``flow_interval``,
+  :mod:`roslan.sensors.cameras.flow_truth`) and an MVSEC-style ``depth.h5``
+  (:mod:`roslan.sensors.cameras.event_truth`);
 * dataset files (Event Camera Dataset layout): the first event camera's at the OUTDIR
   root, every other one's in ``<name>/``: ``events.txt``, ``events.h5``, APS frames in
   ``images.txt`` + ``images/NNNNNNNN.png``; the run writes its ``calib.txt``,
@@ -56,6 +58,7 @@ from roslan.sensors.cameras.event_chains import ChainFarm, brightness_instants
 from roslan.sensors.cameras.event_config import EventCameraConfig
 from roslan.sensors.cameras.event_stream import AfterRender
 from roslan.sensors.cameras.event_truth import DepthH5Writer, FlowPngWriter
+from roslan.sensors.cameras.flow_truth import FlowTruth, depth_on_rays, flow_end_times
 from roslan.sensors.cameras.model import T_LINK_OPTICAL, CameraModel, RenderPlan
 
 __all__ = ["EventCamera"]
@@ -73,8 +76,9 @@ class _Camera:
 
     A pinhole camera renders directly; a distorted one renders the virtual pinhole view
     of :meth:`CameraModel.render_plan` and remaps it (bilinear for luminance, nearest
-    for depth). The flow of a distorted camera is the motion field of each output
-    pixel's ray pushed through the lens model (central differences of ``project``).
+    for depth; the ground truth's depth is ray cast along the output pixels' rays). The
+    flow of a distorted camera is the motion field of each output pixel's ray pushed
+    through the lens model (central differences of ``project``).
     """
 
     def __init__(self, model: CameraModel) -> None:
@@ -149,6 +153,8 @@ class EventCamera:
         self._truth: list[FlowPngWriter | DepthH5Writer] = []
         self._flow_file: FlowPngWriter | None = None
         self._depth_file: DepthH5Writer | None = None
+        self.flow_truth: FlowTruth | None = None
+        """The DSEC flow maps' maker (``optic_flow``), fed by the event stream."""
         self.stats: dict[str, float] = {}
         self._T_body_cam: F64 | None = None
         self._stage: BackgroundSink | None = None
@@ -196,9 +202,11 @@ class EventCamera:
 
     # -------------------------------------------------------------- rendering
     def render(
-        self, ctx: SimContext, t_ns: int, *, need_depth: bool
+        self, ctx: SimContext, t_ns: int, *, need_depth: bool, exact_depth: bool = False
     ) -> tuple[F32, F32 | None, F64, F64]:
-        """Luminance (H, W), depth (H, W) or None, camera v and w (optical frame) at ``t_ns``."""
+        """Luminance (H, W), depth (H, W) or None, camera v and w (optical frame) at ``t_ns``
+        (``exact_depth``: a distorted camera's depth along each pixel's own ray, ray cast,
+        for the ground truth; else that of the nearest ray of the virtual render)."""
         cam = self.camera
         renderer = ctx.renderer()
         plan = cam.render_plan(renderer.max_size)
@@ -220,6 +228,8 @@ class EventCamera:
         assert res.luminance is not None
         lum = cam.remap(res.luminance)
         depth = None if res.depth is None else cam.remap(res.depth, nearest=True)
+        if depth is not None and exact_depth and not cam.model.is_pinhole:
+            depth = depth_on_rays(ctx.raycaster(), T_wc, cam.rays)
         return lum, depth, v, w
 
     # -------------------------------------------------------------- stream
@@ -247,11 +257,18 @@ class EventCamera:
         gt_times = (
             sample_times_ns(gt_rate, end) if (c.optic_flow or c.depthmap) else np.zeros(0, np.int64)
         )
-        forced = np.union1d(info_times, gt_times)
+        # the ends of the DSEC flow maps' intervals are rendered too (their depth)
+        flow_ends = (
+            flow_end_times(gt_times, c.flow_interval_ns, end)
+            if c.optic_flow
+            else np.zeros(0, np.int64)
+        )
+        truth_times = np.union1d(gt_times, flow_ends)
+        forced = np.union1d(info_times, truth_times)
         sampler = AdaptiveSampler(
             c.sampling, c.adaptive_lambda, c.min_rate, c.max_rate, end, forced
         )
-        self._open_files(ctx)
+        self._open_files(ctx, end)
         # dataset files are written beside the rendering, in order (io/background.py)
         self._sink = BackgroundSink(f"{c.name}-files")
         # ESIM, packets, messages and file writes of an instant do not feed back into the
@@ -266,10 +283,10 @@ class EventCamera:
         t = 0
         farm: ChainFarm | None = None
         if c.sampling == "brightness":  # the next instant reads ESIM's state
-            instants = brightness_instants(self, ctx, sampler, set(gt_times.tolist()), post.gen)
+            instants = brightness_instants(self, ctx, sampler, set(truth_times.tolist()), post.gen)
         else:  # independent chains, rendered here and by render helper processes
             helpers = ctx.render_helpers(c.name)
-            farm = ChainFarm(self, ctx, sampler, gt_times, helpers, render_here=self.render_here)
+            farm = ChainFarm(self, ctx, sampler, truth_times, helpers, render_here=self.render_here)
             self._farm = farm
             instants = farm.instants()
         for inst in instants:
@@ -297,7 +314,7 @@ class EventCamera:
             duration_s=end * 1e-9,
         )
 
-    def _open_files(self, ctx: SimContext) -> None:
+    def _open_files(self, ctx: SimContext, end_ns: int) -> None:
         """Open the dataset files: events, APS listing, ground truth."""
         c, W, H = self.config, self.camera.width, self.camera.height
         prefix = self._folder = self._prefix(ctx)
@@ -318,16 +335,31 @@ class EventCamera:
             self._images_fh = ctx.path(f"{prefix}images.txt").open(
                 "w", encoding="utf-8", newline="\n"
             )
-        self._truth_writers(ctx, prefix)
+        self._truth_writers(ctx, prefix, end_ns)
 
-    def _truth_writers(self, ctx: SimContext, prefix: str) -> None:
+    def _truth_writers(self, ctx: SimContext, prefix: str, end_ns: int) -> None:
         """Open the ground-truth file writers this camera's config asks for."""
         c, cam = self.config, self.camera
         self._flow_file = self._depth_file = None
+        self.flow_truth = None
         if c.optic_flow:
             flow_dir = ctx.path(f"{prefix}flow/forward_timestamps.txt").parent
             self._flow_file = FlowPngWriter(flow_dir, ctx.start_time_ns)
             self._truth.append(self._flow_file)
+            traj, T_body_cam = ctx.trajectory, self.T_body_cam
+
+            def pose(t_ns: int) -> F64:
+                return camera_twist(traj, t_ns, T_body_cam)[0]
+
+            self.flow_truth = FlowTruth(
+                cam.model,
+                cam.rays,
+                pose,
+                self._flow_file,
+                c.flow_interval_ns,
+                end_ns,
+                sky_valid=c.flow_sky == "valid",
+            )
         if c.depthmap:
             path = ctx.path(f"{prefix}depth.h5")
             self._depth_file = DepthH5Writer(path, cam.width, cam.height, ctx.start_time_ns)
@@ -342,16 +374,12 @@ class EventCamera:
         gt_times: NDArray[np.int64],
         gt_rate: float,
     ) -> list[Message]:
-        """The optic-flow / depth messages of ground-truth instant ``t``; their files are
-        written by the background sink (the flow as the displacement to the next instant)."""
+        """The optic-flow / depth messages of ground-truth instant ``t``; the depth file
+        is written by the background sink (the DSEC flow maps: :attr:`flow_truth`)."""
         c, sink, out = self.config, self._sink, []
         assert sink is not None
         if c.optic_flow and flow is not None:
             out.append(self._image_msg(ctx, t, flow, "32FC2"))
-            if self._flow_file is not None:
-                i = int(np.searchsorted(gt_times, t, side="right"))
-                t_next = int(gt_times[i]) if i < gt_times.size else t + round(1e9 / gt_rate)
-                sink.submit(self._flow_file.write, t, t_next, flow)
         if c.depthmap and depth is not None:
             d = np.where(np.isfinite(depth), depth, np.float32(np.nan)).astype(np.float32)
             out.append(self._image_msg(ctx, t, d, "32FC1"))

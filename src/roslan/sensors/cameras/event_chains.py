@@ -121,7 +121,8 @@ class Instant(NamedTuple):
     t: int
     lum: F32
     depth: F32 | None
-    """Ground-truth depth (only at ground-truth instants of a camera with ``depthmap``)."""
+    """Ground-truth depth (only at ground-truth instants, and the ends of the DSEC flow
+    maps' intervals, of a camera with ``depthmap`` or ``optic_flow``)."""
     flow: F32 | None
     """Ground-truth flow (only at ground-truth instants of a camera with ``optic_flow``)."""
     capped: bool
@@ -148,9 +149,12 @@ def _render(
     stream needs of it keeps the ground-truth flow and depth at ground-truth instants
     (``gt``) only."""
     c = sensor.config
-    lum, depth, v, w = sensor.render(ctx, t, need_depth=need_depth or c.optic_flow or c.depthmap)
+    lum, depth, v, w = sensor.render(
+        ctx, t, need_depth=need_depth or c.optic_flow or c.depthmap, exact_depth=gt
+    )
     flow = sensor.camera.flow(depth, v, w) if depth is not None and c.optic_flow and gt else None
-    return Instant(t, lum, depth if gt and c.depthmap else None, flow, False), depth, v, w
+    keep = gt and (c.depthmap or c.optic_flow)
+    return Instant(t, lum, depth if keep else None, flow, False), depth, v, w
 
 
 def render_chain(

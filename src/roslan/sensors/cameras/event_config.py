@@ -123,6 +123,15 @@ class EventCameraConfig(SensorConfig, CameraIntrinsics):
     event_image_window: Annotated[FiniteFloat, Field(gt=0, le=1.0)] = 0.01
     """s of events in each event_image frame."""
     optic_flow: bool = False
+    """Optical-flow ground truth: ``<topic>/optic_flow`` (32FC2, the instantaneous motion
+    field, px/s) at ``ground_truth_rate`` and DSEC flow maps in ``flow/`` (the true
+    displacement over ``flow_interval``, :mod:`roslan.sensors.cameras.flow_truth`)."""
+    flow_interval: Annotated[FiniteFloat, Field(gt=0, le=60.0)] = 0.1
+    """s from ``from_timestamp_us`` to ``to_timestamp_us`` of each DSEC flow map (DSEC's
+    benchmark interval, 0.1 s, by default)."""
+    flow_sky: Literal["valid", "invalid"] = "invalid"
+    """DSEC flow of pixels where nothing is hit: ``invalid`` (as DSEC, no ground truth) or
+    ``valid`` (the flow of the point at infinity: the rotation alone)."""
     depthmap: bool = False
     ground_truth_rate: Annotated[FiniteFloat, Field(gt=0, le=MAX_RATE_HZ)] | None = None
     """Rate of optic_flow / depthmap, Hz (default ``rate``)."""
@@ -133,6 +142,13 @@ class EventCameraConfig(SensorConfig, CameraIntrinsics):
     def _check(self) -> EventCameraConfig:
         if self.min_rate > self.max_rate:
             msg = f"min_rate = {self.min_rate} must be <= max_rate = {self.max_rate}"
+            raise ValueError(msg)
+        us = self.flow_interval * 1e6
+        if us < 1 or abs(us - round(us)) > 1e-6 * us:
+            msg = (
+                f"flow_interval = {self.flow_interval} s: use a whole number of microseconds, "
+                "at least 1e-6 (forward_timestamps.txt is in microseconds; DSEC: 0.1)"
+            )
             raise ValueError(msg)
         r = self.timestamp_resolution
         if r:  # (None or 0: the default or exact times)
@@ -175,6 +191,11 @@ class EventCameraConfig(SensorConfig, CameraIntrinsics):
     def sub_microsecond_times(self) -> bool:
         """Event times carry digits below 1 us (``events.h5`` then adds ``events/t_ns``)."""
         return self.timestamp_resolution_ns % 1000 != 0
+
+    @property
+    def flow_interval_ns(self) -> int:
+        """``flow_interval`` in whole ns."""
+        return round(self.flow_interval * 1e9)
 
     @property
     def has_aps(self) -> bool:

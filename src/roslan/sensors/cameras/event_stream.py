@@ -159,6 +159,9 @@ class AfterRender:
                 self.image_index += 1
         if t in self.gt_set:
             out += s._truth_msgs(ctx, t, flow, depth, self.gt_times, self.gt_rate)
+        if s.flow_truth is not None:  # (a map starts after the first event)
+            start = t in self.gt_set and self.n_events > 0
+            s.flow_truth.step(t, depth, start=start, submit=sink.submit)
         self.buf, ready = self.packets.split(self.buf, t, final=False)
         self._push(*ready, *out)
         horizon = t if not self.buf else min(t, int(self.buf[0].t[0]))

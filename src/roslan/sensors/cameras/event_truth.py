@@ -3,19 +3,20 @@
 ``optic_flow: true`` -> DSEC's optical-flow layout (Gehrig et al., "DSEC: A Stereo Event
 Camera Dataset for Driving Scenarios", RA-L 2021; dsec.ifi.uzh.ch, "Optical Flow"):
 
-* ``flow/forward/NNNNNN.png``: one 16-bit, 3-channel PNG per ground-truth sample (index
-  ``NNNNNN`` from 0), channels in RGB order: ``R = flow_x * 128 + 2**15``,
+* ``flow/forward/NNNNNN.png``: one 16-bit, 3-channel PNG per flow map (index ``NNNNNN``
+  from 0), channels in RGB order: ``R = flow_x * 128 + 2**15``,
   ``G = flow_y * 128 + 2**15``, ``B = valid`` (1 or 0). Decode as DSEC's loaders do:
   ``flow = (png[..., :2] - 2**15) / 128``, ``valid = png[..., 2] == 1``. ``flow`` is the
-  pixel displacement from ``from_timestamp_us`` to ``to_timestamp_us`` (the next sample),
-  the exact instantaneous motion field of the bag's ``<topic>/optic_flow`` (px/s) times
-  the interval, i.e. linear over it (DSEC integrates over 100 ms; at roslan's rates the
-  interval is one sample period). Where nothing is hit (sky) the flow is that of the
-  rotation alone (points at infinity), which is exact, so it is valid too; a pixel is
-  invalid only where its displacement exceeds DSEC's +-256 px range.
+  true displacement of each pixel's scene point from ``from_timestamp_us`` to
+  ``to_timestamp_us`` (``flow_interval`` later), in the distorted pixel coordinates of
+  ``events.h5``; occluded, leaving, out-of-range and (by default) sky pixels invalid
+  (:mod:`roslan.sensors.cameras.flow_truth`). The bag's ``<topic>/optic_flow`` is
+  something else: the instantaneous motion field at its stamp, px/s.
 * ``flow/forward_timestamps.txt``: DSEC's comma-separated listing, a header line
   ``# from_timestamp_us, to_timestamp_us`` then one line per PNG, absolute microseconds
-  (the clock of ``events.h5``'s ``events/t + t_offset`` and of the bag stamps).
+  (the clock of ``events.h5``'s ``events/t + t_offset`` and of the bag stamps). Maps
+  start at the ground-truth instants after the first event whose interval ends by the
+  end of the run (the last ground-truth sample).
 
 ``depthmap: true`` -> ``depth.h5`` in MVSEC's layout (Zhu et al., "The Multivehicle Stereo
 Event Camera Dataset", RA-L 2018; its ``*_data.hdf5`` files):
@@ -27,7 +28,8 @@ Event Camera Dataset", RA-L 2018; its ``*_data.hdf5`` files):
   start (roslan's addition; MVSEC readers ignore it).
 
 Both are written by the camera's background writer thread, in order, one sample at a time
-(memory bounded by one image).
+(memory bounded by one image; the flow maps' open intervals:
+:class:`~roslan.sensors.cameras.flow_truth.FlowTruth`).
 """
 
 from __future__ import annotations
@@ -82,13 +84,12 @@ class FlowPngWriter:
         self.start_time_ns = int(start_time_ns)
         self.count = 0
 
-    def write(self, t_ns: int, t_next_ns: int, flow_px_s: NDArray[np.floating]) -> None:
-        """Sample at trajectory time ``t_ns``: motion field ``flow_px_s`` (H, W, 2) px/s,
-        displacement over ``[t_ns, t_next_ns]``."""
-        dt = (int(t_next_ns) - int(t_ns)) * 1e-9
-        write_png(self.dir / f"{self.count:06d}.png", encode_dsec_flow(flow_px_s * dt))
-        a = (self.start_time_ns + int(t_ns)) // 1000
-        b = (self.start_time_ns + int(t_next_ns)) // 1000
+    def write(self, t0_ns: int, t1_ns: int, disp: NDArray[np.floating]) -> None:
+        """The map from trajectory time ``t0_ns`` to ``t1_ns``: displacement ``disp``
+        (H, W, 2) px, NaN where invalid."""
+        write_png(self.dir / f"{self.count:06d}.png", encode_dsec_flow(disp))
+        a = (self.start_time_ns + int(t0_ns)) // 1000
+        b = (self.start_time_ns + int(t1_ns)) // 1000
         self._fh.write(f"{a}, {b}\n")
         self.count += 1
 
