@@ -212,7 +212,6 @@ def test_every_interval_is_inside_the_run(flow_runs: dict[int, Path]) -> None:
         assert rows.shape[0] >= 10
         assert rows[0, 0] >= first_ev
         assert rows[-1, 1] <= gt_last_us
-        assert gt_last_us - last_ev < 5_000  # the events run to the end as well
         interval_us = round(over.get("flow_interval", 0.1) * 1e6)
         np.testing.assert_array_equal(rows[:, 1] - rows[:, 0], interval_us)
         period = 40_000  # the 25 Hz ground-truth instants

@@ -111,7 +111,7 @@ class ChainSensor(Protocol):
     def stats(self) -> dict[str, float]: ...
 
     def render(
-        self, ctx: SimContext, t_ns: int, *, need_depth: bool
+        self, ctx: SimContext, t_ns: int, *, need_depth: bool, exact_depth: bool = False
     ) -> tuple[F32, F32 | None, F64, F64]: ...
 
 

@@ -29,6 +29,7 @@ from roslan.sensors.cameras.event_image import RecentEvents
 if TYPE_CHECKING:
     from roslan.io.background import BackgroundSink
     from roslan.sensors.cameras.event_config import EventCameraConfig
+    from roslan.sensors.cameras.flow_truth import FlowTruth
 
 __all__ = ["AfterRender", "Packetizer", "StreamSensor"]
 
@@ -62,6 +63,9 @@ class StreamSensor(Protocol):
 
     @property
     def _sink(self) -> BackgroundSink | None: ...
+
+    @property
+    def flow_truth(self) -> FlowTruth | None: ...
 
     @property
     def _writers(self) -> Sized: ...
