@@ -334,8 +334,10 @@ class _Helper:
     def send(self, obj: Any) -> None:
         try:
             self.conn.send_bytes(pickle.dumps(obj, protocol=pickle.HIGHEST_PROTOCOL))
-        except OSError as err:
-            raise self.died() from err
+        except OSError:
+            # it is gone: its reader thread puts its last record (its error, or eof) in
+            # the inbox, which says more than a broken pipe; send it nothing more
+            self.ready = False
 
     def died(self) -> ChildError:
         return ChildError(death_message(self.proc, self.describe(), "while rendering"))
