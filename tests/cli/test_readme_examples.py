@@ -224,13 +224,14 @@ def _roslan_command(tmp_path: Path) -> dict[str, str]:
     return env
 
 
-def _run_shell(command: str, work: Path, env: dict[str, str], doc: Path) -> None:
+def _run_shell(command: str, work: Path, env: dict[str, str], doc: Path) -> str:
     proc = subprocess.run(
         command, shell=True, cwd=work, env=env, capture_output=True, text=True,
         timeout=300, check=False,
     )  # fmt: skip
     assert proc.returncode == 0, f"{doc.name} command failed: {command}\n{proc.stderr}"
     assert "Traceback" not in proc.stderr, proc.stderr
+    return proc.stdout + proc.stderr
 
 
 @pytest.mark.slow
@@ -243,6 +244,7 @@ def test_every_shell_and_python_example_runs_as_written(tmp_path: Path) -> None:
     env = _roslan_command(tmp_path)
     _run_shell(DEMO, work, env, README)  # make demo
     done, skipped, ran = {DEMO}, set(), 0
+    printed: dict[str, str] = {}
     for doc in documents():
         for name, text in _named_yaml(doc).items():
             (work / name).write_text(text, encoding="utf-8")
@@ -252,7 +254,7 @@ def test_every_shell_and_python_example_runs_as_written(tmp_path: Path) -> None:
                     if key := _skipped(command):
                         skipped.add(key)
                     elif _bare(command) not in done:
-                        _run_shell(command, work, env, doc)
+                        printed[_bare(command)] = _run_shell(command, work, env, doc)
                         done.add(_bare(command))
                         ran += 1
             elif lang == "python":
@@ -284,7 +286,6 @@ def test_every_shell_and_python_example_runs_as_written(tmp_path: Path) -> None:
         "perch_guide_out/run.json",
         "perch_trajectory.png",
         "full_job_out/landing_ros2",
-        "small_disk_out/events.h5",
         "imu_out/imu.txt",
         "imu.png",
         "wh/scene.yaml",
@@ -292,13 +293,15 @@ def test_every_shell_and_python_example_runs_as_written(tmp_path: Path) -> None:
         "events_out/events.txt",
         "event_frames",
         "range_suite_out/lidar/velodyne/timestamps.txt",
-        "landing_preview.gif",
         "landing.rrd",
         "small",
     ):
         assert (work / path).exists(), path
     # the disk switches the examples show: no events.txt, one bag
     assert not (work / "vision_out" / "events.txt").exists()
-    assert not (work / "small_disk_out" / "events.txt").exists()
-    assert not (work / "small_disk_out" / "landing.bag").exists()
     assert not (work / "full_job_out" / "landing.bag").exists()  # --format ros2
+    plan = printed["roslan simulate small_disk.yaml -o small_disk_out --dry-run"]
+    for shown in ("events.h5", "landing_ros2/"):
+        assert shown in plan, plan
+    for dropped in ("events.txt", "landing.bag"):
+        assert dropped not in plan, plan
