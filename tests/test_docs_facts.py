@@ -5,6 +5,7 @@ every command."""
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import re
 import shutil
@@ -168,3 +169,114 @@ def test_readme_install_facts() -> None:
     requires = re.search(r'requires-python = ">=([\d.]+)"', (ROOT / "pyproject.toml").read_text())
     assert requires is not None
     assert f"Python >= {requires.group(1)}" in install
+
+
+# --- the README, the user guide and docs/performance.md agree (issue 38) ---------------
+
+GUIDE = ROOT / "docs" / "guide"
+PERFORMANCE = (ROOT / "docs" / "performance.md").read_text(encoding="utf-8")
+
+
+def _guide(name: str) -> str:
+    return (GUIDE / name).read_text(encoding="utf-8")
+
+
+def _docs() -> dict[Path, str]:
+    paths = [ROOT / "README.md", *sorted(GUIDE.glob("*.md"))]
+    return {p: p.read_text(encoding="utf-8") for p in paths}
+
+
+def test_readme_and_performance_page_stay_short() -> None:
+    assert len(README.splitlines()) <= 250
+    assert len(PERFORMANCE.splitlines()) <= 300
+
+
+def _anchors(text: str) -> set[str]:
+    """GitHub's heading anchors: lower case, punctuation dropped, spaces to hyphens."""
+    out = set()
+    for heading in re.findall(r"^#+ (.+)$", text, re.M):
+        slug = re.sub(r"[^\w\- ]", "", heading.strip().lower()).replace(" ", "-")
+        out.add(slug)
+    return out
+
+
+def test_every_relative_link_of_the_readme_and_guide_resolves() -> None:
+    """Each link to a file of the repository names a file that exists, and its
+    ``#anchor`` a heading of that file."""
+    checked = 0
+    for path, text in _docs().items():
+        for target in re.findall(r"\]\(([^)\s]+)\)", text):
+            if re.match(r"\w+://", target):
+                continue
+            file, _, anchor = target.partition("#")
+            dest = (path.parent / file).resolve() if file else path
+            assert dest.exists(), f"{path.name}: link to {target}: no such file"
+            if anchor:
+                assert anchor in _anchors(dest.read_text(encoding="utf-8")), (
+                    f"{path.name}: link to {target}: no such heading"
+                )
+            checked += 1
+    assert checked >= 40
+
+
+def _size_table(text: str, title: str) -> dict[str, float]:
+    """``output -> MB`` of the table that follows ``title``."""
+    lines = text.split(title, 1)[1].splitlines()
+    start = next(i for i, line in enumerate(lines) if line.startswith("|"))
+    rows = {}
+    for line in lines[start:]:
+        if not line.startswith("|"):
+            break
+        cells = [c.strip() for c in line.strip("|").split("|")]
+        size = re.fullmatch(r"\**([\d.]+) MB\**", cells[1])
+        if size is None:
+            continue
+        name = re.search(r"`([^`]+)`|(OUTDIR|rest)", cells[0])
+        assert name is not None, line
+        rows[name.group(1) or name.group(2)] = float(size.group(1))
+    return rows
+
+
+def test_output_sizes_agree_and_add_up() -> None:
+    guide = _size_table(_guide("outputs.md"), "## Sizes: where the disk goes")
+    perf = _size_table(PERFORMANCE, "## Output sizes")
+    assert guide == perf
+    total = guide.pop("OUTDIR")
+    assert len(guide) >= 8
+    # each figure rounded to 0.1 MB: the sum within half a unit per row
+    assert abs(sum(guide.values()) - total) <= 0.05 * len(guide), (sum(guide.values()), total)
+    # the README's rounded figures are the table's
+    mb = {k: math.floor(v + 0.5) for k, v in guide.items()}  # rounded half up, as people do
+    total_mb = math.floor(total + 0.5)
+    assert f"`out/` ({total_mb} MB)" in README
+    assert f"{mb['events.txt']} MB of those {total_mb} MB are `events.txt`" in README
+    assert f"`events.h5` ({mb['events.h5']} MB)" in README
+    assert f"no `events.txt` (-{mb['events.txt']} MB on the default job)" in _guide("outputs.md")
+    # the dry-run estimate is stated once, the same everywhere
+    estimate = re.search(r"`--dry-run` estimate (\d+) MB", PERFORMANCE)
+    assert estimate is not None
+    assert f"{estimate.group(1)} MB estimated, {total} MB" in " ".join(_guide("outputs.md").split())
+
+
+def test_speed_and_dataset_figures_agree() -> None:
+    flat = " ".join(README.split())
+    rtf = re.search(r"real-time factor \(wall time / trajectory time\) was (\d\.\d)–(\d\.\d)", flat)
+    assert rtf is not None, "the README's one speed figure"
+    figure = f"{rtf.group(1)}-{rtf.group(2)}"
+    assert f"**{figure}**" in PERFORMANCE
+    assert f"**{figure}**" in _guide("performance.md")
+    assert len(re.findall(r"real-time factor", README)) == 1, "one speed figure in the README"
+    plan = re.search(r"estimated ([\d.]+ GB) of disk and ([\d.]+ min)", _guide("datasets.md"))
+    assert plan is not None
+    assert f"**{plan.group(1)} and {plan.group(2)}**" in PERFORMANCE
+    events = re.search(r"\| events of the default job \| \*\*([\d,]+)\*\*", PERFORMANCE)
+    assert events is not None
+    assert f"{events.group(1)} events" in _guide("outputs.md")
+
+
+def test_no_stale_figure_is_left() -> None:
+    """Figures issue 38 found stale or contradictory are gone from the README and guide."""
+    for path, text in _docs().items():
+        flat = " ".join(text.split())
+        for stale in ("35,358", "6.7 GB", "4.8 min", "3.0-3.3", "about 7 real-time", "-o out/"):
+            assert stale not in flat, f"{path.name}: {stale}"

@@ -1,5 +1,5 @@
-"""Documented physical and resource bounds (README "Limits"), and the pre-flight check that
-refuses a run that cannot fit before anything is written.
+"""Documented physical and resource bounds (docs/guide/simulation.md, "Limits"), and the
+pre-flight check that refuses a run that cannot fit before anything is written.
 
 The schema uses the constants below as field ranges; :func:`preflight` adds what needs the
 whole job (trajectory duration x rates, ROS 1 time range, frame sizes).

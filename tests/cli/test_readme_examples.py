@@ -1,22 +1,27 @@
-"""Every example in README.md works as written.
+"""Every example in README.md and the user guide (docs/guide/*.md) works as written.
 
-The YAML, shell and Python blocks are extracted from the README itself (never copied
-here), the named YAML files (``# job.yaml`` on their first line) are written into a fresh
-folder, and the shell and Python blocks run there in README order through a ``roslan``
-command on PATH. The only concession to test time is an environment switch of that
-command (``ROSLAN_README_FAST``): every simulation's landing is shortened to 1 s after its
-config has been read and validated as written. A few commands cannot run here; each is
-listed in ``NOT_RUN`` with the reason.
+The YAML, shell and Python blocks are extracted from the documents themselves (never
+copied here): README.md first, then the guide's pages in the order of its index
+(docs/guide/README.md), as a reader would go. Each document's named YAML files (``# job.yaml``
+on their first line) are written into one fresh folder, and its shell and Python blocks
+run there in order through a ``roslan`` command on PATH, after the equivalent of ``make
+demo`` (``roslan simulate -o out --overwrite``), which the guide's pages assume. The only
+concession to test time is an environment switch of that command (``ROSLAN_README_FAST``):
+every simulation's landing is shortened to 1 s after its config has been read and
+validated as written. A few commands cannot run here; each is listed in ``NOT_RUN`` with
+the reason. The README and the guide run as two tests (each after its own ``make demo``),
+so that the suite's two processes share them; within one, a command shown twice runs once.
 """
 
 from __future__ import annotations
 
 import os
 import re
+import shlex
 import subprocess
 import sys
 import textwrap
-from pathlib import Path
+from pathlib import Path, PurePosixPath
 from typing import Any
 
 import pytest
@@ -28,22 +33,29 @@ from roslan.scene.spec import SceneFile
 
 ROOT = Path(__file__).resolve().parents[2]
 README = ROOT / "README.md"
+GUIDE = ROOT / "docs" / "guide"
 SRC = ROOT / "src"
 
 _BLOCK = re.compile(r"^```(\w+)\n(.*?)^```", re.M | re.S)
 _NAMED = re.compile(r"^# ([\w.]+\.yaml)\b")
 
+# Commands (without their trailing comment) that are not run, matched in full.
 NOT_RUN: dict[str, str] = {
-    "make ": "creates a virtual environment and pip-installs (the suite runs inside one)",
-    "sudo apt-get": "installs system packages (needs root; .ci/run installs them)",
-    "python3 -m pip install .": "installs roslan (the suite runs inside an installed one)",
-    ".venv/bin/roslan": "the clone's .venv (here `roslan` on PATH runs every example)",
-    "source .venv/bin/activate": "the clone's .venv (a shell builtin of bash, not sh)",
-    "rosbag info": "needs a ROS 1 installation (tests/io/test_bags.py reads the bags instead)",
-    "roslan dataset -o paper_ds ": "12 full landings take minutes (its --dry-run runs here)",
-    "roslan batch sweep.yaml -o sweep_out --workers": "64 landings (the --dry-run runs here)",
-    "roslan batch sweep.yaml -o sweep_out --scheduler": "needs a running Dask scheduler",
+    r"make (demo|test)": "creates a virtual environment and pip-installs (the suite runs in one)",
+    r"sudo apt-get .*": "installs system packages (needs root; .ci/run installs them)",
+    r"python3 -m pip install \.": "installs roslan (the suite runs inside an installed one)",
+    r"\.venv/bin/roslan .*": "the clone's .venv (here `roslan` on PATH runs every example)",
+    r"source \.venv/bin/activate": "the clone's .venv (a shell builtin of bash, not sh)",
+    r"rosbag info .*": "needs a ROS 1 installation (tests/io/test_bags.py reads the bags instead)",
+    r"roslan dataset -o paper_ds": "12 full landings take minutes (its --dry-run runs here)",
+    r"roslan batch sweep\.yaml -o sweep_out --workers .*": "64 landings (the --dry-run runs here)",
+    r"roslan batch sweep\.yaml -o sweep_out --scheduler .*": "needs a running Dask scheduler",
 }
+
+# `make demo`'s run, which the guide's pages read (`out/`)
+DEMO = "roslan simulate -o out --overwrite"
+# commands whose -o folder is a run (a folder of its own, never inside another)
+_RUN_COMMANDS = ("roslan simulate", "roslan trajectory", "roslan dataset", "roslan batch")
 
 _FAST_SHIM = """\
 #!{python}
@@ -72,9 +84,20 @@ if __name__ == "__main__":  # worker processes re-import this file
 """
 
 
-def readme_blocks() -> list[tuple[str, str]]:
-    """``(language, text)`` of every fenced block of README.md, in order."""
-    return [(m.group(1), m.group(2)) for m in _BLOCK.finditer(README.read_text("utf-8"))]
+def guide_pages() -> list[Path]:
+    """The guide's pages in the order of its index's links."""
+    index = (GUIDE / "README.md").read_text("utf-8")
+    names = re.findall(r"\]\(([\w-]+\.md)\)", index)
+    return [GUIDE / n for n in dict.fromkeys(names)]
+
+
+def documents() -> list[Path]:
+    return [README, *guide_pages()]
+
+
+def blocks(doc: Path) -> list[tuple[str, str]]:
+    """``(language, text)`` of every fenced block of ``doc``, in order."""
+    return [(m.group(1), m.group(2)) for m in _BLOCK.finditer(doc.read_text("utf-8"))]
 
 
 def _commands(block: str) -> list[str]:
@@ -83,36 +106,91 @@ def _commands(block: str) -> list[str]:
     return [ln.strip() for ln in lines if ln.strip() and not ln.strip().startswith("#")]
 
 
+def _bare(command: str) -> str:
+    """The command without its trailing ``# comment``."""
+    return command.split(" #")[0].strip()
+
+
 def _skipped(command: str) -> str | None:
-    return next((why for start, why in NOT_RUN.items() if command.startswith(start)), None)
+    bare = _bare(command)
+    return next((key for key in NOT_RUN if re.fullmatch(key, bare)), None)
 
 
-def _named_yaml() -> dict[str, str]:
-    """The README's YAML blocks whose first line names their file (``# job.yaml``)."""
+def _named_yaml(doc: Path) -> dict[str, str]:
+    """The YAML blocks of ``doc`` whose first line names their file (``# job.yaml``)."""
     out = {}
-    for lang, text in readme_blocks():
+    for lang, text in blocks(doc):
         if lang == "yaml" and (m := _NAMED.match(text)):
             out[m.group(1)] = text
     return out
 
 
+def _doc_commands(doc: Path) -> list[str]:
+    return [c for lang, b in blocks(doc) if lang == "bash" for c in _commands(b)]
+
+
 def _all_commands() -> list[str]:
-    return [c for lang, b in readme_blocks() if lang == "bash" for c in _commands(b)]
+    return [c for doc in documents() for c in _doc_commands(doc)]
 
 
-def test_readme_shows_every_file_its_commands_use() -> None:
-    named = _named_yaml()
-    used = {f for c in _all_commands() for f in re.findall(r"\b(\w+\.yaml)\b", c.split(" #")[0])}
-    assert used - {"default.yaml"} <= set(named), "commands use YAML files the README lacks"
-    base = re.search(r"^base: (\S+)", named["sweep.yaml"], re.M)
+def test_the_guide_index_lists_every_page() -> None:
+    pages = {p.name for p in GUIDE.glob("*.md")} - {"README.md"}
+    assert {p.name for p in guide_pages()} == pages
+    assert all(p.exists() for p in guide_pages())
+
+
+def test_docs_show_every_file_their_commands_use() -> None:
+    """A command's YAML file is shown in its document or an earlier one; no two documents
+    show different files under one name."""
+    shown: dict[str, Path] = {}
+    for doc in documents():
+        for name in _named_yaml(doc):
+            assert name not in shown, f"{name} is shown in {shown[name].name} and {doc.name}"
+            shown[name] = doc
+        for command in _doc_commands(doc):
+            used = set(re.findall(r"\b([\w.]+\.yaml)\b", _bare(command))) - {"default.yaml"}
+            assert used <= set(shown), f"{doc.name}: {command} uses YAML files not shown"
+    base = re.search(r"^base: (\S+)", _named_yaml(GUIDE / "datasets.md")["sweep.yaml"], re.M)
     assert base is not None
-    assert base.group(1) in named, "the sweep's base config is not shown"
-    # every NOT_RUN entry still matches a README command (no stale excuses)
-    for start in NOT_RUN:
-        assert any(c.startswith(start) for c in _all_commands()), start
+    assert base.group(1) in shown, "the sweep's base config is not shown"
+    # every NOT_RUN entry still matches a command (no stale excuses)
+    for key in NOT_RUN:
+        assert any(_skipped(c) == key for c in _all_commands()), key
 
 
-def _validate_yaml(text: str, tmp_path: Path) -> None:
+def _outputs(command: str) -> list[PurePosixPath]:
+    words = shlex.split(_bare(command))
+    return [PurePosixPath(words[i + 1]) for i, w in enumerate(words[:-1])
+            if w in ("-o", "--output", "--save")]  # fmt: skip
+
+
+def _inside(path: PurePosixPath, folder: PurePosixPath) -> bool:
+    return path != folder and folder in path.parents
+
+
+def test_no_example_writes_inside_another_run() -> None:
+    """``make demo`` replaces ``out/`` with ``--overwrite``: a run nested in a run's folder
+    (``-o out/ranges``) would be deleted with it. No ``-o`` target of any example lies
+    inside a run's folder."""
+    runs = {PurePosixPath("out")}
+    targets = []
+    for command in _all_commands():
+        if _skipped(command) and not command.startswith("roslan"):
+            continue
+        outs = _outputs(command)
+        targets += [(command, o) for o in outs]
+        if command.startswith(_RUN_COMMANDS):
+            runs |= set(outs)
+    assert len(runs) >= 10
+    for command, target in targets:
+        for run in runs:
+            assert not _inside(target, run), f"{command!r} writes inside the run folder {run}"
+    # the check itself sees a nested run
+    assert _inside(PurePosixPath("out/ranges"), PurePosixPath("out"))
+    assert not _inside(PurePosixPath("out_ranges"), PurePosixPath("out"))
+
+
+def _validate_yaml(text: str, tmp_path: Path, where: str) -> None:
     data: Any = yaml.safe_load(text)
     assert isinstance(data, dict), text
     if "objects" in data:  # a scene file
@@ -120,13 +198,17 @@ def _validate_yaml(text: str, tmp_path: Path) -> None:
     elif "axes" in data:  # a sweep: checked when the shell examples run it
         assert "base" in data
     else:  # a simulation config (or a part of one: a trajectory, a sensor list)
-        validate_model(SimConfig, data, "README", context={"base_dir": tmp_path})
+        validate_model(SimConfig, data, where, context={"base_dir": tmp_path})
 
 
 def test_every_yaml_example_is_a_valid_config(tmp_path: Path) -> None:
-    yamls = [b for lang, b in readme_blocks() if lang == "yaml"]
-    for text in yamls:
-        _validate_yaml(text, tmp_path)
+    checked = 0
+    for doc in documents():
+        for lang, text in blocks(doc):
+            if lang == "yaml":
+                _validate_yaml(text, tmp_path, doc.name)
+                checked += 1
+    assert checked >= 15
 
 
 def _roslan_command(tmp_path: Path) -> dict[str, str]:
@@ -143,55 +225,102 @@ def _roslan_command(tmp_path: Path) -> dict[str, str]:
     return env
 
 
-@pytest.mark.slow
-def test_every_shell_and_python_example_runs_as_written(tmp_path: Path) -> None:
+def _run_shell(command: str, work: Path, env: dict[str, str], doc: Path) -> str:
+    proc = subprocess.run(
+        command, shell=True, cwd=work, env=env, capture_output=True, text=True,
+        timeout=300, check=False,
+    )  # fmt: skip
+    assert proc.returncode == 0, f"{doc.name} command failed: {command}\n{proc.stderr}"
+    assert "Traceback" not in proc.stderr, proc.stderr
+    return proc.stdout + proc.stderr
+
+
+def _run_documents(docs: list[Path], tmp_path: Path) -> tuple[Path, dict[str, str], int]:
+    """Run the examples of ``docs`` in order in a fresh clone-like folder, after
+    ``make demo``'s run: the folder, what each command printed, how many examples ran."""
     work = tmp_path / "clone"
     work.mkdir()
-    # the README's paths are relative to a clone's root
+    # the examples' paths are relative to a clone's root
     (work / "src" / "roslan").mkdir(parents=True)
     (work / "src" / "roslan" / "data").symlink_to(SRC / "roslan" / "data")
     env = _roslan_command(tmp_path)
-    blocks = readme_blocks()
-    for lang, text in blocks:
-        if lang == "yaml" and (m := _NAMED.match(text)):
-            (work / m.group(1)).write_text(text, encoding="utf-8")
-    ran, skipped = 0, set()
-    for lang, text in blocks:
-        if lang == "bash":
-            for command in _commands(text):
-                if _skipped(command):
-                    skipped.add(next(k for k in NOT_RUN if command.startswith(k)))
-                    continue
+    _run_shell(DEMO, work, env, README)  # make demo
+    printed: dict[str, str] = {DEMO: ""}
+    ran = 0
+    for doc in docs:
+        for name, text in _named_yaml(doc).items():
+            (work / name).write_text(text, encoding="utf-8")
+        for lang, text in blocks(doc):
+            if lang == "bash":
+                for command in _commands(text):
+                    if not _skipped(command) and _bare(command) not in printed:
+                        printed[_bare(command)] = _run_shell(command, work, env, doc)
+                        ran += 1
+            elif lang == "python":
                 proc = subprocess.run(
-                    command, shell=True, cwd=work, env=env, capture_output=True, text=True,
-                    timeout=300, check=False,
+                    [sys.executable, "-c", textwrap.dedent(text)], cwd=work, env=env,
+                    capture_output=True, text=True, timeout=300, check=False,
                 )  # fmt: skip
-                assert proc.returncode == 0, f"README command failed: {command}\n{proc.stderr}"
-                assert "Traceback" not in proc.stderr, proc.stderr
+                assert proc.returncode == 0, (
+                    f"{doc.name} Python example failed:\n{text}\n{proc.stderr}"
+                )
                 ran += 1
-        elif lang == "python":
-            proc = subprocess.run(
-                [sys.executable, "-c", textwrap.dedent(text)], cwd=work, env=env,
-                capture_output=True, text=True, timeout=300, check=False,
-            )  # fmt: skip
-            assert proc.returncode == 0, f"README Python example failed:\n{text}\n{proc.stderr}"
-            ran += 1
-    assert ran >= 15
-    assert skipped == set(NOT_RUN)
+    return work, printed, ran
+
+
+@pytest.mark.slow
+def test_every_readme_example_runs_as_written(tmp_path: Path) -> None:
+    work, _, ran = _run_documents([README], tmp_path)
+    assert ran >= 12
     # what the examples promise is there
     for path in (
-        "out/landing.bag",
-        "out/overview.png",
         "out/plots/trajectory.png",
-        "out/plots/imu.png",
-        "out/preview.mp4",
         "landing/trajectory.csv",
+        "tau_family.png",
         "job_out/run.json",
-        "cam_out/run.json",
-        "events_out/plots/event_frames.png",
-        "out/ranges/lidar/velodyne/timestamps.txt",
+        "perch_out/run.json",
+        "vision_out/depth_depth.txt",
+        "vision_plots",
+        "ranges_out/lidar/velodyne/timestamps.txt",
+        "lidar.png",
         "view.png",
+        "preview.mp4",
+    ):
+        assert (work / path).exists(), path
+    # the disk switch the README shows: events.h5 without events.txt
+    assert (work / "vision_out" / "events.h5").exists()
+    assert not (work / "vision_out" / "events.txt").exists()
+
+
+@pytest.mark.slow
+def test_every_guide_example_runs_as_written(tmp_path: Path) -> None:
+    """The guide's pages need only ``make demo``'s ``out/``, not the README's examples."""
+    work, printed, ran = _run_documents(guide_pages(), tmp_path)
+    assert ran >= 25
+    for path in (
+        "tau_landing/summary.json",
+        "flown/trajectory.csv",
+        "perch_guide_out/run.json",
+        "perch_trajectory.png",
+        "full_job_out/landing_ros2",
+        "imu_out/imu.txt",
+        "imu.png",
+        "warehouse_view.png",
         "wh/scene.yaml",
+        "cam_out/run.json",
+        "events_out/events.txt",
+        "event_frames",
+        "range_suite_out/lidar/velodyne/timestamps.txt",
+        "out/plots/trajectory.png",
+        "preview.mp4",
+        "landing.rrd",
         "small",
     ):
         assert (work / path).exists(), path
+    assert not (work / "full_job_out" / "landing.bag").exists()  # --format ros2
+    # the small-disk job's plan: the switches drop events.txt and the ROS 1 bag
+    plan = printed["roslan simulate small_disk.yaml -o small_disk_out --dry-run"]
+    for shown in ("events.h5", "landing_ros2/"):
+        assert shown in plan, plan
+    for dropped in ("events.txt", "landing.bag"):
+        assert dropped not in plan, plan

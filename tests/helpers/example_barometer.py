@@ -1,4 +1,4 @@
-"""A small sensor written the way the README's "Architecture" section says: one module
+"""A small sensor written the way docs/guide/architecture.md says: one module
 (a config model and a class satisfying ``roslan.sensors.base.Sensor``) plus one
 ``SensorSpec``. tests/sensors/test_sensor_plugin.py registers it and runs it through the pipeline.
 

@@ -509,7 +509,7 @@ def _defaults(store: MessageStore, msgtype: str) -> dict[str, object]:
 
 @pytest.mark.ros1
 def test_rosbag_check_without_dvs_msgs_lists_only_event_array(tmp_path: Path) -> None:
-    """Where ROS 1 lacks dvs_msgs (as the README says), ``rosbag check`` lists exactly one
+    """Where ROS 1 lacks dvs_msgs (as the user guide says), ``rosbag check`` lists exactly one
     migration: dvs_msgs/EventArray to "Unknown" (the type is unknown there, not
     mis-written); every other type passes."""
     py = _debian_python()
@@ -530,5 +530,7 @@ def test_rosbag_check_without_dvs_msgs_lists_only_event_array(tmp_path: Path) ->
                     if "From:" in ln})  # fmt: skip
     assert froms == ["dvs_msgs/EventArray"], out
     assert "To:   Unknown" in out
-    readme = (Path(__file__).resolve().parents[2] / "README.md").read_text(encoding="utf-8")
-    assert "`dvs_msgs/EventArray`, and `rosbag check` then lists that one type" in readme
+    guide = Path(__file__).resolve().parents[2] / "docs" / "guide" / "outputs.md"
+    assert "`dvs_msgs/EventArray`, and `rosbag check` then lists that one type" in guide.read_text(
+        encoding="utf-8"
+    )

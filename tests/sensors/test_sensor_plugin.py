@@ -1,4 +1,4 @@
-"""Adding a sensor as the README's "Architecture" section says: one module
+"""Adding a sensor as docs/guide/architecture.md says: one module
 (tests/example_barometer.py) plus one ``SensorSpec``. Nothing else in roslan changes: the
 config schema, the pipeline, the bags, run.json and the dataset folder pick it up."""
 

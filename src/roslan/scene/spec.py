@@ -1,4 +1,4 @@
-"""The scene file (YAML) model: the documented contract of scene files (README, Scenes).
+"""The scene file (YAML) model: the documented contract of scene files (docs/guide/scenes.md).
 
 .. code-block:: yaml
 
