@@ -9,6 +9,7 @@ from __future__ import annotations
 
 __all__ = [
     "ConfigError",
+    "Note",
     "OutputError",
     "PlotError",
     "RenderError",
@@ -53,3 +54,8 @@ class RenderError(RoslanError):
 
 class PlotError(RoslanError):
     """A plot cannot be drawn: an input it needs is missing or unreadable."""
+
+
+class Note(UserWarning):
+    """Not a problem, a line worth knowing (a default roslan chose for the user): the
+    command line prints it as ``note: ...`` instead of ``warning: ...``."""

@@ -11,7 +11,7 @@ import warnings
 from collections.abc import Sequence
 
 from roslan import __version__
-from roslan.errors import RoslanError
+from roslan.errors import Note, RoslanError
 
 __all__ = ["main"]
 
@@ -65,7 +65,8 @@ def _show_warning(
     file: object = None,
     line: str | None = None,
 ) -> None:
-    print(f"warning: {message}", file=sys.stderr)
+    kind = "note" if issubclass(category, Note) else "warning"
+    print(f"{kind}: {message}", file=sys.stderr)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
