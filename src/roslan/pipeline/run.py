@@ -52,7 +52,7 @@ from roslan.pipeline.report import BackgroundPlot, Progress, playback_text, prin
 from roslan.pipeline.worker import WorkerJob, WorkerPool, sensor_stats, worker_nice
 from roslan.rundir.calibration import root_camera, write_calibration
 from roslan.rundir.extrinsics import write_extrinsics
-from roslan.rundir.folder import clean_stale, finalize, make_temp, outdir_lock
+from roslan.rundir.folder import clean_stale, finalize, make_temp, outdir_lock, run_files
 from roslan.rundir.layouts import write_layouts
 from roslan.rundir.manifest import (
     RUN_FILE,
@@ -392,6 +392,7 @@ class _Run:
             write_layouts(tmp, {t: e["type"] for t, e in topics.items()})
         readme = outdir_readme(tmp, root_camera(self.config.sensors))
         (tmp / "README.md").write_text(readme, encoding="utf-8")
+        manifest["files"] = run_files(tmp)  # what --overwrite may replace, nothing else
         write_json(tmp / RUN_FILE, manifest)  # last: its presence marks a complete folder
         return manifest
 
