@@ -191,6 +191,7 @@ def playback_text(
             "rosparam set use_sim_time true   # stamps = start_time + trajectory time",
             "rosbag play --clock landing.bag             # real time",
             f"rosbag play --clock landing.bag -r {pace:.2f}   # at the pace this simulation ran",
+            "rviz -d landing.rviz                        # the layout of this run's topics",
             "```",
             "",
         ]
@@ -205,12 +206,16 @@ def playback_text(
             "```",
             "",
         ]
+    bags = [f"`{b}`" for f, b in (("ros2", "landing_ros2/landing_ros2.mcap"),
+                                      ("ros1", "landing.bag")) if f in formats]  # fmt: skip
     lines += [
         "## Foxglove",
         "",
-        "Open Foxglove Studio -> *Open local file* -> `landing_ros2/landing_ros2.mcap` (or "
-        "`landing.bag`). Add a 3D panel (fixed frame `world`; /tf and /tf_static give "
-        "`world -> base_link -> sensors`) and plots of `/ground_truth/odometry` and `/tau/state`.",
+        f"Open Foxglove -> *Open local file* -> {' or '.join(bags)}, then *Layouts -> "
+        "Import from file* -> `landing.foxglove.json`: a 3D panel (fixed frame `world`; "
+        "/tf and /tf_static give `world -> base_link -> sensors`) with the scene, the "
+        "trajectory (`/ground_truth/pose`) and the clouds and scans, an Image panel per "
+        "camera and a plot of the IMU and range topics.",
         "",
         "## Topics",
         "",

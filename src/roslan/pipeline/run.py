@@ -389,7 +389,7 @@ class _Run:
             playback_text(self.traj.duration, wall, plan.formats, counts), encoding="utf-8"
         )
         if plan.formats:
-            write_layouts(tmp, {t: e["type"] for t, e in topics.items()})
+            write_layouts(tmp, {t: e["type"] for t, e in topics.items()}, plan.formats)
         readme = outdir_readme(tmp, root_camera(self.config.sensors))
         (tmp / "README.md").write_text(readme, encoding="utf-8")
         manifest["files"] = run_files(tmp)  # what --overwrite may replace, nothing else
