@@ -377,12 +377,11 @@ class _Run:
         wall = time.perf_counter() - self.wall0
         timing = self._timing(wall)
         if self.opts.overview:
-            from roslan.plots.overview import write_overview
+            from roslan.plots.overview import overview_title, write_overview
 
             self.progress.phase("drawing overview.png")
             t0 = time.perf_counter()
-            scene_name = self.config.scene or "no scene"
-            write_overview(tmp, title=f"roslan run: {scene_name}, seed {self.config.seed}")
+            write_overview(tmp, title=overview_title(self.config.scene, self.config.seed))
             timing["overview_s"] = time.perf_counter() - t0
         write_json(tmp / TIMING_FILE, timing)
         (tmp / "PLAYBACK.md").write_text(
