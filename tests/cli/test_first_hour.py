@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import os
 import re
 import tomllib
 from pathlib import Path
@@ -257,6 +258,36 @@ def test_progress_bar_on_a_terminal_shows_the_time_left() -> None:
         p.stop()
     assert p._bar is None
     assert p._status is None
+
+
+@pytest.mark.parametrize("width", [80, 120])
+def test_progress_bar_keeps_the_time_left_at_80_columns(width: int) -> None:
+    import re
+
+    from rich.console import Console
+
+    from roslan.pipeline.report import Progress
+
+    p = Progress(quiet=False)
+    p._console = Console(
+        width=width,
+        force_terminal=True,
+        record=True,
+        file=open(os.devnull, "w"),  # noqa: SIM115
+    )
+    p.start(12.5)
+    try:
+        p._t0 -= 40.0  # 40 s of wall time for 3.25 s of trajectory: a long run
+        p.update(3.25)
+        line = "".join(seg.text for seg in p._console.render(p._bar.get_renderable()))
+    finally:
+        p.stop()
+    row = line.splitlines()[0]
+    assert len(row) <= width
+    assert "3.25/12.50 s" in row
+    assert re.search(r"RTF 12\.\d\d ", row), row
+    # elapsed, then the time left (rich's estimate, '-:--:--' until it has a speed)
+    assert re.search(r"\d:\d\d:\d\d (\d:\d\d:\d\d|-:--:--) left$", row.rstrip()), row
 
 
 def test_overwrite_message_is_plain(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

@@ -82,14 +82,15 @@ class Progress:
             TimeRemainingColumn,
         )
 
+        # compact columns: at 80 columns the bar shrinks, and the time left stays
         self._bar = Progress(
             TextColumn("simulating"),
-            BarColumn(),
-            TextColumn("{task.completed:.2f}/{task.total:.2f} s of trajectory"),
+            BarColumn(bar_width=None),
+            TextColumn("{task.completed:.2f}/{task.total:.2f} s"),
             TextColumn("{task.fields[rtf]}"),
             TimeElapsedColumn(),
-            TextColumn("left"),
             TimeRemainingColumn(),
+            TextColumn("left"),
             console=self._console,
         )
         self._task = self._bar.add_task("sim", total=total_s, rtf="")
@@ -99,7 +100,7 @@ class Progress:
         if self._bar is None:
             return
         wall = time.perf_counter() - self._t0
-        rtf = f"real-time factor {wall / t_s:.2f}" if t_s > 0 else ""
+        rtf = f"RTF {wall / t_s:.2f}" if t_s > 0 else ""  # real-time factor
         self._bar.update(self._task, completed=min(t_s, self.total), rtf=rtf)
 
     def _end_status(self) -> None:
