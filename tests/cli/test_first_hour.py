@@ -568,3 +568,26 @@ def test_scene_preview_top_view_is_scaled_to_the_plant(
     assert x1 - x0 < 0.8 * float(hi[0] - lo[0])
     assert x0 <= vx.min()
     assert x1 >= vx.max()
+
+
+def test_help_texts_carry_no_rest_markup() -> None:
+    """Every command's --help reads as plain text: no Sphinx roles, no double backticks."""
+    import argparse
+    import re
+
+    from roslan.cli.app import build_parser, plain
+
+    assert plain("see :func:`~roslan.plots.overview.write_overview` in :mod:`roslan.plots`") == (
+        "see write_overview in roslan.plots"
+    )
+    pending, seen = [build_parser()], 0
+    while pending:
+        parser = pending.pop()
+        text = parser.format_help()
+        assert not re.search(r":[a-z]+:`", text), (parser.prog, text)
+        assert "``" not in text, parser.prog
+        seen += 1
+        for action in parser._actions:
+            if isinstance(action, argparse._SubParsersAction):
+                pending.extend(dict.fromkeys(action.choices.values()))
+    assert seen >= 15  # roslan, its commands and the plot and scene subcommands
