@@ -173,3 +173,19 @@ def test_readme_examples_land_on_the_marker(name: str) -> None:
     assert marker is not None
     assert marker.kind in ("landing marker", "perch")
     assert flown.trajectory.goal == marker.pose
+
+
+def test_trajectory_command_flies_the_scene_goal(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``roslan trajectory CONFIG`` writes the landing ``roslan simulate`` flies."""
+    import json
+
+    cfg = tmp_path / "job.yaml"
+    cfg.write_text(yaml.safe_dump({"trajectory": LANDING, "scene": "refinery"}), "utf-8")
+    assert main(["trajectory", str(cfg), "-o", str(tmp_path / "t"), "--no-plot"]) == 0
+    assert "note: trajectory.goal not set" in capsys.readouterr().err
+    goal = json.loads((tmp_path / "t" / "summary.json").read_text())["goal"]
+    # base_link's goal: the pipe's top, raised by the grasp point's 8 cm
+    assert goal["position"] == pytest.approx([0.0, 0.0, 2.5 + FEET_DROP])
+    assert goal["rpy"] == pytest.approx([0.0, 0.0, 0.25])
