@@ -9,6 +9,7 @@ from __future__ import annotations
 
 __all__ = [
     "ConfigError",
+    "Note",
     "OutputError",
     "PlotError",
     "RecordingError",
@@ -58,3 +59,8 @@ class PlotError(RoslanError):
 
 class RecordingError(RoslanError):
     """An event recording that cannot be read, or whose noise cannot be fitted."""
+
+
+class Note(UserWarning):
+    """Not a problem, a line worth knowing (a default roslan chose for the user): the
+    command line prints it as ``note: ...`` instead of ``warning: ...``."""

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import os
 import re
 import tomllib
 from pathlib import Path
@@ -257,6 +258,36 @@ def test_progress_bar_on_a_terminal_shows_the_time_left() -> None:
         p.stop()
     assert p._bar is None
     assert p._status is None
+
+
+@pytest.mark.parametrize("width", [80, 120])
+def test_progress_bar_keeps_the_time_left_at_80_columns(width: int) -> None:
+    import re
+
+    from rich.console import Console
+
+    from roslan.pipeline.report import Progress
+
+    p = Progress(quiet=False)
+    p._console = Console(
+        width=width,
+        force_terminal=True,
+        record=True,
+        file=open(os.devnull, "w"),  # noqa: SIM115
+    )
+    p.start(12.5)
+    try:
+        p._t0 -= 40.0  # 40 s of wall time for 3.25 s of trajectory: a long run
+        p.update(3.25)
+        line = "".join(seg.text for seg in p._console.render(p._bar.get_renderable()))
+    finally:
+        p.stop()
+    row = line.splitlines()[0]
+    assert len(row) <= width
+    assert "3.25/12.50 s" in row
+    assert re.search(r"RTF 12\.\d\d ", row), row
+    # elapsed, then the time left (rich's estimate, '-:--:--' until it has a speed)
+    assert re.search(r"\d:\d\d:\d\d (\d:\d\d:\d\d|-:--:--) left$", row.rstrip()), row
 
 
 def test_overwrite_message_is_plain(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
@@ -537,3 +568,26 @@ def test_scene_preview_top_view_is_scaled_to_the_plant(
     assert x1 - x0 < 0.8 * float(hi[0] - lo[0])
     assert x0 <= vx.min()
     assert x1 >= vx.max()
+
+
+def test_help_texts_carry_no_rest_markup() -> None:
+    """Every command's --help reads as plain text: no Sphinx roles, no double backticks."""
+    import argparse
+    import re
+
+    from roslan.cli.app import build_parser, plain
+
+    assert plain("see :func:`~roslan.plots.overview.write_overview` in :mod:`roslan.plots`") == (
+        "see write_overview in roslan.plots"
+    )
+    pending, seen = [build_parser()], 0
+    while pending:
+        parser = pending.pop()
+        text = parser.format_help()
+        assert not re.search(r":[a-z]+:`", text), (parser.prog, text)
+        assert "``" not in text, parser.prog
+        seen += 1
+        for action in parser._actions:
+            if isinstance(action, argparse._SubParsersAction):
+                pending.extend(dict.fromkeys(action.choices.values()))
+    assert seen >= 15  # roslan, its commands and the plot and scene subcommands

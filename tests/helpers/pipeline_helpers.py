@@ -12,6 +12,8 @@ SHORT_TRAJECTORY: dict[str, Any] = {
     "k": 0.5,
     "initial": {"position": [-1.0, 0.5, 1.0], "rpy": [0.05, 0.1, 0.2], "descent_rate": 2.0},
     "hold": 0.2,
+    # the world origin, given (the empty scene has no marker: without it, a warning)
+    "goal": {"position": [0.0, 0.0, 0.0], "rpy": [0.0, 0.0, 0.0]},
 }
 
 

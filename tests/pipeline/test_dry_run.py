@@ -53,7 +53,8 @@ def test_simulate_dry_run_refuses_what_the_run_refuses(
         job, flag = _job(**BELOW), "--allow-collision"
     elif case == "outdir-exists":
         outdir.mkdir()
-        (outdir / "run.json").write_text("{}")  # an old roslan output
+        # an old roslan output (--overwrite may replace it: it holds only its files)
+        (outdir / "run.json").write_text('{"complete": true, "files": ["run.json"]}')
     else:  # a sensor that needs a scene (sonar ray casts it), without one
         job = {**_job(), "scene": None}
         job["sensors"] = [{"type": "sonar", "name": "sonar", "rate": 20.0}]
@@ -125,7 +126,7 @@ def test_batch_dry_run_reports_a_foreign_complete_run(
     out = tmp_path / "b"
     (out / "0000").mkdir(parents=True)
     (out / "0000" / "run.json").write_text(
-        '{"complete": true, "config": {"seed": 99}}', encoding="utf-8"
+        '{"complete": true, "config": {"seed": 99}, "files": ["run.json"]}', encoding="utf-8"
     )
     rc = main(["batch", str(path), "-o", str(out), "--dry-run", "--workers", "1"])
     assert rc == 1

@@ -661,3 +661,6 @@ def test_plot_shutter_window_and_events(tmp_path: Path) -> None:
     assert main(["plot", "shutter", str(out), "-o", str(tmp_path / "s.png")]) == 0
     with pytest.raises(PlotError, match="no frame-camera images"):
         shutter_panels(write_synthetic_outdir(tmp_path / "nocam", events="txt"))
+    # a frame camera without an event camera: the events are what is missing
+    with pytest.raises(PlotError, match=r"no events \(add a `type: event_camera` sensor\)"):
+        shutter_panels(write_synthetic_outdir(tmp_path / "noevents", events=None))

@@ -221,6 +221,10 @@ def test_view_save_writes_a_verified_recording(run: Path, tmp_path: Path) -> Non
     from rerun.chunk import RrdReader
 
     schema = str(RrdReader(str(out)).store().schema())
+    # one timeline, the trajectory's: no wall-clock log_time (the data depends on OUTDIR alone)
+    assert "Index(timeline:trajectory_time)" in schema
+    assert "log_time" not in schema
+    assert "log_tick" not in schema
     entities = {ln.split(":", 1)[1].strip() for ln in schema.splitlines() if "Entity path:" in ln}
     for sensor in SENSORS:
         assert any(e.startswith(f"/world/base_link/{sensor['name']}/") for e in entities), sensor

@@ -6,12 +6,13 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import re
 import sys
 import warnings
 from collections.abc import Sequence
 
 from roslan import __version__
-from roslan.errors import RoslanError
+from roslan.errors import Note, RoslanError
 
 __all__ = ["main"]
 
@@ -43,17 +44,32 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+_ROLE = re.compile(r":[a-z]+:`(~?)([^`]+)`")
+
+
+def plain(text: str) -> str:
+    """``text`` without reST markup: Sphinx roles (``:func:`~a.b.f``` -> ``f``,
+    ``:mod:`a.b``` -> ``a.b``) and double-backtick literals."""
+
+    def _name(m: re.Match[str]) -> str:
+        return m.group(2).rsplit(".", 1)[-1] if m.group(1) else m.group(2)
+
+    return _ROLE.sub(_name, text).replace("``", "")
+
+
 def _plain_help(parser: argparse.ArgumentParser) -> None:
-    """Drop reST literal markup (double backticks) from every command's help texts."""
+    """Drop reST markup (Sphinx roles, double backticks) from every command's help texts."""
     if parser.description:
-        parser.description = parser.description.replace("``", "")
+        parser.description = plain(parser.description)
+    if parser.epilog:
+        parser.epilog = plain(parser.epilog)
     for action in parser._actions:
         if action.help and action.help is not argparse.SUPPRESS:
-            action.help = action.help.replace("``", "")
+            action.help = plain(action.help)
         if isinstance(action, argparse._SubParsersAction):
             for choice in action._choices_actions:
                 if choice.help:
-                    choice.help = choice.help.replace("``", "")
+                    choice.help = plain(choice.help)
             for sub in dict.fromkeys(action.choices.values()):
                 _plain_help(sub)
 
@@ -66,7 +82,8 @@ def _show_warning(
     file: object = None,
     line: str | None = None,
 ) -> None:
-    print(f"warning: {message}", file=sys.stderr)
+    kind = "note" if issubclass(category, Note) else "warning"
+    print(f"{kind}: {message}", file=sys.stderr)
 
 
 def main(argv: Sequence[str] | None = None) -> int:

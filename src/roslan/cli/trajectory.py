@@ -104,6 +104,18 @@ def load_ground_truth_rate(path: Path) -> float:
         raise ConfigError(text) from None
 
 
+def load_scene_goal(path: Path, trajectory: TrajectoryConfig) -> TrajectoryConfig:
+    """``trajectory`` landing on the file's scene's marker or perch when it gives no
+    ``goal``, as ``roslan simulate`` flies it (:func:`roslan.scene.goal.goal_from_scene`)."""
+    data = load_yaml(path)
+    scene = data.get("scene") if isinstance(data, Mapping) else None
+    if not isinstance(scene, str):
+        return trajectory
+    from roslan.scene.goal import goal_from_scene
+
+    return goal_from_scene(trajectory, scene, base_dir=path.parent.resolve())
+
+
 def load_vehicle_block(path: Path, trajectory: TrajectoryConfig) -> TrajectoryConfig:
     """``trajectory`` with its goal moved to base_link by the file's ``vehicle:`` block
     (the default vehicle without one), as ``roslan simulate`` flies it. The scene is read
@@ -143,6 +155,7 @@ def _run(args: argparse.Namespace) -> int:
         gt_rate = DEFAULT_GROUND_TRUTH_RATE
     else:
         trajectory = load_trajectory_block(Path(args.config))
+        trajectory = load_scene_goal(Path(args.config), trajectory)
         trajectory = load_vehicle_block(Path(args.config), trajectory)
         base_dir = Path(args.config).parent
         gt_rate = load_ground_truth_rate(Path(args.config))

@@ -44,7 +44,9 @@ def _view(args: argparse.Namespace) -> int:
     if tmp is not None and save is not None:
         os.replace(tmp, save)
         size = save.stat().st_size / 1e6
-        print(f"{save} ({size:.1f} MB; {len(entities)} sensors: {', '.join(sorted(entities))})")
+        n = len(entities)
+        what = f"{n} sensor{'' if n == 1 else 's'}"
+        print(f"{save} ({size:.1f} MB; {what}: {', '.join(sorted(entities))})")
     return 0
 
 

@@ -51,6 +51,7 @@ __all__ = [
     "load_checked_scene",
     "make_plan",
     "preflight",
+    "with_scene_goal",
 ]
 
 BAG_FORMATS = ("ros1", "ros2")
@@ -137,6 +138,20 @@ def _topics(gt: GroundTruth, sensors: Sequence[Sensor]) -> tuple[dict[str, str],
     return owners, bag_topics
 
 
+def with_scene_goal(config: SimConfig, base_dir: Path | None) -> SimConfig:
+    """``config`` landing on its scene's marker or perch when it gives no goal
+    (:func:`roslan.scene.goal.goal_from_scene`: a note, or a warning for a scene without
+    one); unchanged (the same object) otherwise. run.json then records the goal flown."""
+    if config.scene is None:
+        return config
+    from roslan.scene.goal import goal_from_scene
+
+    trajectory = goal_from_scene(config.trajectory, config.scene, base_dir=base_dir)
+    if trajectory is config.trajectory:
+        return config
+    return config.model_copy(update={"trajectory": trajectory})
+
+
 def make_plan(
     config: SimConfig,
     outdir: Path,
@@ -150,6 +165,7 @@ def make_plan(
     fmts = _formats(config, formats)
     base_dir = config_path.parent.resolve() if config_path is not None else None
     check_outdir(outdir, overwrite)
+    config = with_scene_goal(config, base_dir)
     traj = make_trajectory(config.trajectory, base_dir=base_dir)
     source = str(config_path) if config_path is not None else "<config>"
     check_limits(config, traj.duration, fmts, source)

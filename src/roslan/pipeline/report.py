@@ -82,14 +82,15 @@ class Progress:
             TimeRemainingColumn,
         )
 
+        # compact columns: at 80 columns the bar shrinks, and the time left stays
         self._bar = Progress(
             TextColumn("simulating"),
-            BarColumn(),
-            TextColumn("{task.completed:.2f}/{task.total:.2f} s of trajectory"),
+            BarColumn(bar_width=None),
+            TextColumn("{task.completed:.2f}/{task.total:.2f} s"),
             TextColumn("{task.fields[rtf]}"),
             TimeElapsedColumn(),
-            TextColumn("left"),
             TimeRemainingColumn(),
+            TextColumn("left"),
             console=self._console,
         )
         self._task = self._bar.add_task("sim", total=total_s, rtf="")
@@ -99,7 +100,7 @@ class Progress:
         if self._bar is None:
             return
         wall = time.perf_counter() - self._t0
-        rtf = f"real-time factor {wall / t_s:.2f}" if t_s > 0 else ""
+        rtf = f"RTF {wall / t_s:.2f}" if t_s > 0 else ""  # real-time factor
         self._bar.update(self._task, completed=min(t_s, self.total), rtf=rtf)
 
     def _end_status(self) -> None:
@@ -191,6 +192,7 @@ def playback_text(
             "rosparam set use_sim_time true   # stamps = start_time + trajectory time",
             "rosbag play --clock landing.bag             # real time",
             f"rosbag play --clock landing.bag -r {pace:.2f}   # at the pace this simulation ran",
+            "rviz -d landing.rviz                        # the layout of this run's topics",
             "```",
             "",
         ]
@@ -205,12 +207,16 @@ def playback_text(
             "```",
             "",
         ]
+    bags = [f"`{b}`" for f, b in (("ros2", "landing_ros2/landing_ros2.mcap"),
+                                      ("ros1", "landing.bag")) if f in formats]  # fmt: skip
     lines += [
         "## Foxglove",
         "",
-        "Open Foxglove Studio -> *Open local file* -> `landing_ros2/landing_ros2.mcap` (or "
-        "`landing.bag`). Add a 3D panel (fixed frame `world`; /tf and /tf_static give "
-        "`world -> base_link -> sensors`) and plots of `/ground_truth/odometry` and `/tau/state`.",
+        f"Open Foxglove -> *Open local file* -> {' or '.join(bags)}, then *Layouts -> "
+        "Import from file* -> `landing.foxglove.json`: a 3D panel (fixed frame `world`; "
+        "/tf and /tf_static give `world -> base_link -> sensors`) with the scene, the "
+        "trajectory (`/ground_truth/pose`) and the clouds and scans, an Image panel per "
+        "camera and a plot of the IMU and range topics.",
         "",
         "## Topics",
         "",

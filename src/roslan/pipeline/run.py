@@ -52,7 +52,7 @@ from roslan.pipeline.report import BackgroundPlot, Progress, playback_text, prin
 from roslan.pipeline.worker import WorkerJob, WorkerPool, sensor_stats, worker_nice
 from roslan.rundir.calibration import root_camera, write_calibration
 from roslan.rundir.extrinsics import write_extrinsics
-from roslan.rundir.folder import clean_stale, finalize, make_temp, outdir_lock
+from roslan.rundir.folder import clean_stale, finalize, make_temp, outdir_lock, run_files
 from roslan.rundir.layouts import write_layouts
 from roslan.rundir.manifest import (
     RUN_FILE,
@@ -375,22 +375,22 @@ class _Run:
         wall = time.perf_counter() - self.wall0
         timing = self._timing(wall)
         if self.opts.overview:
-            from roslan.plots.overview import write_overview
+            from roslan.plots.overview import overview_title, write_overview
 
             self.progress.phase("drawing overview.png")
             t0 = time.perf_counter()
-            scene_name = self.config.scene or "no scene"
-            write_overview(tmp, title=f"roslan run: {scene_name}, seed {self.config.seed}")
+            write_overview(tmp, title=overview_title(self.config.scene, self.config.seed))
             timing["overview_s"] = time.perf_counter() - t0
         write_json(tmp / TIMING_FILE, timing)
         (tmp / "PLAYBACK.md").write_text(
             playback_text(self.traj.duration, wall, plan.formats, counts), encoding="utf-8"
         )
         if plan.formats:
-            write_layouts(tmp, {t: e["type"] for t, e in topics.items()})
+            write_layouts(tmp, {t: e["type"] for t, e in topics.items()}, plan.formats)
         sensors = self.config.sensors
         readme = outdir_readme(tmp, root_camera(sensors), flow_notes(sensors))
         (tmp / "README.md").write_text(readme, encoding="utf-8")
+        manifest["files"] = run_files(tmp)  # what --overwrite may replace, nothing else
         write_json(tmp / RUN_FILE, manifest)  # last: its presence marks a complete folder
         return manifest
 

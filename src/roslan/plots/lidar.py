@@ -50,8 +50,9 @@ def choose_scan(
 
 
 def scan_values(scan: LidarScan, color_by: str) -> tuple[F64, str]:
-    """(M,) colour values and their colorbar label; ``ring`` falls back to height."""
-    if color_by == "ring" and scan.ring is not None:
+    """(M,) colour values and their colorbar label; ``ring`` falls back to height (for a
+    scan without rings, or a solid-state LiDAR's single one)."""
+    if color_by == "ring" and scan.ring is not None and np.unique(scan.ring).size > 1:
         return scan.ring.astype(np.float64), "ring (laser, 0 = lowest)"
     if color_by == "intensity" and scan.intensity is not None:
         return scan.intensity, "intensity"
@@ -61,9 +62,9 @@ def scan_values(scan: LidarScan, color_by: str) -> tuple[F64, str]:
 
 
 def _extent(xyz: F64) -> float:
-    """Half-width (m) of the square that holds 98 % of the points horizontally."""
-    r = np.linalg.norm(xyz[:, :2], axis=1)
-    return float(max(np.percentile(r, 98) * 1.05, 1.0)) if r.size else 10.0
+    """Half-width (m) of the square centred on the sensor that holds every point
+    horizontally (no return is cut off, however far), at least 1 m."""
+    return float(max(np.abs(xyz[:, :2]).max(initial=0.0) * 1.03, 1.0))
 
 
 def plot_lidar(
@@ -97,10 +98,12 @@ def plot_lidar(
     xyz, val = sc.xyz[order], values[order]
     with style():
         fig = figure(12.0, 5.6)
-        ax3 = fig.add_subplot(1, 2, 1, projection="3d")
-        ax2 = fig.add_subplot(1, 2, 2)
-        sub = np.linspace(0, xyz.shape[0] - 1, min(xyz.shape[0], MAX_POINTS_3D)).astype(int)
-        keep = sub[np.all(np.abs(xyz[sub, :2]) <= ext, axis=1)]
+        # the colourbar in its own column: it never covers an axes
+        grid = fig.add_gridspec(1, 3, width_ratios=(1.0, 1.0, 0.035))
+        ax3 = fig.add_subplot(grid[0, 0], projection="3d")
+        ax2 = fig.add_subplot(grid[0, 1])
+        cax = fig.add_subplot(grid[0, 2])
+        keep = np.linspace(0, xyz.shape[0] - 1, min(xyz.shape[0], MAX_POINTS_3D)).astype(int)
         ax3.scatter(
             xyz[keep, 0],
             xyz[keep, 1],
@@ -114,7 +117,7 @@ def plot_lidar(
             depthshade=False,
         )
         ax3.set_proj_type("persp", focal_length=0.35)
-        zlo, zhi = np.percentile(xyz[keep, 2], [1, 99]) if keep.size else (-1.0, 1.0)
+        zlo, zhi = float(xyz[:, 2].min()), float(xyz[:, 2].max())  # every point inside
         ax3.set_xlim(-ext, ext)
         ax3.set_ylim(-ext, ext)
         ax3.set_zlim(zlo, max(zhi, zlo + 0.1))
@@ -123,7 +126,8 @@ def plot_lidar(
         ax3.scatter(0, 0, 0, color="k", marker="^", s=40, depthshade=False, label="sensor")
         ax3.set_xlabel("x [m]")
         ax3.set_ylabel("y [m]")
-        ax3.set_zlabel("z [m]")
+        ax3.zaxis.set_rotate_label(False)  # upright, not mirrored by the view angle
+        ax3.set_zlabel("z [m]", rotation=90)
         from matplotlib.ticker import MaxNLocator
 
         ax3.zaxis.set_major_locator(MaxNLocator(4))
@@ -143,7 +147,7 @@ def plot_lidar(
         ax2.plot(0, 0, "k^", ms=7, label="sensor (x forward)")
         ax2.set_xlim(-ext, ext)
         ax2.set_ylim(-ext, ext)
-        ax2.set_aspect("equal")
+        ax2.set_aspect("equal", adjustable="box")
         ax2.set_xlabel("x (forward) [m]")
         ax2.set_ylabel("y (left) [m]")
         ax2.legend(loc="upper right", fontsize=7)
@@ -154,6 +158,6 @@ def plot_lidar(
             f"{sc.xyz.shape[0]:,} returns",
             fontsize=10,
         )
-        cb = fig.colorbar(sc2, ax=[ax3, ax2], shrink=0.8, pad=0.01, aspect=30)
+        cb = fig.colorbar(sc2, cax=cax)
         cb.set_label(vlabel)
         return save_figure(fig, out, tight=True)

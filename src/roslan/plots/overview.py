@@ -21,9 +21,15 @@ import numpy as np
 from roslan.errors import PlotError
 from roslan.plots.media import RunMedia, render_events
 from roslan.plots.style import AXIS_COLORS, GAP_COLORS, MEASURED_ALPHA, figure, save_figure, style
-from roslan.rundir.readers import ImuData, load_imu
+from roslan.rundir.readers import ImuData, load_imu, load_run, resolved_config
 
-__all__ = ["EVENT_WINDOW_NS", "overview_figure", "warm_up", "write_overview"]
+__all__ = [
+    "EVENT_WINDOW_NS",
+    "overview_figure",
+    "overview_title",
+    "warm_up",
+    "write_overview",
+]
 
 COMMAND = "roslan plot overview"
 EVENT_WINDOW_NS = 20_000_000
@@ -157,11 +163,26 @@ def overview_figure(outdir: Path, media: RunMedia, title: str) -> Any:
     return fig
 
 
+def overview_title(scene: str | None, seed: int) -> str:
+    """The overview's title: the run's scene and seed, never its folder (identical runs
+    give identical files, and ``roslan plot overview`` redraws simulate's figure)."""
+    return f"roslan run: {scene or 'no scene'}, seed {seed}"
+
+
+def _run_title(outdir: Path) -> str:
+    """:func:`overview_title` of the run.json in ``outdir``, else the folder's name."""
+    config = resolved_config(load_run(outdir))
+    if config is None:
+        return f"roslan run: {outdir.name}"
+    scene, seed = config.get("scene"), config.get("seed", 0)
+    return overview_title(scene if isinstance(scene, str) else None, int(seed or 0))
+
+
 def write_overview(outdir: Path, out: Path | None = None, *, title: str | None = None) -> Path:
     """Write ``OUTDIR/overview.png`` (or ``out``) for the run in ``outdir``; returns its path.
 
-    ``title`` defaults to the folder's name; ``roslan simulate`` passes a title that does
-    not depend on the folder, so identical runs give identical files.
+    ``title`` defaults to :func:`overview_title` of the run's run.json (the title
+    ``roslan simulate`` draws), else to the folder's name.
 
     Frames are taken at the middle of the landing (half the touchdown time), where
     the robot moves; only the panels of what the run recorded are drawn.
@@ -174,9 +195,7 @@ def write_overview(outdir: Path, out: Path | None = None, *, title: str | None =
     media = RunMedia.open(outdir, COMMAND)
     try:
         with style():
-            fig = overview_figure(
-                outdir, media, title if title is not None else f"roslan run: {outdir.name}"
-            )
+            fig = overview_figure(outdir, media, title if title is not None else _run_title(outdir))
             return save_figure(fig, out)
     finally:
         media.close()
@@ -297,8 +316,12 @@ def _lidar_panel(ax: Any, media: RunMedia, t_ns: int) -> None:
     if xyz.shape[0] == 0:
         _placeholder(ax, f"LiDAR '{seq.name}'", "scan without returns")
         return
-    order = np.argsort(xyz[:, 2], kind="stable")
     lo, hi = np.percentile(xyz[:, 2], [2, 98])
+    # the square of 98% of the returns' ranges; equal scales by widening the data range to
+    # the panel's shape (not by shrinking the axes, which left a blank gap beside it)
+    r = float(np.percentile(np.linalg.norm(xyz[:, :2], axis=1), 98)) * 1.05
+    xyz = xyz[np.all(np.abs(xyz[:, :2]) <= r, axis=1)]
+    order = np.argsort(xyz[:, 2], kind="stable")
     sc = ax.scatter(
         xyz[order, 0],
         xyz[order, 1],
@@ -310,10 +333,10 @@ def _lidar_panel(ax: Any, media: RunMedia, t_ns: int) -> None:
         vmax=max(hi, lo + 0.1),
         rasterized=True,
     )
-    r = float(np.percentile(np.linalg.norm(xyz[:, :2], axis=1), 98)) * 1.05
-    ax.set_xlim(-r, r)
-    ax.set_ylim(-r, r)
-    ax.set_aspect("equal")
+    ax.update_datalim([(-r, -r), (r, r)])
+    ax.margins(0.0)
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.autoscale_view()
     ax.plot(0, 0, "k^", ms=6)
     ax.set_xlabel("x (forward) [m]")
     ax.set_ylabel("y (left) [m]")

@@ -85,11 +85,11 @@ def shutter_panels(outdir: Path, time: float | None = None) -> ShutterPanels:
     try:
         cams = sensor_configs(outdir, "camera")
         seq = media.camera
-        if not cams or seq is None or not len(seq) or (media.aps is seq):
-            msg = f"{COMMAND}: {outdir}: no frame-camera images (add a `type: camera` sensor)"
-            raise PlotError(msg)
         if media.events is None:
-            msg = f"{COMMAND}: {outdir}: no events (add an event camera)"
+            msg = f"{COMMAND}: {outdir}: no events (add a `type: event_camera` sensor)"
+            raise PlotError(msg)
+        if not cams or seq is None or not len(seq) or media.camera_is_aps:
+            msg = f"{COMMAND}: {outdir}: no frame-camera images (add a `type: camera` sensor)"
             raise PlotError(msg)
         cam = next((c for c in cams if c.get("name") == seq.name), cams[0])
         when = time if time is not None else _default_time(outdir)

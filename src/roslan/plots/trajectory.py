@@ -33,7 +33,7 @@ from roslan.rundir.readers import (
     resolved_config,
 )
 
-__all__ = ["TrajectorySamples", "load_samples", "plot_trajectory"]
+__all__ = ["TrajectorySamples", "load_samples", "plot_trajectory", "tau_limits"]
 
 F64 = NDArray[np.float64]
 COMMAND = "roslan plot trajectory"
@@ -51,6 +51,9 @@ class TrajectorySamples:
         k: constant tau-dot of the height gap, or None if unknown.
         tau0: tau of the height gap at t = 0, s, or None.
         closed_form: True when ``dense`` comes from the closed-form trajectory.
+        unperturbed: with flapping, the same landing's gaps without it (closed form,
+            sampled at ``dense.t``): the tau-theory gaps whose tau the paper's Fig. 3
+            shows; None without flapping (or without the closed form).
     """
 
     dense: TrajectoryTable
@@ -59,10 +62,14 @@ class TrajectorySamples:
     k: float | None
     tau0: float | None
     closed_form: bool
+    unperturbed: TrajectoryTable | None = None
 
 
-def _closed_form(outdir: Path, n: int) -> tuple[TrajectoryTable, float, float, float] | None:
-    """Dense samples of the run's trajectory from run.json, or None if unavailable."""
+def _closed_form(
+    outdir: Path, n: int
+) -> tuple[TrajectoryTable, float, float, float, TrajectoryTable | None] | None:
+    """Dense samples of the run's trajectory from run.json, and of the same landing
+    without its flapping (None without flapping); None if unavailable."""
     cfg = resolved_config(load_run(outdir))
     if cfg is None or not isinstance(cfg.get("trajectory"), dict):
         return None
@@ -72,16 +79,26 @@ def _closed_form(outdir: Path, n: int) -> tuple[TrajectoryTable, float, float, f
 
     from roslan.errors import RoslanError
     from roslan.trajectory import TauTrajectory, TrajectoryConfig
+    from roslan.trajectory.config import Flapping
 
     try:
-        traj = TauTrajectory(TrajectoryConfig.model_validate(cfg["trajectory"]), warn=False)
+        config = TrajectoryConfig.model_validate(cfg["trajectory"])
+        traj = TauTrajectory(config, warn=False)
+        calm = None
+        if config.flapping.enabled:
+            calm = TauTrajectory(config.model_copy(update={"flapping": Flapping()}), warn=False)
     except (ValidationError, RoslanError, ValueError):
         return None
     t = np.linspace(0.0, traj.duration, n)
     # include the touchdown instant exactly
     t = np.unique(np.concatenate([t, [traj.T]]))
     tt, gaps, rates, accels = traj.gaps_at(t)
-    return TrajectoryTable(t=tt, gaps=gaps, rates=rates, accels=accels), traj.T, traj.k, traj.tau0
+    dense = TrajectoryTable(t=tt, gaps=gaps, rates=rates, accels=accels)
+    unperturbed = None
+    if calm is not None:
+        tt, gaps, rates, accels = calm.gaps_at(t)
+        unperturbed = TrajectoryTable(t=tt, gaps=gaps, rates=rates, accels=accels)
+    return dense, traj.T, traj.k, traj.tau0, unperturbed
 
 
 def load_samples(outdir: Path, command: str = COMMAND, n: int = 1500) -> TrajectorySamples:
@@ -90,8 +107,8 @@ def load_samples(outdir: Path, command: str = COMMAND, n: int = 1500) -> Traject
     summary = load_summary(outdir) or {}
     cf = _closed_form(outdir, n)
     if cf is not None:
-        dense, touchdown, k, tau0 = cf
-        return TrajectorySamples(dense, table, touchdown, k, tau0, True)
+        dense, touchdown, k, tau0, unperturbed = cf
+        return TrajectorySamples(dense, table, touchdown, k, tau0, True, unperturbed)
     t_sum = summary.get("touchdown_time")
     if isinstance(t_sum, int | float):
         t_down = float(t_sum)
@@ -202,6 +219,61 @@ def _draw_3d(ax: Any, s: TrajectorySamples, n_vel: int = 12, n_triads: int = 7) 
     ax.set_title("Landing path in the goal frame F")
 
 
+def tau_limits(curves: list[F64], theory: F64 | None = None) -> tuple[float, float]:
+    """y limits of the tau panel that no spike can stretch: the 2nd to 98th percentile
+    of every finite tau (where a rate crosses zero, tau = gap / rate runs off to
+    +-infinity), widened by 10%, always holding the theory line and tau = 0."""
+    values = np.concatenate([c[np.isfinite(c)] for c in curves] + [np.zeros(1)])
+    lo, hi = np.percentile(values, [2.0, 98.0]) if values.size > 1 else (0.0, 0.0)
+    if theory is not None:
+        lo, hi = min(lo, float(theory.min())), max(hi, float(theory.max()))
+    pad = 0.1 * max(hi - lo, 1e-3)
+    return float(lo - pad), float(hi + pad)
+
+
+def _draw_tau(ax_tau: Any, s: TrajectorySamples) -> None:
+    """tau of each non-zero gap up to touchdown, with the paper's Fig. 3 theory line for
+    tau_z; with flapping, of the tau-theory gaps (the flapping is in the gap panels)."""
+    d = s.unperturbed if s.unperturbed is not None else s.dense
+    land = d.t < s.touchdown - 1e-9
+    curves = []
+    for i, g in enumerate(GAP_NAMES):
+        if np.max(np.abs(d.gaps[:, i]), initial=0.0) < 1e-9:
+            continue
+        tau = tau_of(d.gaps[land, i], d.rates[land, i])
+        curves.append(tau)
+        ax_tau.plot(
+            d.t[land], tau, color=GAP_COLORS[g], label=f"τ_{g}", linestyle="-" if i < 3 else "--"
+        )
+    theory = None
+    if s.k is not None and s.tau0 is not None:
+        tt = np.array([0.0, s.touchdown])
+        theory = s.tau0 + s.k * tt
+        ax_tau.plot(
+            tt,
+            theory,
+            ":",
+            color="k",
+            linewidth=1.6,
+            label=f"τ_z theory, τ̇ = k = {s.k:g}",
+            zorder=5,
+        )
+    ax_tau.set_ylim(*tau_limits(curves, theory))
+    ax_tau.set_ylabel("τ = gap / rate [s]")
+    ax_tau.set_xlabel("trajectory time t [s]")
+    if s.unperturbed is not None:
+        ax_tau.text(
+            0.99,
+            0.04,
+            "τ of the tau-theory gaps, flapping removed (flown gaps above)",
+            transform=ax_tau.transAxes,
+            ha="right",
+            va="bottom",
+            fontsize=7,
+            color="0.3",
+        )
+
+
 def _draw_gaps(ax_pos: Any, ax_ang: Any, ax_tau: Any, s: TrajectorySamples) -> None:
     d, tab = s.dense, s.table
     for i, g in enumerate(GAP_NAMES):
@@ -216,29 +288,14 @@ def _draw_gaps(ax_pos: Any, ax_ang: Any, ax_tau: Any, s: TrajectorySamples) -> N
         )
         if s.closed_form:
             ax.plot(tab.t, tab.gaps[:, i] * scale, ".", color=GAP_COLORS[g], ms=3)
+    if s.unperturbed is not None:  # the flapping: flown gaps against the tau-theory ones
+        u = s.unperturbed
+        for ax, i, scale in ((ax_pos, 2, 1.0), (ax_ang, 4, 180.0 / math.pi)):
+            ax.plot(u.t, u.gaps[:, i] * scale, color="k", linewidth=0.8, linestyle=":",
+                    label=f"{GAP_NAMES[i]} without flapping")  # fmt: skip
     ax_pos.set_ylabel("position gap [m]")
     ax_ang.set_ylabel("attitude gap [deg]")
-    # tau of each non-zero gap, up to touchdown
-    land = d.t < s.touchdown - 1e-9
-    for i, g in enumerate(GAP_NAMES):
-        if np.max(np.abs(d.gaps[:, i]), initial=0.0) < 1e-9:
-            continue
-        tau = tau_of(d.gaps[land, i], d.rates[land, i])
-        ax_tau.plot(
-            d.t[land], tau, color=GAP_COLORS[g], label=f"τ_{g}", linestyle="-" if i < 3 else "--"
-        )
-    if s.k is not None and s.tau0 is not None:
-        tt = np.array([0.0, s.touchdown])
-        ax_tau.plot(
-            tt,
-            s.tau0 + s.k * tt,
-            ":",
-            color="k",
-            linewidth=1.2,
-            label=f"τ_z theory, τ̇ = k = {s.k:g}",
-        )
-    ax_tau.set_ylabel("τ = gap / rate [s]")
-    ax_tau.set_xlabel("trajectory time t [s]")
+    _draw_tau(ax_tau, s)
     for ax in (ax_pos, ax_ang, ax_tau):
         ax.axvline(s.touchdown, color="0.4", linewidth=0.9, linestyle="-.")
         ax.set_xlim(d.t[0], d.t[-1])

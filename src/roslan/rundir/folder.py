@@ -23,9 +23,17 @@ from pathlib import Path
 
 from roslan.errors import OutputError
 from roslan.io.files import current_umask
-from roslan.rundir.manifest import RUN_FILE
+from roslan.rundir.manifest import RUN_FILE, read_manifest
 
-__all__ = ["check_outdir", "clean_stale", "finalize", "make_temp", "outdir_lock"]
+__all__ = [
+    "check_outdir",
+    "clean_stale",
+    "finalize",
+    "make_temp",
+    "outdir_lock",
+    "run_files",
+    "strangers",
+]
 
 try:
     import fcntl
@@ -93,9 +101,58 @@ def clean_stale(outdir: Path) -> None:
                 shutil.rmtree(debris, ignore_errors=True)
 
 
+def _files_below(folder: Path) -> list[str]:
+    """Every file (or link, or other non-folder) below ``folder``, as sorted POSIX paths
+    relative to it; links to folders are not followed."""
+    out = []
+    for root, dirs, files in os.walk(folder):
+        base = Path(root).relative_to(folder)
+        for name in files + [d for d in dirs if (Path(root) / d).is_symlink()]:
+            out.append((base / name).as_posix())
+    return sorted(out)
+
+
+def run_files(folder: Path) -> list[str]:
+    """The files a run wrote into its finished ``folder`` (run.json included), as run.json
+    lists them: sorted POSIX paths relative to OUTDIR."""
+    return sorted({*_files_below(folder), RUN_FILE})
+
+
+def _listed(names: list[str], more: int) -> str:
+    shown = ", ".join(names)
+    return shown + (f" (and {more} more)" if more > 0 else "")
+
+
+def strangers(outdir: Path) -> str | None:
+    """Why ``--overwrite`` must not replace ``outdir`` (None when it may): it holds
+    another run (a nested run.json), or any file its own run did not write (the
+    ``files`` that run's run.json lists), or it is not a roslan run at all."""
+    found = _files_below(outdir)
+    if not found:
+        return None
+    nested = [f for f in found if f.endswith(f"/{RUN_FILE}")]
+    if nested:
+        runs = [str(outdir / Path(f).parent) for f in nested[:3]]
+        return f"holds another roslan run in {_listed(runs, len(nested) - 3)}"
+    manifest = read_manifest(outdir)
+    if manifest is None:
+        return f"is not empty and holds no complete {RUN_FILE} (not a roslan output)"
+    listed = manifest.get("files")
+    if not isinstance(listed, list):
+        return (
+            f"has a {RUN_FILE} without the list of the files its run wrote (an older "
+            "roslan): its files cannot be told from others"
+        )
+    extra = sorted(set(found) - {str(f) for f in listed})
+    if extra:
+        return f"holds files its roslan run did not write: {_listed(extra[:5], len(extra) - 5)}"
+    return None
+
+
 def check_outdir(outdir: Path, overwrite: bool) -> None:
-    """Refuse an existing OUTDIR unless ``overwrite``, and never replace a folder that is
-    not a roslan output (non-empty and without run.json), even with ``overwrite``."""
+    """Refuse an existing OUTDIR unless ``overwrite``; even with it, replace only a roslan
+    run's own files: never a folder that holds another run, a file that run did not
+    write (:func:`strangers`), or anything that is not a roslan output."""
     if outdir.exists() or outdir.is_symlink():
         if not overwrite:
             msg = f"output folder {outdir} exists; pass --overwrite to replace it"
@@ -103,11 +160,12 @@ def check_outdir(outdir: Path, overwrite: bool) -> None:
         if not outdir.is_dir():
             msg = f"output path {outdir} exists and is not a folder; refusing to replace it"
             raise OutputError(msg)
-        if any(outdir.iterdir()) and not (outdir / RUN_FILE).exists():
+        why = strangers(outdir)
+        if why is not None:
             msg = (
-                f"output folder {outdir} is not empty and holds no {RUN_FILE} "
-                "(not a roslan output); "
-                "refusing to replace it even with --overwrite"
+                f"output folder {outdir} {why}; refusing to replace it even with "
+                "--overwrite (move those out, delete the folder yourself, or choose "
+                "another OUTDIR)"
             )
             raise OutputError(msg)
 
@@ -140,6 +198,7 @@ def finalize(tmp: Path, outdir: Path, overwrite: bool = True) -> None:
         )
         raise OutputError(msg)
     if outdir.exists() or outdir.is_symlink():
+        check_outdir(outdir, overwrite=True)  # nothing foreign arrived during the run
         old = Path(tempfile.mkdtemp(prefix=f".{outdir.name}.old-", dir=outdir.parent))
         old.rmdir()
         outdir.rename(old)

@@ -8,8 +8,9 @@ type                                   RViz display                    Foxglove 
 =====================================  ==============================  ======================
 visualization_msgs/MarkerArray         MarkerArray (``/scene``)        3D (topic visible)
 tf2_msgs/TFMessage                     TF (frames, no topic)           3D (follows base_link)
-nav_msgs/Odometry                      Odometry: the trajectory        3D (topic visible)
+nav_msgs/Odometry                      Odometry: the trajectory        (none: not drawn in 3D)
                                        (last 10000 poses as axes)
+geometry_msgs/PoseStamped              (none: the Odometry shows it)   3D: the trajectory
 sensor_msgs/Image ``*/image_raw``      Camera (with its camera_info)   Image
 sensor_msgs/Image ``*/event_image``,   Image                           Image
 ``*/depthmap``, ``*/depth``
@@ -28,13 +29,20 @@ Camera display like any camera.
 from __future__ import annotations
 
 import json
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 import yaml
 
-__all__ = ["FOXGLOVE_FILE", "RVIZ_FILE", "foxglove_layout", "rviz_config", "write_layouts"]
+__all__ = [
+    "FOXGLOVE_3D_TYPES",
+    "FOXGLOVE_FILE",
+    "RVIZ_FILE",
+    "foxglove_layout",
+    "rviz_config",
+    "write_layouts",
+]
 
 RVIZ_FILE = "landing.rviz"
 FOXGLOVE_FILE = "landing.foxglove.json"
@@ -178,15 +186,22 @@ def rviz_config(topics: Mapping[str, str]) -> str:
     return header + yaml.safe_dump(doc, sort_keys=False)
 
 
-def foxglove_layout(topics: Mapping[str, str]) -> dict[str, Any]:
-    """Foxglove layout (import it in Foxglove: Layouts -> Import) for a run with ``topics``."""
-    three_d_types = {
+FOXGLOVE_3D_TYPES = frozenset(
+    {
         "visualization_msgs/MarkerArray",
-        "nav_msgs/Odometry",
+        "geometry_msgs/PoseStamped",
         "sensor_msgs/PointCloud2",
         "sensor_msgs/LaserScan",
     }
-    visible = {t: {"visible": True} for t, ty in topics.items() if _short(ty) in three_d_types}
+)
+"""The run's message types the Foxglove 3D panel draws and the layout shows there (its
+"supported messages"): the trajectory is ``/ground_truth/pose`` (PoseStamped, drawn as
+an axis at each pose); nav_msgs/Odometry, which it does not draw, stays off the panel."""
+
+
+def foxglove_layout(topics: Mapping[str, str]) -> dict[str, Any]:
+    """Foxglove layout (import it in Foxglove: Layouts -> Import) for a run with ``topics``."""
+    visible = {t: {"visible": True} for t, ty in topics.items() if _short(ty) in FOXGLOVE_3D_TYPES}
     config: dict[str, Any] = {
         "3D!scene": {
             "followTf": "base_link" if "/tf" in topics else FIXED_FRAME,
@@ -249,8 +264,12 @@ def foxglove_layout(topics: Mapping[str, str]) -> dict[str, Any]:
     }
 
 
-def write_layouts(outdir: Path, topics: Mapping[str, str]) -> None:
-    """Write ``landing.rviz`` and ``landing.foxglove.json`` into ``outdir``."""
-    (outdir / RVIZ_FILE).write_text(rviz_config(topics), encoding="utf-8")
+def write_layouts(
+    outdir: Path, topics: Mapping[str, str], formats: Sequence[str] = ("ros1", "ros2")
+) -> None:
+    """Write ``landing.foxglove.json`` into ``outdir``, and ``landing.rviz`` (an RViz 1
+    layout: it plays landing.bag) when the run wrote the ROS 1 bag."""
+    if "ros1" in formats:
+        (outdir / RVIZ_FILE).write_text(rviz_config(topics), encoding="utf-8")
     text = json.dumps(foxglove_layout(topics), indent=2) + "\n"
     (outdir / FOXGLOVE_FILE).write_text(text, encoding="utf-8")

@@ -75,6 +75,9 @@ class RunManifest(TypedDict):
     """The OpenGL implementation that rendered the camera images (``gl_renderer``,
     ``gl_version``, ``gl_vendor``) and the anti-aliasing and texture-filtering settings
     (:func:`roslan.render.gl.image_formation`); only in runs with a camera-type sensor."""
+    files: NotRequired[list[str]]
+    """Every file the run wrote (run.json included), sorted POSIX paths relative to
+    OUTDIR: ``--overwrite`` replaces a folder only when it holds nothing else."""
 
 
 class Timing(TypedDict):

@@ -25,12 +25,14 @@ from roslan.errors import PlotError
 from roslan.rundir.calibration import root_camera_name
 
 __all__ = [
+    "LIDAR_TYPES",
     "ImageSequence",
     "ImuData",
     "LidarScan",
     "LidarSequence",
     "PlotError",
     "TrajectoryTable",
+    "configured_names",
     "find_images",
     "find_lidar",
     "load_imu",
@@ -147,6 +149,30 @@ def sensor_configs(outdir: Path, sensor_type: str | Sequence[str]) -> list[dict[
     types = {sensor_type} if isinstance(sensor_type, str) else set(sensor_type)
     sensors = cfg.get("sensors") or []
     return [s for s in sensors if isinstance(s, dict) and s.get("type") in types]
+
+
+LIDAR_TYPES = ("lidar", "solid_state_lidar")
+
+
+def configured_names(outdir: Path, sensor_type: str | Sequence[str]) -> list[str]:
+    """Names of the run's sensors of the given type(s) in config order: from run.json,
+    else from ``calib/extrinsics.yaml`` (written in config order before run.json, which
+    ``roslan simulate`` writes last)."""
+    types = {sensor_type} if isinstance(sensor_type, str) else set(sensor_type)
+    names = [str(c.get("name")) for c in sensor_configs(outdir, tuple(types))]
+    if names:
+        return names
+    import yaml
+
+    try:
+        with (outdir / "calib" / "extrinsics.yaml").open(encoding="utf-8") as fh:
+            data = yaml.safe_load(fh)
+    except (OSError, yaml.YAMLError):
+        return []
+    sensors = data.get("sensors") if isinstance(data, dict) else None
+    if not isinstance(sensors, dict):
+        return []
+    return [str(n) for n, c in sensors.items() if isinstance(c, dict) and c.get("type") in types]
 
 
 # ---------------------------------------------------------------- trajectory
@@ -462,9 +488,14 @@ def find_lidar(outdir: Path, command: str) -> list[LidarSequence]:
     if root.is_dir():
         rates = {
             str(c.get("name")): float(c.get("rate") or 0.0)
-            for c in sensor_configs(outdir, ("lidar", "solid_state_lidar"))
+            for c in sensor_configs(outdir, LIDAR_TYPES)
         }
-        folders = sorted(p for p in root.iterdir() if p.is_dir())
+        # in config order (the first configured LiDAR first), unknown folders after
+        rank = {n: i for i, n in enumerate(configured_names(outdir, LIDAR_TYPES))}
+        folders = sorted(
+            (p for p in root.iterdir() if p.is_dir()),
+            key=lambda p: (rank.get(p.name, len(rank)), p.name),
+        )
         if any(root.glob("*.npz")):
             folders.insert(0, root)
         for folder in folders:

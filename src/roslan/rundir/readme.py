@@ -140,7 +140,32 @@ _ROOT_FILES: tuple[tuple[str, str], ...] = (
         "scene",
         "the scene's models and poses (also in both bags: the latched `/scene` MarkerArray).",
     ),
-    ("run.json", "resolved config, seed, versions, messages per topic."),
+    (
+        "images",
+        "`NNNNNNNN.png`: the frames `images.txt` lists (8-bit PNG, the camera's encoding).",
+    ),
+    (
+        "summary.json",
+        "the landing's figures: touchdown time, tau(0), k, the goal (of base_link), the "
+        "terminal behaviour.",
+    ),
+    ("trajectory.png", "the trajectory's gaps, rates and accelerations against time."),
+    (
+        "overview.png",
+        "one look at the run: the path in the goal frame, a camera frame, the events and "
+        "a LiDAR scan or the IMU of the same instant.",
+    ),
+    (
+        "depth",
+        "`depth/<name>/NNNNNNNN.png` of each depth camera: 16-bit PNGs in millimetres "
+        "(0 = no return), listed in `depth_<name>.txt`.",
+    ),
+    ("README.md", "this file."),
+    (
+        "run.json",
+        "resolved config, seed, versions, messages per topic, and every file the run wrote "
+        "(what `--overwrite` may replace).",
+    ),
     ("timing.json", "wall time and real-time factor of this run."),
     ("PLAYBACK.md", "how to play the bags."),
 )
@@ -170,7 +195,8 @@ def outdir_readme(
 ) -> str:
     """The README text for the files now in ``outdir`` (``flow``: :func:`flow_notes`)."""
     flow = flow or {}
-    names = {p.name for p in outdir.iterdir() if not p.name.startswith(".")} | {"run.json"}
+    names = {p.name for p in outdir.iterdir() if not p.name.startswith(".")}
+    names |= {"run.json", "README.md"}  # written after this text
     lines = [
         "# roslan simulation output",
         "",

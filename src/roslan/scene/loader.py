@@ -334,6 +334,8 @@ def build_scene(
     src = f"{source}: " if source is not None else ""
     objects = [_object(o, i, Path(base_dir), allow, src) for i, o in enumerate(spec.objects)]
     goal = spec.goal
+    if goal is None and spec.perch is not None and spec.perch.pose is not None:
+        goal = spec.perch.pose  # the perch's top is the scene's goal (roslan.scene.goal)
     goal_pos = goal.position if goal is not None else (0.0, 0.0, 0.0)
     goal_rpy = goal.rpy if goal is not None else (0.0, 0.0, 0.0)
     if spec.perch is not None:

@@ -323,7 +323,15 @@ def build_recording(
         s for s in (run.get("config") or {}).get("sensors", []) if isinstance(s, dict)
     ]
     paths = _bag_paths(outdir)
-    rec = rr.RecordingStream("roslan", recording_id=f"roslan-{outdir.resolve().name}")
+    # no wall-clock log_time timeline and no properties (their start time): the data of
+    # a recording depends on OUTDIR alone (rerun's row and chunk ids remain time-based)
+    rec = rr.RecordingStream(
+        "roslan",
+        recording_id=f"roslan-{outdir.resolve().name}",
+        send_properties=False,
+    )
+    rec.set_log_time_enabled(False)
+    rec.set_log_tick_enabled(False)
     if save is not None:
         rec.save(str(save))
     elif spawn:
