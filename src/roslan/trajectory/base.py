@@ -16,12 +16,15 @@ from typing import Any, Protocol
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from roslan.errors import TrajectoryError
 from roslan.trajectory.config import TrajectoryConfig
 
 __all__ = [
     "COMPONENTS",
     "DEFAULT_GROUND_TRUTH_RATE",
     "GAPS",
+    "GrowingTrajectory",
+    "HorizonError",
     "State",
     "Trajectory",
     "check_duration",
@@ -179,3 +182,23 @@ class Trajectory(Protocol):
     def touchdown_ns(self) -> int:
         """``T`` in integer nanoseconds (rounded)."""
         return round(self.T * 1e9)
+
+
+class HorizonError(TrajectoryError):
+    """A growing trajectory was read past its horizon (a sensor looked into the future)."""
+
+
+class GrowingTrajectory(Trajectory, Protocol):
+    """A :class:`Trajectory` that grows step by step (closed loop): readable up to and
+    including ``horizon_ns``; ``T``, ``duration`` and ``duration_ns`` are only meaningful
+    once ``finished``. Reading past the horizon raises :class:`HorizonError`."""
+
+    @property
+    def horizon_ns(self) -> int:
+        """Latest readable instant, integer ns of trajectory time."""
+        ...
+
+    @property
+    def finished(self) -> bool:
+        """Whether the motion has ended (``T`` and ``duration`` are final)."""
+        ...
