@@ -92,9 +92,7 @@ def _lag(u: F64, tau: float) -> tuple[F64, F64, F64]:
     return E, i1, tau * (u - i1)
 
 
-def _evaluate(
-    u: F64, start: F64, cmd: F64, lags: tuple[float, float]
-) -> tuple[F64, F64, F64]:
+def _evaluate(u: F64, start: F64, cmd: F64, lags: tuple[float, float]) -> tuple[F64, F64, F64]:
     """Closed form inside steps: (n, 6) gaps, rates, accels after ``u`` (n,) s of steps
     whose start states ``start`` are (n, 15) (gaps, rates, linear acceleration) and whose
     commands ``cmd`` are (n, 6) (acceleration in F, Euler rates)."""
@@ -286,7 +284,9 @@ class DynamicsTrajectory(Trajectory):
             (position, velocity, acceleration),
             (quat, R, omega, alpha),
         )
-        return State(tt, gaps, rates, accels, position, velocity, acceleration, R, quat, omega, alpha)
+        return State(
+            tt, gaps, rates, accels, position, velocity, acceleration, R, quat, omega, alpha
+        )
 
     def table_times(self) -> F64:
         """Every ``sample_dt`` up to the touchdown, the touchdown, then through the hold."""

@@ -153,9 +153,7 @@ class TauStatePolicy:
             p1 = _guide(float(G[i]), float(self._exp[i]), t_rem, dt)[0]
             if tau_r > 0.0:
                 k1, k2 = w * w * tau_r, 2.0 * w * tau_r - 1.0
-                e_rates[i - 3] = (
-                    (p1 - p0) / dt + tau_r * a0 + k1 * (p0 - g[i]) + k2 * (v0 - v[i])
-                )
+                e_rates[i - 3] = (p1 - p0) / dt + tau_r * a0 + k1 * (p0 - g[i]) + k2 * (v0 - v[i])
             else:
                 e_rates[i - 3] = (p1 - g[i]) / dt
         out = np.empty(6)
