@@ -108,8 +108,8 @@ class ContactModel:
         i = int(below[0])
         if i == 0:
             return t0_ns
-        lo = round(t[i - 1] * 1e9)
-        hi = min(round(t[i] * 1e9), t1_ns)
+        lo = round(float(t[i - 1]) * 1e9)
+        hi = min(round(float(t[i]) * 1e9), t1_ns)
         while hi - lo > 1:
             mid = (lo + hi) // 2
             if self.height(np.array([mid * 1e-9]))[0] <= 0.0:

@@ -14,7 +14,7 @@ from __future__ import annotations
 import json
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Any, ClassVar
+from typing import Any
 
 import gymnasium as gym
 import numpy as np
@@ -76,7 +76,7 @@ class LandingEnv(gym.Env[dict[str, NDArray[Any]], F32]):
     :class:`~roslan.errors.ActionError`.
     """
 
-    metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 50}
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 50}  # noqa: RUF012 (gym's name)
 
     def __init__(
         self,
@@ -109,9 +109,10 @@ class LandingEnv(gym.Env[dict[str, NDArray[Any]], F32]):
         self.metadata = {**self.metadata, "render_fps": self.closed_loop.control_rate}
         dyn = self.closed_loop.dynamics
         hi = np.array([dyn.max_acceleration] * 3 + [dyn.max_body_rate] * 3, dtype=np.float32)
-        self.action_space = spaces.Box(-hi, hi, dtype=np.float32)
+        self._box = spaces.Box(-hi, hi, dtype=np.float32)
+        self.action_space = self._box
         self._obs = ObservationBuilder(cfg.sensors, self.closed_loop)
-        self.observation_space = self._obs.space
+        self.observation_space = self._obs.space  # type: ignore[assignment]
         self._scenes: dict[int, Any] = {}
         self._session: Any = None
         self._traj: DynamicsTrajectory | None = None
@@ -213,11 +214,11 @@ class LandingEnv(gym.Env[dict[str, NDArray[Any]], F32]):
             what = ("ax", "ay", "az", "p", "q", "r")[i]
             msg = (
                 f"action[{i}] ({what}) = {a[i]}: every action value must be finite "
-                f"(bounds: +-{self.action_space.high[i]:g} "
+                f"(bounds: +-{self._box.high[i]:g} "
                 f"{'m/s^2' if i < 3 else 'rad/s'})"
             )
             raise ActionError(msg)
-        hi = self.action_space.high.astype(np.float64)
+        hi = self._box.high.astype(np.float64)
         clipped = np.clip(a, -hi, hi)
         return clipped, bool(np.any(clipped != a))
 
@@ -297,7 +298,7 @@ class LandingEnv(gym.Env[dict[str, NDArray[Any]], F32]):
         return dict(self._episode)
 
     # ------------------------------------------------------------------ render
-    def render(self) -> NDArray[np.uint8] | None:  # type: ignore[override]
+    def render(self) -> NDArray[np.uint8] | None:
         """An RGB frame (H, W, 3) uint8 of the last step's events (ON blue, OFF red, on
         white) at the event camera's resolution; without an event camera, the last frame
         of the first frame camera, else a 48x64 grey frame."""
