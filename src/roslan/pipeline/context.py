@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from roslan.errors import ConfigError
-from roslan.rundir.calibration import root_camera, root_imu
+from roslan.rundir.calibration import camera_folder, root_camera, root_imu
 from roslan.sensors.base import SensorConfig
 from roslan.sensors.clock import Clock
 
@@ -130,6 +130,11 @@ class Context:
     def render_helpers(self, name: str) -> int:
         """Render helper processes sensor ``name`` may start (0: none)."""
         return max(0, int(self._helpers.get(name, 0)))
+
+    def camera_folder(self, camera: str) -> str:
+        """``''`` for the root camera, else ``'<camera>/'``
+        (:func:`~roslan.rundir.calibration.camera_folder`)."""
+        return camera_folder(self.root_camera, camera)
 
     def raycaster(self) -> BeamCaster:
         """The process-wide Embree ray caster of the scene (created on first use)."""

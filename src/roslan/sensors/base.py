@@ -194,6 +194,12 @@ class SimContext(Protocol):
         renders (:mod:`roslan.sensors.cameras.event_chains`); outputs do not depend on it."""
         ...
 
+    def camera_folder(self, camera: str) -> str:
+        """Where camera ``camera``'s dataset files go, relative to the OUTDIR: ``''`` for
+        the root camera (:attr:`root_camera`), else ``'<camera>/'`` (the run folder's
+        layout, :func:`roslan.rundir.calibration.camera_folder`)."""
+        ...
+
 
 @runtime_checkable
 class Sensor(Protocol):
