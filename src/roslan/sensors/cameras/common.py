@@ -28,7 +28,6 @@ from roslan.io.images import write_png
 from roslan.io.messages import MessageStore
 from roslan.io.ordered import OrderedPool, Turn
 from roslan.io.text import format_seconds
-from roslan.rundir.calibration import camera_folder
 from roslan.sensors.base import (
     Message,
     SimContext,
@@ -170,7 +169,7 @@ class CameraBase:
             )
             return
         name = f"{self.config.name}_{e.suffix}" if e.suffix else self.config.name
-        folder = camera_folder(ctx.root_camera, name)  # '' at the OUTDIR root, else '<name>/'
+        folder = ctx.camera_folder(name)  # '' at the OUTDIR root, else '<name>/'
         e.files = f"{folder}images"
         e.index_fh = ctx.path(f"{folder}images.txt").open("w", encoding="utf-8", newline="\n")
         if getattr(self.config, "exposure_time", 0.0) > 0:

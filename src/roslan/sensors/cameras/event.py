@@ -45,7 +45,6 @@ from roslan.events.sampling import (
 from roslan.io.background import BackgroundSink
 from roslan.io.images import write_png
 from roslan.io.messages import MessageStore
-from roslan.rundir.calibration import camera_folder
 from roslan.sensors.base import (
     Message,
     SimContext,
@@ -193,7 +192,7 @@ class EventCamera:
 
     def _prefix(self, ctx: SimContext) -> str:
         """'' for the OUTDIR-root camera (the first event camera), else '<name>/'."""
-        return camera_folder(ctx.root_camera, self.config.name)
+        return ctx.camera_folder(self.config.name)
 
     # -------------------------------------------------------------- rendering
     def render(
