@@ -21,7 +21,7 @@ Lag = Annotated[FiniteFloat, Field(ge=0.0, le=10.0)]
 
 
 class Dynamics(StrictModel):
-    """Actuator bounds and first-order lags (docs/design.md §6)."""
+    """Actuator bounds and first-order lags (docs/design.md §7)."""
 
     max_acceleration: Annotated[FiniteFloat, Field(gt=0.0, le=1000.0)] = 20.0
     """Bound of each component of the commanded world-frame acceleration, m/s^2."""

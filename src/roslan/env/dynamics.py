@@ -1,6 +1,6 @@
 """The closed-loop vehicle: a rigid body flown by commanded acceleration and body rates.
 
-Model (docs/design.md §6). The state lives in the goal frame F, like the closed-form
+Model (docs/design.md §7). The state lives in the goal frame F, like the closed-form
 landing's: the position gaps ``x, y, z`` of base_link (m) and the ZYX Euler gaps ``roll,
 pitch, yaw`` relative to F (rad), with their rates. Each control step holds one command:
 

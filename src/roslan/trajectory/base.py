@@ -185,6 +185,10 @@ class Trajectory(Protocol):
         return round(self.T * 1e9)
 
 
+_ANY_TIME_NS = 2**62
+"""A horizon past every instant."""
+
+
 class HorizonError(TrajectoryError):
     """A trajectory was read past its horizon: the instant it is defined up to so far
     (a closed-loop trajectory grows one control step at a time; a sensor that reads
@@ -240,9 +244,10 @@ class HorizonGuard:
         self.horizon_ns = max(self.horizon_ns, int(horizon_ns))
 
     def finish(self) -> None:
-        """The end is known: ``duration`` etc. may be read, and everything up to it."""
+        """The end is known: ``duration`` etc. may be read, and any instant (a finished
+        trajectory is defined everywhere: clamped past its end, as every trajectory)."""
         self.finished = True
-        self.horizon_ns = max(self.horizon_ns, self.inner.duration_ns)
+        self.horizon_ns = _ANY_TIME_NS
 
     def _check_ns(self, t_ns: NDArray[np.int64]) -> None:
         if t_ns.size == 0:
