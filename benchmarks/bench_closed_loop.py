@@ -199,7 +199,8 @@ def write_table(text: str, header: str) -> None:
 
 
 def _machine() -> str:
-    return f"{platform.processor() or platform.machine()}, {os.cpu_count()} CPUs (shared), {time.strftime('%Y-%m-%d')}"
+    cpu = platform.processor() or platform.machine()
+    return f"{cpu}, {os.cpu_count()} CPUs (shared), {time.strftime('%Y-%m-%d')}"
 
 
 def landings(args: argparse.Namespace) -> None:

@@ -75,6 +75,8 @@ def _rollout(seed: int, steps: int = 12) -> list[dict[str, np.ndarray]]:
     for _ in range(steps):
         action = rng.uniform(-1.0, 1.0, 6).astype(np.float32)
         obs, _, term, trunc, info = env.step(action)
+        # the count image is the step's raw events (info) per pixel and polarity
+        assert obs["events"].sum() == len(info["events"])
         out.append(obs)
         if term or trunc:
             break
@@ -90,6 +92,7 @@ def test_same_seed_and_actions_give_identical_observations() -> None:
         for k in oa:
             np.testing.assert_array_equal(oa[k], ob[k])
     assert any(o["events"].sum() > 0 for o in a), "the event camera saw nothing"
+    assert all(o["events"].dtype == np.float32 for o in a)
     c = _rollout(6)
     assert any(
         not np.array_equal(x["imu"], y["imu"]) for x, y in zip(a[1:], c[1:], strict=False)
@@ -146,7 +149,7 @@ def test_bad_config_names_the_key(over: dict[str, Any], key: str) -> None:
 
 
 def test_unknown_policy_is_a_clear_error(tmp_path: Path) -> None:
-    with pytest.raises(ConfigError, match="unknown policy.*tau-state"):
+    with pytest.raises(ConfigError, match=r"unknown policy.*tau-state"):
         make_policy("tau-magic")
     with pytest.raises(ConfigError):
         fly(tiny_config(), "tau-magic", record=tmp_path / "out")

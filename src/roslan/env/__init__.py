@@ -45,7 +45,8 @@ def _register() -> None:
             gymnasium.register(
                 id=env_id,
                 entry_point="roslan.env.landing:LandingEnv",
-                kwargs={"config": str(path)},
+                # GL never crosses a fork: async vector workers are spawned
+                kwargs={"config": str(path), "vector_kwargs": {"context": "spawn"}},
                 disable_env_checker=False,
             )
 

@@ -25,7 +25,7 @@ from roslan.config.closed_loop import ClosedLoopConfig
 from roslan.config.sim import SimConfig
 from roslan.env.contact import ContactModel, Outcome, StepEvent, is_success, reward_terms
 from roslan.env.dynamics import MAX_PITCH, DynamicsTrajectory
-from roslan.env.observe import ObservationBuilder
+from roslan.env.observe import EventPacket, ObservationBuilder
 from roslan.errors import ActionError, ConfigError
 
 __all__ = ["DEFAULT_CONFIG", "PERCHING_CONFIG", "LandingEnv", "load_env_config"]
@@ -67,6 +67,9 @@ class LandingEnv(gym.Env[dict[str, NDArray[Any]], F32]):
         overwrite: let ``record`` replace an existing roslan OUTDIR.
         render_mode: ``"rgb_array"`` (or None).
         policy_name: recorded in episode.json (``roslan fly`` sets it).
+        vector_kwargs: ignored here: the registered ids carry ``{"context": "spawn"}`` for
+            ``gymnasium.make_vec(..., vectorization_mode="async")``, whose workers must not
+            inherit an OpenGL context through fork.
 
     Action: ``Box(6,)`` float32 ``[ax, ay, az, p, q, r]``: the commanded acceleration of
     base_link in the world frame (m/s^2, each within +-``closed_loop.dynamics.
@@ -86,7 +89,9 @@ class LandingEnv(gym.Env[dict[str, NDArray[Any]], F32]):
         overwrite: bool = False,
         render_mode: str | None = None,
         policy_name: str | None = None,
+        vector_kwargs: Mapping[str, Any] | None = None,
     ) -> None:
+        del vector_kwargs  # gymnasium.make_vec's (the registration's spawn default)
         cfg, path = load_env_config(config)
         self.base_config = cfg
         self.config_path = path
@@ -119,7 +124,7 @@ class LandingEnv(gym.Env[dict[str, NDArray[Any]], F32]):
         self._contact: ContactModel | None = None
         self._done = True
         self._episode: dict[str, Any] = {}
-        self._last_events: dict[str, NDArray[Any]] = {}
+        self._last_events = EventPacket.empty()
         self._return = 0.0
 
     # ------------------------------------------------------------------ episode
@@ -308,7 +313,7 @@ class LandingEnv(gym.Env[dict[str, NDArray[Any]], F32]):
         h, w = self._obs.ev_shape
         if h and w:
             img = np.full((h, w, 3), 255, dtype=np.uint8)
-            if ev and ev["x"].size:
+            if len(ev):
                 on = ev["p"] > 0
                 img[ev["y"][on], ev["x"][on]] = (40, 80, 255)
                 img[ev["y"][~on], ev["x"][~on]] = (255, 60, 40)

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -28,7 +29,7 @@ from numpy.typing import NDArray
 from roslan.config.closed_loop import ClosedLoopConfig
 from roslan.sensors.base import SensorConfig
 
-__all__ = ["ObservationBuilder", "event_count_image", "event_voxel_grid"]
+__all__ = ["EventPacket", "ObservationBuilder", "event_count_image", "event_voxel_grid"]
 
 F32 = NDArray[np.float32]
 
@@ -72,6 +73,50 @@ def event_voxel_grid(
         np.add.at(grid, lo * h * w + pix, pol * (1.0 - frac))
         np.add.at(grid, hi * h * w + pix, pol * frac)
     return grid.reshape(bins, h, w).astype(np.float32)
+
+
+@dataclass(frozen=True, eq=False)
+class EventPacket:
+    """The raw events of one step (``info["events"]``), in time order.
+
+    Attributes:
+        x, y: (N,) int32 pixel coordinates (as in events.h5).
+        t: (N,) int64 trajectory time, ns.
+        p: (N,) int8 polarity, +1 ON / -1 OFF.
+
+    ``packet["x"]`` works too. Not a dict, so that Gymnasium's vector environments keep
+    each environment's packet whole (one object per environment).
+    """
+
+    x: NDArray[np.int32]
+    y: NDArray[np.int32]
+    t: NDArray[np.int64]
+    p: NDArray[np.int8]
+
+    def __getitem__(self, key: str) -> NDArray[Any]:
+        value: NDArray[Any] = getattr(self, key)
+        return value
+
+    def __len__(self) -> int:
+        return int(self.t.shape[0])
+
+    def __eq__(self, other: object) -> bool:
+        if not isinstance(other, EventPacket):
+            return NotImplemented
+        return all(
+            np.array_equal(getattr(self, k), getattr(other, k)) for k in ("x", "y", "t", "p")
+        )
+
+    __hash__ = None  # type: ignore[assignment]
+
+    @classmethod
+    def empty(cls) -> EventPacket:
+        return cls(
+            np.zeros(0, np.int32),
+            np.zeros(0, np.int32),
+            np.zeros(0, np.int64),
+            np.zeros(0, np.int8),
+        )
 
 
 def _concat(taps: Sequence[Mapping[str, Any]], key: str, dtype: Any) -> NDArray[Any]:
@@ -137,19 +182,17 @@ class ObservationBuilder:
             name: np.zeros(shape, dtype=dtype) for name, (shape, dtype) in self.frames.items()
         }
 
-    def raw_events(
-        self, taps: Mapping[str, Sequence[Mapping[str, Any]]]
-    ) -> dict[str, NDArray[Any]]:
-        """The step's raw events ``x, y`` (int), ``t`` (int64 ns), ``p`` (int8 +-1)."""
+    def raw_events(self, taps: Mapping[str, Sequence[Mapping[str, Any]]]) -> EventPacket:
+        """The step's raw events of the (first) event camera."""
         if self.events is None:
-            return {}
+            return EventPacket.empty()
         tp = taps.get(self.events.name, [])
-        return {
-            "x": _concat(tp, "x", np.int32),
-            "y": _concat(tp, "y", np.int32),
-            "t": _concat(tp, "t", np.int64),
-            "p": np.where(_concat(tp, "p", np.int64) > 0, 1, -1).astype(np.int8),
-        }
+        return EventPacket(
+            _concat(tp, "x", np.int32),
+            _concat(tp, "y", np.int32),
+            _concat(tp, "t", np.int64),
+            np.where(_concat(tp, "p", np.int64) > 0, 1, -1).astype(np.int8),
+        )
 
     def build(
         self, taps: Mapping[str, Sequence[Mapping[str, Any]]], span: tuple[int, int]
