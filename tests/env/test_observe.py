@@ -47,6 +47,8 @@ def test_event_packet_reads_like_a_mapping() -> None:
     ev = _events(10)
     assert len(ev) == 10
     np.testing.assert_array_equal(ev["x"], ev.x)
+    np.testing.assert_array_equal(ev.get("t"), ev.t)
+    assert ev.get("nope", 3) == 3
     assert len(EventPacket.empty()) == 0
 
 

@@ -84,7 +84,7 @@ class EventPacket:
         t: (N,) int64 trajectory time, ns.
         p: (N,) int8 polarity, +1 ON / -1 OFF.
 
-    ``packet["x"]`` works too. Not a dict, so that Gymnasium's vector environments keep
+    ``packet["x"]`` and ``packet.get("x")`` work too. Not a dict, so that Gymnasium's vector environments keep
     each environment's packet whole (one object per environment).
     """
 
@@ -96,6 +96,10 @@ class EventPacket:
     def __getitem__(self, key: str) -> NDArray[Any]:
         value: NDArray[Any] = getattr(self, key)
         return value
+
+    def get(self, key: str, default: Any = None) -> Any:
+        """``packet.get("x")``, as on a mapping (``default`` for an unknown key)."""
+        return getattr(self, key) if key in ("x", "y", "t", "p") else default
 
     def __len__(self) -> int:
         return int(self.t.shape[0])
