@@ -8,6 +8,7 @@ instead of a traceback.
 from __future__ import annotations
 
 __all__ = [
+    "ActionError",
     "ConfigError",
     "OutputError",
     "PlotError",
@@ -53,3 +54,8 @@ class RenderError(RoslanError):
 
 class PlotError(RoslanError):
     """A plot cannot be drawn: an input it needs is missing or unreadable."""
+
+
+class ActionError(RoslanError, ValueError):
+    """An action given to :class:`roslan.env.LandingEnv` that cannot be flown (NaN, wrong
+    shape)."""

@@ -357,7 +357,8 @@ def main(argv: Sequence[str] | None = None) -> None:
     if len(args) > 2 and int(args[2]) > 0:
         from roslan.sensors.cameras.event_chains import prestart
 
-        prestart(int(args[2]))
+        # (their renders use this run's context class: ChainJob.context_class)
+        prestart(int(args[2]), warm=("roslan.pipeline.context",))
     queue: ByteQueue | None = None
     sender: threading.Thread | None = None
     code = 0

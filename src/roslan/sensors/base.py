@@ -1,10 +1,11 @@
 """The one small interface every sensor implements.
 
 A sensor is built from its validated config, gets a :class:`SimContext` (the
-trajectory, the scene, its random stream, a place for its dataset files, the
-shared renderer / ray caster) and yields :class:`Message` objects in
-non-decreasing trajectory time. The pipeline merges all sensors' streams by
-stamp and writes them to the bags; sensors write their own dataset files
+trajectory and its clock, the scene, its random stream, a place for its dataset files,
+the shared renderer / ray caster) and yields :class:`Message` objects in non-decreasing
+trajectory time, never reading the trajectory past the clock's horizon
+(:mod:`roslan.sensors.clock`: it yields a wait marker instead). The pipeline merges all
+sensors' streams by stamp and writes them to the bags; sensors write their own dataset files
 (``imu.txt``, ``events.txt``...) through ``ctx.path(...)`` while they stream.
 
 Adding a sensor = one new module (a config model with ``type: Literal[...]`` and a
@@ -39,6 +40,7 @@ if TYPE_CHECKING:
     from roslan.io.messages import MessageStore
     from roslan.render.base import BeamCaster, FrameRenderer
     from roslan.scene.model import Scene
+    from roslan.sensors.clock import Clock
     from roslan.trajectory.base import Trajectory
 
 __all__ = [
@@ -136,12 +138,18 @@ class Message(NamedTuple):
     topic: str
     msgtype: str
     build: Callable[[MessageStore], Any]
+    data: Any = None
+    """Optional raw data of the message (a frame's image array, a scan's points...),
+    read by closed-loop callers instead of decoding wire bytes; never written."""
 
 
 class SimContext(Protocol):
     """What the pipeline hands every sensor."""
 
     trajectory: Trajectory
+    clock: Clock
+    """How far the trajectory may be read now (:mod:`roslan.sensors.clock`): a sensor
+    never reads past ``clock.horizon_ns`` and yields a wait marker instead."""
     start_time_ns: int
     seed: int
     sensors: Sequence[SensorConfig]
@@ -184,6 +192,12 @@ class SimContext(Protocol):
     def render_helpers(self, name: str) -> int:
         """Render helper processes sensor ``name`` may start for its time-parallel
         renders (:mod:`roslan.sensors.cameras.event_chains`); outputs do not depend on it."""
+        ...
+
+    def camera_folder(self, camera: str) -> str:
+        """Where camera ``camera``'s dataset files go, relative to the OUTDIR: ``''`` for
+        the root camera (:attr:`root_camera`), else ``'<camera>/'`` (the run folder's
+        layout, :func:`roslan.rundir.calibration.camera_folder`)."""
         ...
 
 

@@ -25,6 +25,7 @@ from roslan.sensors.base import (
     sample_times_ns,
 )
 from roslan.sensors.beams.pointcloud import POINTCLOUD2, pointcloud2
+from roslan.sensors.clock import paced
 
 if TYPE_CHECKING:
     from roslan.render.base import BeamCaster
@@ -244,6 +245,7 @@ class PointCloudSensor:
         def emit(done: list[tuple[int, int, NDArray[Any]]]) -> Iterator[Message]:
             for seq, t0, pts in done:
                 writer.listed(seq, t0)
+                ctx.clock.tap(cfg.name, t=t0, points=pts)
                 stamp = ctx.stamp(t0)
 
                 def build(
@@ -257,13 +259,28 @@ class PointCloudSensor:
 
         # a scan fires over [t0, t0 + 1/rate): only whole scans that end within the
         # trajectory (and so within the ground-truth record) are produced
-        last_start = ctx.trajectory.duration_ns - round(1e9 / cfg.rate)
+        period, rate = round(1e9 / cfg.rate), cfg.rate
+        grid = ctx.clock.grid(
+            lambda end: sample_times_ns(rate, end - period), lead_ns=self.read_span_ns()
+        )
+        last = [-1]
         try:
-            for seq, t0 in enumerate(sample_times_ns(cfg.rate, last_start).tolist()):
+            for item in paced(grid, 1, lambda: last[0] + 1):
+                if isinstance(item, Message):
+                    yield from emit(pool.finish())  # every scan submitted, then wait
+                    yield item
+                    continue
+                seq, t0 = item[0], int(item[1][0])
+                last[0] = t0
                 yield from emit(pool.submit(task, seq, t0, self.draw(rng)))
             yield from emit(pool.finish())
         finally:
             pool.close()  # a failed or abandoned run: no write into its folder after this
+
+    def read_span_ns(self) -> int:
+        """How far past its start a scan reads the trajectory (ns): its sweep, ``1 / rate``
+        (a scanner whose firing poses pad past it says so)."""
+        return round(1e9 / self.config.rate)
 
     def draw(self, rng: np.random.Generator) -> BeamDraws:  # pragma: no cover - overridden
         """The random draws of one scan (:func:`draw_beams`)."""

@@ -45,7 +45,6 @@ from roslan.events.sampling import (
 from roslan.io.background import BackgroundSink
 from roslan.io.images import write_png
 from roslan.io.messages import MessageStore
-from roslan.rundir.calibration import camera_folder
 from roslan.sensors.base import (
     Message,
     SimContext,
@@ -53,7 +52,8 @@ from roslan.sensors.base import (
     TopicSpec,
     sample_times_ns,
 )
-from roslan.sensors.cameras.event_chains import ChainFarm, brightness_instants
+from roslan.sensors.cameras.event_causal import ForcedInstants, causal_instants
+from roslan.sensors.cameras.event_chains import ChainFarm, Instant, brightness_instants
 from roslan.sensors.cameras.event_config import EventCameraConfig
 from roslan.sensors.cameras.event_stream import AfterRender
 from roslan.sensors.cameras.event_truth import DepthH5Writer, FlowPngWriter
@@ -193,7 +193,7 @@ class EventCamera:
 
     def _prefix(self, ctx: SimContext) -> str:
         """'' for the OUTDIR-root camera (the first event camera), else '<name>/'."""
-        return camera_folder(ctx.root_camera, self.config.name)
+        return ctx.camera_folder(self.config.name)
 
     # -------------------------------------------------------------- rendering
     def render(
@@ -242,23 +242,31 @@ class EventCamera:
     def _stream(self, ctx: SimContext) -> Iterator[Message]:
         c = self.config
         self.stats = {}
-        end = int(ctx.trajectory.duration_ns)
-        info_times = sample_times_ns(c.rate, end)
         gt_rate = c.ground_truth_rate or c.rate
-        gt_times = (
-            sample_times_ns(gt_rate, end) if (c.optic_flow or c.depthmap) else np.zeros(0, np.int64)
-        )
-        forced = np.union1d(info_times, gt_times)
-        sampler = AdaptiveSampler(
-            c.sampling, c.adaptive_lambda, c.min_rate, c.max_rate, end, forced
-        )
+        # closed loop: instants rendered as the horizon reaches them (event_causal.py)
+        causal = None if ctx.clock.lookahead else ForcedInstants(c, ctx.clock)
+        if causal is None:
+            end = int(ctx.trajectory.duration_ns)
+            info_times = sample_times_ns(c.rate, end)
+            gt_times = (
+                sample_times_ns(gt_rate, end)
+                if (c.optic_flow or c.depthmap)
+                else np.zeros(0, np.int64)
+            )
+            forced = np.union1d(info_times, gt_times)
+            sampler = AdaptiveSampler(
+                c.sampling, c.adaptive_lambda, c.min_rate, c.max_rate, end, forced
+            )
+        else:
+            sampler = causal.cover(0)
+            info_times, gt_times = causal.info, causal.gt
         self._open_files(ctx)
         # dataset files are written beside the rendering, in order (io/background.py)
         self._sink = BackgroundSink(f"{c.name}-files")
         # ESIM, packets, messages and file writes of an instant do not feed back into the
         # next render (but for brightness sampling, which reads ESIM's state): they run
         # on a helper thread, in order, beside the next render (docs/performance.md)
-        pipelined = self.pipelined and c.sampling != "brightness"
+        pipelined = self.pipelined and c.sampling != "brightness" and causal is None
         post = AfterRender(self, ctx, info_times, gt_times, gt_rate, pipelined=pipelined)
         stage = None
         if pipelined:
@@ -266,7 +274,12 @@ class EventCamera:
         n_frames = n_capped = 0
         t = 0
         farm: ChainFarm | None = None
-        if c.sampling == "brightness":  # the next instant reads ESIM's state
+        instants: Iterator[Instant | Message]
+        if causal is not None:
+            causal.listeners.append(post.follow)
+            post.follow(causal)
+            instants = causal_instants(self, ctx, causal, post.gen, post.floor)
+        elif c.sampling == "brightness":  # the next instant reads ESIM's state
             instants = brightness_instants(self, ctx, sampler, set(gt_times.tolist()), post.gen)
         else:  # independent chains, rendered here and by render helper processes
             helpers = ctx.render_helpers(c.name)
@@ -274,6 +287,10 @@ class EventCamera:
             self._farm = farm
             instants = farm.instants()
         for inst in instants:
+            if isinstance(inst, Message):
+                yield from post.take()
+                yield inst  # wait for the horizon
+                continue
             t = inst.t
             n_frames += 1
             n_capped += inst.capped
@@ -295,7 +312,7 @@ class EventCamera:
             events=post.n_events,
             dropped=post.gen.n_dropped,
             capped=n_capped + self.stats.get("capped", 0),
-            duration_s=end * 1e-9,
+            duration_s=(t if causal is not None else end) * 1e-9,
         )
 
     def _open_files(self, ctx: SimContext) -> None:

@@ -34,16 +34,17 @@ camera renders it in one sequence (:func:`brightness_instants`).
 from __future__ import annotations
 
 import contextlib
+import importlib
 import math
 import pickle
 import queue
 import subprocess
 import threading
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from multiprocessing.connection import Connection
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, NamedTuple
+from typing import TYPE_CHECKING, Any, NamedTuple, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
@@ -64,7 +65,6 @@ from roslan.sensors.base import SimContext
 if TYPE_CHECKING:
     from roslan.events.model import EventGenerator
     from roslan.scene.model import Scene
-    from roslan.sensors.cameras.event import EventCamera
     from roslan.sensors.cameras.event_config import EventCameraConfig
     from roslan.trajectory.base import Trajectory
 
@@ -72,12 +72,15 @@ __all__ = [
     "IN_FLIGHT",
     "ChainFarm",
     "ChainJob",
+    "ChainSensor",
     "Instant",
     "brightness_instants",
+    "brightness_rate",
     "chain_starts",
     "helper_main",
     "prestart",
     "render_chain",
+    "sample_instant",
 ]
 
 IN_FLIGHT = 2
@@ -86,6 +89,32 @@ IN_FLIGHT = 2
 _HELPER_CODE = "from roslan.sensors.cameras.event_chains import helper_main; helper_main()"
 
 F32 = NDArray[np.float32]
+F64 = NDArray[np.float64]
+
+
+class _FlowCamera(Protocol):
+    def flow(self, depth: NDArray[np.floating], v: F64, w: F64) -> F32: ...
+
+    def max_flow_speed(self, depth: NDArray[np.floating], v: F64, w: F64) -> float: ...
+
+
+class ChainSensor(Protocol):
+    """What chains need of the event camera
+    (:class:`~roslan.sensors.cameras.event.EventCamera`, which imports this module):
+    its config, its renders and the flow of its lens, and its counters."""
+
+    @property
+    def config(self) -> EventCameraConfig: ...
+
+    @property
+    def camera(self) -> _FlowCamera: ...
+
+    @property
+    def stats(self) -> dict[str, float]: ...
+
+    def render(
+        self, ctx: SimContext, t_ns: int, *, need_depth: bool
+    ) -> tuple[F32, F32 | None, F64, F64]: ...
 
 
 class Instant(NamedTuple):
@@ -114,7 +143,7 @@ def _next(sampler: AdaptiveSampler, t: int, rate: float) -> tuple[int | None, bo
 
 
 def _render(
-    sensor: EventCamera, ctx: SimContext, t: int, gt: bool, *, need_depth: bool
+    sensor: ChainSensor, ctx: SimContext, t: int, gt: bool, *, need_depth: bool
 ) -> tuple[Instant, F32 | None, NDArray[np.float64], NDArray[np.float64]]:
     """The instant ``t`` rendered (``capped`` still False), with its depth (when
     ``need_depth`` or the ground truth needs it) and the camera's v and w: what the
@@ -127,7 +156,7 @@ def _render(
 
 
 def render_chain(
-    sensor: EventCamera,
+    sensor: ChainSensor,
     ctx: SimContext,
     sampler: AdaptiveSampler,
     gt_set: set[int] | frozenset[int],
@@ -136,24 +165,41 @@ def render_chain(
 ) -> list[Instant]:
     """The instants from ``start`` until the sampler reaches ``stop`` (the next chain's
     start; None: the trajectory's end), rendered (optical-flow or fixed sampling)."""
-    c = sensor.config
-    flow_sampling = c.sampling == "optical_flow"
     out: list[Instant] = []
     t: int | None = start
     while t is not None and (stop is None or t < stop):
-        inst, depth, v, w = _render(sensor, ctx, t, t in gt_set, need_depth=flow_sampling)
-        speed = 0.0  # max |flow|, px/s
-        if inst.flow is not None:  # (the ground-truth flow is at hand)
-            speed = float(np.max(np.hypot(inst.flow[..., 0], inst.flow[..., 1])))
-        elif depth is not None and flow_sampling:
-            speed = sensor.camera.max_flow_speed(depth, v, w)
-        t, capped = _next(sampler, t, speed if flow_sampling else 0.0)
+        inst, speed = sample_instant(sensor, ctx, t, t in gt_set)
+        t, capped = _next(sampler, t, speed)
         out.append(inst._replace(capped=capped))
     return out
 
 
+def sample_instant(sensor: ChainSensor, ctx: SimContext, t: int, gt: bool) -> tuple[Instant, float]:
+    """Instant ``t`` rendered (``capped`` still False) and the rate of change the
+    sampler steps on after it: ``max |flow|`` (px/s) for optical-flow sampling, 0 for
+    fixed sampling (``gt``: ``t`` is a ground-truth instant)."""
+    flow_sampling = sensor.config.sampling == "optical_flow"
+    inst, depth, v, w = _render(sensor, ctx, t, gt, need_depth=flow_sampling)
+    speed = 0.0  # max |flow|, px/s
+    if inst.flow is not None:  # (the ground-truth flow is at hand)
+        speed = float(np.max(np.hypot(inst.flow[..., 0], inst.flow[..., 1])))
+    elif depth is not None and flow_sampling:
+        speed = sensor.camera.max_flow_speed(depth, v, w)
+    return inst, speed if flow_sampling else 0.0
+
+
+def brightness_rate(
+    L: NDArray[np.float64], prev_L: NDArray[np.float64] | None, t: int, t_prev: int
+) -> float:
+    """Brightness sampling's rate of change at ``t``: ``max |dL/dt|`` of ESIM's log
+    intensity between the last two instants (inf before there are two)."""
+    if prev_L is None:
+        return math.inf  # no estimate yet: smallest step
+    return float(np.max(np.abs(L - prev_L))) / ((t - t_prev) * 1e-9)
+
+
 def brightness_instants(
-    sensor: EventCamera,
+    sensor: ChainSensor,
     ctx: SimContext,
     sampler: AdaptiveSampler,
     gt_set: set[int],
@@ -168,10 +214,7 @@ def brightness_instants(
         inst, _, _, _ = _render(sensor, ctx, t, t in gt_set, need_depth=False)
         yield inst  # the consumer runs ESIM on it before asking for the next
         L = gen.lp.copy()
-        if prev_L is None:
-            rate = math.inf  # no estimate yet: smallest step
-        else:
-            rate = float(np.max(np.abs(L - prev_L))) / ((t - t_prev) * 1e-9)
+        rate = brightness_rate(L, prev_L, t, t_prev)
         prev_L, t_prev = L, t
         t, capped = _next(sampler, t, rate)
         if capped:
@@ -181,7 +224,7 @@ def brightness_instants(
 # ---------------------------------------------------------------------------- helpers
 @dataclass(frozen=True)
 class ChainJob:
-    """What a render helper needs (pickled to it)."""
+    """What a render helper needs (pickled to it; classes by name)."""
 
     sensor_class: Any
     config: EventCameraConfig
@@ -189,39 +232,45 @@ class ChainJob:
     scene: Scene
     sampler: AdaptiveSampler
     gt_times: tuple[int, ...]
+    context_class: Callable[..., SimContext]
+    """The class of the run's context (the pipeline's): the helper renders with
+    ``context_class(trajectory, os.devnull, scene=scene)``."""
 
 
-def _warm_helper() -> None:
-    """What a render helper needs before its job: the heavy imports and the flow-speed
-    kernel (numba's cache), so that a helper started early is ready soon after."""
+def _warm_helper(modules: Sequence[str]) -> None:
+    """What a render helper needs before its job: the heavy imports (and ``modules``,
+    named by whoever starts it: the run's context class) and the flow-speed kernel
+    (numba's cache), so that a helper started early is ready soon after."""
     import cv2  # noqa: F401  (the event camera's module, which the job unpickles, needs it)
     import h5py  # noqa: F401  (likewise)
 
-    import roslan.pipeline.context
     import roslan.render.gl  # noqa: F401
     from roslan.events.sampling import max_flow_speed, pixel_rays
 
+    for name in modules:
+        importlib.import_module(name)
     K = np.array([[1.0, 0.0, 0.5], [0.0, 1.0, 0.5], [0.0, 0.0, 1.0]])
     v = np.zeros(3)
     max_flow_speed(np.ones((2, 2), np.float32), K, v, v, pixel_rays(K, 2, 2))
 
 
 def helper_main(argv: Sequence[str] | None = None) -> None:
-    """Render helper entry point (``python -c ... FD PID``): warms up, gets a
-    :class:`ChainJob`, says ``("ready",)`` once its renderer exists, then answers each
-    ``("chain", k, start, stop)`` with ``("chain", k, instants)`` until ``("stop",)``."""
+    """Render helper entry point (``python -c ... FD PID [MODULE...]``): warms up
+    (importing the MODULEs too), gets a :class:`ChainJob`, says ``("ready",)`` once its
+    renderer exists, then answers each ``("chain", k, start, stop)`` with
+    ``("chain", k, instants)`` until ``("stop",)``."""
     import os
+    import sys
 
-    from roslan.pipeline.context import Context
-
-    conn = child_connection(argv)
+    args = list(sys.argv[1:] if argv is None else argv)
+    conn = child_connection(args)
     code = 0
     try:
-        _warm_helper()
+        _warm_helper(args[2:])
         job: ChainJob = pickle.loads(conn.recv_bytes())
         sensor = job.sensor_class(job.config)
         # (renders only: an OUTDIR that cannot be written to)
-        ctx = Context(job.trajectory, Path(os.devnull), scene=job.scene)
+        ctx = job.context_class(job.trajectory, Path(os.devnull), scene=job.scene)
         ctx.renderer()  # the GL context and the scene's buffers, before saying ready
         gt_set = frozenset(job.gt_times)
         dumps = pickle.dumps
@@ -246,12 +295,13 @@ _PRESTARTED: list[_Helper] = []
 """Render helpers started ahead (:func:`prestart`), waiting for an event camera's job."""
 
 
-def prestart(n: int) -> None:
+def prestart(n: int, warm: Sequence[str] = ()) -> None:
     """Start ``n`` render helper interpreters now (a sensor worker does this as it starts,
-    before its job arrives): their imports then overlap the run's set-up, and the next
-    :class:`ChainFarm` of this process takes them instead of starting its own."""
+    before its job arrives): their imports (with the modules ``warm``: the module of the
+    run's context class) then overlap the run's set-up, and the next :class:`ChainFarm` of
+    this process takes them instead of starting its own."""
     for _ in range(max(0, int(n))):
-        _PRESTARTED.append(_Helper())
+        _PRESTARTED.append(_Helper(warm))
 
 
 def _take_helpers(n: int) -> list[_Helper]:
@@ -270,10 +320,10 @@ def _take_helpers(n: int) -> list[_Helper]:
 class _Helper:
     """One render helper process (owner side) and the thread reading its answers."""
 
-    def __init__(self) -> None:
+    def __init__(self, warm: Sequence[str] = ()) -> None:
         self.proc: subprocess.Popen[bytes]
         self.conn: Connection
-        self.proc, self.conn = spawn(_HELPER_CODE, "a render helper process")
+        self.proc, self.conn = spawn(_HELPER_CODE, "a render helper process", tuple(warm))
         self.name = "?"
         self.index = 0
         self.ready = False
@@ -341,7 +391,7 @@ class ChainFarm:
 
     def __init__(
         self,
-        sensor: EventCamera,
+        sensor: ChainSensor,
         ctx: SimContext,
         sampler: AdaptiveSampler,
         gt_times: NDArray[np.int64],
@@ -368,6 +418,7 @@ class ChainFarm:
                 ctx.scene,
                 sampler,
                 tuple(sorted(self.gt_set)),
+                type(ctx),
             )
             try:
                 self.helpers = _take_helpers(n)

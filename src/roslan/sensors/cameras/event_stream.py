@@ -13,13 +13,13 @@ import bisect
 import collections
 import heapq
 import itertools
-from collections.abc import Iterator
-from typing import TYPE_CHECKING
+from collections.abc import Iterator, Sized
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
 
-from roslan.events.model import EventBatch, EventGenerator
+from roslan.events.model import EventBatch, EventGenerator, EventModelParams
 from roslan.events.ros import EVENT_ARRAY, pack_event_array
 from roslan.io.messages import Flavor, MessageStore
 from roslan.sensors.base import Message, SimContext
@@ -27,11 +27,66 @@ from roslan.sensors.cameras.encoding import srgb_curve
 from roslan.sensors.cameras.event_image import RecentEvents
 
 if TYPE_CHECKING:
-    from roslan.sensors.cameras.event import EventCamera
+    from roslan.io.background import BackgroundSink
+    from roslan.sensors.cameras.event_config import EventCameraConfig
 
-__all__ = ["AfterRender", "Packetizer"]
+__all__ = ["AfterRender", "Packetizer", "StreamSensor"]
 
 F32 = NDArray[np.float32]
+
+
+class _Size(Protocol):
+    @property
+    def width(self) -> int: ...
+
+    @property
+    def height(self) -> int: ...
+
+
+class StreamSensor(Protocol):
+    """What the stream needs of the event camera
+    (:class:`~roslan.sensors.cameras.event.EventCamera`, which imports this module): its
+    config, pixel model, size and frame, its file writers and message builders."""
+
+    @property
+    def config(self) -> EventCameraConfig: ...
+
+    @property
+    def params(self) -> EventModelParams: ...
+
+    @property
+    def camera(self) -> _Size: ...
+
+    @property
+    def optical_frame(self) -> str: ...
+
+    @property
+    def _sink(self) -> BackgroundSink | None: ...
+
+    @property
+    def _writers(self) -> Sized: ...
+
+    def _write_events(self, batch: EventBatch) -> None: ...
+
+    def _write_image(
+        self, ctx: SimContext, t_ns: int, aps: NDArray[np.uint8], index: int
+    ) -> None: ...
+
+    def _camera_info_msg(self, ctx: SimContext, t_ns: int) -> Message: ...
+
+    def _image_msg(
+        self, ctx: SimContext, t_ns: int, data: NDArray[Any], encoding: str
+    ) -> Message: ...
+
+    def _truth_msgs(
+        self,
+        ctx: SimContext,
+        t: int,
+        flow: F32 | None,
+        depth: F32 | None,
+        gt_times: NDArray[np.int64],
+        gt_rate: float,
+    ) -> list[Message]: ...
 
 
 def _srgb8(lin: NDArray[np.floating]) -> NDArray[np.uint8]:
@@ -49,7 +104,7 @@ class AfterRender:
 
     def __init__(
         self,
-        sensor: EventCamera,
+        sensor: StreamSensor,
         ctx: SimContext,
         info_times: NDArray[np.int64],
         gt_times: NDArray[np.int64],
@@ -86,6 +141,7 @@ class AfterRender:
             batch.t[:] *= self.tick
         if batch.size:
             self.n_events += batch.size
+            ctx.clock.tap(c.name, x=batch.x, y=batch.y, t=batch.t, p=batch.p)
             if s._writers:
                 sink.submit(s._write_events, batch)
             self.buf.append(batch)
@@ -108,6 +164,24 @@ class AfterRender:
         self._push(*ready, *out)
         horizon = t if not self.buf else min(t, int(self.buf[0].t[0]))
         self._release(horizon)
+
+    def follow(self, forced: Any) -> None:
+        """Take the forced instants known so far (closed loop: they grow with the horizon,
+        :class:`~roslan.sensors.cameras.event_causal.ForcedInstants`)."""
+        self.info_set, self.gt_set, self.gt_times = forced.info_set, forced.gt_set, forced.gt
+
+    def floor(self, t: int) -> int:
+        """The smallest stamp a message may still have after instant ``t`` (every message
+        released so far taken): a queued message's, a buffered event's, or an event
+        after ``t`` (floored to the timestamp tick)."""
+        f = t + 1
+        if self.tick > 1:
+            f = (f // self.tick) * self.tick
+        if self.pending:
+            f = min(f, self.pending[0][0])
+        if self.buf:
+            f = min(f, int(self.buf[0].t[0]))
+        return f
 
     def finish(self, t: int) -> None:
         """After the last instant ``t``: the last packet, then everything queued."""
@@ -135,7 +209,7 @@ class AfterRender:
 class Packetizer:
     """Cuts the event stream into EventArray messages (by duration or by count)."""
 
-    def __init__(self, sensor: EventCamera, ctx: SimContext, *, prebuild: bool = False) -> None:
+    def __init__(self, sensor: StreamSensor, ctx: SimContext, *, prebuild: bool = False) -> None:
         self.sensor = sensor
         self.ctx = ctx
         c = sensor.config
