@@ -1,19 +1,24 @@
 """Time to contact from events: the divergence of the flow field by contrast maximisation.
 
 A downward-looking event camera descending onto a plane sees the ground expand. Over a
-short window the flow of a fronto-parallel plane at depth ``Z``, seen by a camera moving
-with velocity ``T`` (optical frame: z forward, x right, y down), is, in normalised image
-coordinates ``(x, y) = ((u - cx) / fx, (v - cy) / fy)``,
+short window a camera moving with velocity ``T`` (optical frame: z forward, x right, y
+down) over a plane at distance ``d`` whose unit normal, seen from the camera, is ``n``
+(pointing from the camera to the plane: ``n = (0, 0, 1)`` looking straight down) sees the
+point of normalised image coordinates ``p = (x, y, 1)``, ``x = (u - cx) / fx``, ``y = (v -
+cy) / fy``, at inverse depth ``(n . p) / d`` and moving with
 
-    dx/dt = -ux + D x,    dy/dt = -uy + D y,    ux = Tx / Z, uy = Ty / Z, D = Tz / Z
+    dx/dt = (n . p) (-ux + uz x),    dy/dt = (n . p) (-uy + uz y),    (ux, uy, uz) = T / d
 
 plus the rotational flow of the camera's angular velocity, which does not depend on depth
 and is removed with the gyroscope (each event's bearing is rotated back to the window's
-reference time). ``D`` (1/s) is the divergence rate (half the divergence of the flow
-field), and ``tau = -1 / D`` is the time to contact of the camera with the plane along its
-optical axis, negative while approaching (``docs/design.md`` §1: ``tau = z / vz``).
+reference time). The plane's divergence rate is ``D = n . T / d`` (1/s, > 0 while
+approaching) and ``tau = -1 / D`` the time to contact of the camera with the plane
+(``d`` over the closing speed along the normal), negative while approaching
+(``docs/design.md`` §1: ``tau = z / vz``). The normal comes from the attitude (the IMU's
+gravity direction); without it the camera is assumed to look along the normal, and a
+tilt ``a`` with a sideways speed ``V`` then biases ``D`` by about ``1.5 V sin(a) / d``.
 
-The three parameters are found by contrast maximisation (Gallego, Rebecq, Scaramuzza,
+The three parameters ``(ux, uy, uz)`` are found by contrast maximisation (Gallego, Rebecq, Scaramuzza,
 "A Unifying Contrast Maximization Framework for Event Cameras, with Applications to Motion,
 Depth, and Optical Flow Estimation", CVPR 2018): events are warped to the reference time
 along the flow model, accumulated (bilinear voting) into an image of warped events (IWE),
@@ -67,6 +72,7 @@ class DivergenceParams:
     levels: tuple[int, ...] = (4, 2)
     max_iterations: int = 8
     trust_px: float = 1.0
+    search_px: float = 24.0
 
 
 @dataclass(frozen=True)
@@ -126,6 +132,7 @@ class DivergenceEstimator:
         self._gyro: deque[FloatArray] = deque()
         self._theta: FloatArray | None = None
         self._tau: float | None = None
+        self._normal = np.array([0.0, 0.0, 1.0])
 
     # -- input ---------------------------------------------------------------------------
     def update(
@@ -138,12 +145,18 @@ class DivergenceEstimator:
         gyro_t_ns: npt.ArrayLike | None = None,
         gyro: npt.ArrayLike | None = None,
         end_ns: int | None = None,
+        normal: npt.ArrayLike | None = None,
     ) -> DivergenceEstimate | None:
         """Add one step's events (pixel ``x, y``; times ``t_ns`` int ns, sorted; polarity
         ``p`` is accepted and unused: both polarities vote) and gyro samples (``gyro_t_ns``
         (N,), ``gyro`` (N, 3) rad/s in the IMU frame), then estimate over the window that
-        ends at ``end_ns`` (default: the last event's time)."""
+        ends at ``end_ns`` (default: the last event's time). ``normal``: (3,) the ground's
+        normal in the camera's optical frame, pointing from the camera to the ground (kept
+        until the next one; default ``(0, 0, 1)``)."""
         del p
+        if normal is not None:
+            n = np.asarray(normal, dtype=np.float64).reshape(3)
+            self._normal = n / np.linalg.norm(n)
         t = np.asarray(t_ns, dtype=np.int64).ravel()
         if t.size:
             xn = (np.asarray(x, dtype=np.float64).ravel() - self.cx) / self.fx
@@ -197,8 +210,9 @@ class DivergenceEstimator:
         t_ref = (t0 + end_ns) // 2
         dt = (te - t_ref).astype(np.float64) * 1e-9
         xr, yr = self._derotate(xn, yn, te, t_ref)
-        theta, conf = self._maximise(xr, yr, dt, win)
-        d = float(theta[2])
+        s_n = self._normal[0] * xr + self._normal[1] * yr + self._normal[2]
+        theta, conf = self._maximise(xr, yr, dt * s_n, win)
+        d = float(np.dot(self._normal, theta))
         tau = -1.0 / d if d > 0 else float("-inf")
         self._theta = theta
         if d > 0:
@@ -258,6 +272,8 @@ class DivergenceEstimator:
         metric = np.array([1.0, 1.0, radius])
         dt_max = float(np.max(np.abs(dt))) + 1e-6
         iwe = _Iwe(self, xr, yr, dt, pr.levels[0])
+        if self._theta is None:
+            theta = self._search_translation(iwe, dt_max, lo, hi)
         for scale in pr.levels:
             iwe = _Iwe(self, xr, yr, dt, scale)
             # a parameter step of `trust` (metric units) moves an event by <= trust_px
@@ -285,6 +301,23 @@ class DivergenceEstimator:
         v1 = iwe.variance(theta)
         conf = float(np.clip(1.0 - v0 / v1, 0.0, 1.0)) if v1 > 0 else 0.0
         return theta, conf
+
+    def _search_translation(
+        self, iwe: _Iwe, dt_max: float, lo: FloatArray, hi: FloatArray
+    ) -> FloatArray:
+        """First window (no previous motion): the best translation on a grid of motions
+        up to ``search_px`` sensor pixels at the window's ends, with no divergence."""
+        pr = self.params
+        n = int(np.ceil(pr.search_px / pr.levels[0]))
+        u = np.arange(-n, n + 1) * pr.levels[0] / (self.fx * dt_max)
+        best, best_v = np.zeros(3), -np.inf
+        for ux in u:
+            for uy in u:
+                cand = np.clip(np.array([ux, uy, 0.0]), lo, hi)
+                v = iwe.variance(cand)
+                if v > best_v:
+                    best, best_v = cand, v
+        return best
 
 
 class _Iwe:
