@@ -14,9 +14,10 @@ Perception (docs/guide/closed-loop.md, "Tau from events"):
 * Each estimate gives the camera's height ``h_cam = tau_cam * vz`` at the window's
   reference time, hence one measurement of the ground's level in the dead-reckoned frame;
   the median of the last 40 weighted by ``1 / h_cam`` (an estimate's error grows with the
-  height; a median ignores the outliers; the first 10 are only collected) gives the height gap now, ``h``, and the
-  tau of the height gap ``tau = h / vz`` (the camera sits higher than the feet: this
-  offset, known from the vehicle's geometry, is why the gap's tau is not the camera's).
+  height; a median ignores the outliers; the first 10 are only collected) gives the height
+  gap now, ``h``, and the tau of the height gap ``tau = h / vz`` (the camera sits higher
+  than the feet: this offset, known from the vehicle's geometry, is why the gap's tau is
+  not the camera's).
 
 Control: constant tau-dot ``k`` (``trajectory.k``) on the height gap. For ``tau = h / h'``,
 ``tau' = 1 - h h'' / h'^2``, so ``tau' = k`` needs ``h'' = (1 - k) h'^2 / h = (1 - k) vz /
@@ -167,7 +168,7 @@ class TauEventsPolicy:
         self.history = []
 
     # ------------------------------------------------------------------ sensing
-    def _integrate(self, rows: F64, end_ns: int) -> tuple[F64, F64]:
+    def _integrate(self, rows: F64, end_ns: int) -> tuple[NDArray[np.int64], F64]:
         """Strapdown over the step's IMU rows (valid, t - end s, acc (3), gyro (3));
         returns the samples' times (ns) and gyro (N, 3)."""
         rows = rows[rows[:, 0] > 0.5]
@@ -305,5 +306,6 @@ def _expm_so3(w: F64) -> F64:
     th = float(np.linalg.norm(w))
     k = np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
     if th < 1e-9:
-        return np.eye(3) + k
-    return np.eye(3) + math.sin(th) / th * k + (1.0 - math.cos(th)) / th**2 * (k @ k)
+        return np.asarray(np.eye(3) + k, dtype=np.float64)
+    out = np.eye(3) + math.sin(th) / th * k + (1.0 - math.cos(th)) / th**2 * (k @ k)
+    return np.asarray(out, dtype=np.float64)

@@ -18,14 +18,14 @@ approaching) and ``tau = -1 / D`` the time to contact of the camera with the pla
 gravity direction); without it the camera is assumed to look along the normal, and a
 tilt ``a`` with a sideways speed ``V`` then biases ``D`` by about ``1.5 V sin(a) / d``.
 
-The three parameters ``(ux, uy, uz)`` are found by contrast maximisation (Gallego, Rebecq, Scaramuzza,
-"A Unifying Contrast Maximization Framework for Event Cameras, with Applications to Motion,
-Depth, and Optical Flow Estimation", CVPR 2018): events are warped to the reference time
-along the flow model, accumulated (bilinear voting) into an image of warped events (IWE),
-and the parameters maximise the IWE's variance after a Gaussian blur. The objective's
-gradient is analytic (the blurred IWE's gradient sampled at the warped events), and
-a gradient ascent (Barzilai-Borwein-like steps in a trust region of about one IWE pixel)
-runs coarse (quarter resolution) then fine (half resolution), warm-started from
+The three parameters ``(ux, uy, uz)`` are found by contrast maximisation (Gallego, Rebecq,
+Scaramuzza, "A Unifying Contrast Maximization Framework for Event Cameras, with
+Applications to Motion, Depth, and Optical Flow Estimation", CVPR 2018): events are warped
+to the reference time along the flow model, accumulated (bilinear voting) into an image of
+warped events (IWE), and the parameters maximise the IWE's variance after a Gaussian blur.
+The objective's gradient is analytic (the blurred IWE's gradient sampled at the warped
+events), and a gradient ascent (Barzilai-Borwein-like steps in a trust region of about one
+IWE pixel) runs coarse (quarter resolution) then fine (half resolution), warm-started from
 the previous window. The window adapts to the expansion rate: ``window_gain * |tau|``
 (clipped), so that the ground expands by about the same few pixels in every window, and at
 most ``max_events`` events (an even stride over the window) enter the objective: the cost
