@@ -118,33 +118,38 @@ def run_estimator(
 
 @pytest.fixture(scope="module")
 def approach() -> dict[str, npt.NDArray[np.float64]]:
-    return synthetic_events(1, omega=(0.4, -0.6, 0.3))
+    """0.3 s from 2 m at 2 m/s (D from 1 to 1.4 1/s), rotating at up to 2 rad/s."""
+    return synthetic_events(1, omega=(0.4, -0.6, 2.0), duration=0.3)
+
+
+def _errors(rows: list[tuple[float, float, float, int]]) -> npt.NDArray[np.float64]:
+    """Signed relative errors of D after the first 60 ms (D = vz / z at each t_ref)."""
+    r = np.array(rows)
+    r = r[r[:, 0] > 0.06]
+    return np.asarray(r[:, 1] / (2.0 / (2.0 - 2.0 * r[:, 0])) - 1.0)
 
 
 def test_recovers_the_divergence_of_an_approached_plane(
     approach: dict[str, npt.NDArray[np.float64]],
 ) -> None:
-    rows = np.array(run_estimator(approach))
-    assert rows.shape[0] >= 6
-    settled = rows[rows[:, 0] > 0.06]
-    truth = 2.0 / (2.0 - 2.0 * settled[:, 0])  # D = vz / z at each reference time
-    err = np.abs(settled[:, 1] / truth - 1)
-    assert np.median(err) < 0.04, (settled[:, 1], truth)
-    assert np.mean(err < 0.15) >= 0.7  # single 20 ms estimates scatter; the policy takes medians
-    assert np.all(settled[:, 2] > 0.0)  # the warp sharpens the events
+    """Single 20 ms estimates scatter by ~10 %; their median is within 10 % of D (the
+    measured figures: docs/guide/closed-loop.md, "Tau from events")."""
+    rows = run_estimator(approach)
+    err = _errors(rows)
+    assert err.size >= 10
+    assert abs(np.median(err)) < 0.1, err
+    assert np.median(np.abs(err)) < 0.12, err
+    assert all(r[2] > 0.0 for r in rows[2:])  # the warp sharpens the events
 
 
 def test_the_gyro_is_needed_when_the_camera_rotates(
     approach: dict[str, npt.NDArray[np.float64]],
 ) -> None:
-    """Without derotation the rotational flow corrupts the estimate: the gyro path is used."""
-    with_gyro = np.array(run_estimator(approach))
-    without = np.array(run_estimator(approach, gyro=False))
-    t = with_gyro[:, 0] > 0.06
-    truth = 2.0 / (2.0 - 2.0 * with_gyro[t, 0])
-    err_with = np.median(np.abs(with_gyro[t, 1] / truth - 1))
-    err_without = np.median(np.abs(without[t, 1] / truth - 1))
-    assert err_without > 2 * err_with
+    """Without derotation the rotation about the optical axis (a curl the scaling warp
+    cannot absorb) corrupts D: the gyro path is used and works."""
+    err_with = np.median(np.abs(_errors(run_estimator(approach))))
+    err_without = np.median(np.abs(_errors(run_estimator(approach, gyro=False))))
+    assert err_without > 1.5 * err_with, (err_with, err_without)
 
 
 def test_tilted_plane_with_the_normal() -> None:

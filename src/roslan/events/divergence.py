@@ -24,12 +24,12 @@ Applications to Motion, Depth, and Optical Flow Estimation", CVPR 2018): events 
 to the reference time along the flow model, accumulated (bilinear voting) into an image of
 warped events (IWE), and the parameters maximise the IWE's variance after a Gaussian blur.
 The objective's gradient is analytic (the blurred IWE's gradient sampled at the warped
-events), and a gradient ascent (Barzilai-Borwein-like steps in a trust region of about one
-IWE pixel) runs coarse (quarter resolution) then fine (half resolution), warm-started from
-the previous window. The window adapts to the expansion rate: ``window_gain * |tau|``
-(clipped), so that the ground expands by about the same few pixels in every window, and at
-most ``max_events`` events (an even stride over the window) enter the objective: the cost
-of one estimate is bounded whatever the event rate.
+events), and a gradient ascent (steps of at most one IWE pixel of motion, doubled after a
+success and shrunk after a failure) runs coarse (quarter resolution) then fine (half
+resolution), warm-started from the previous window. The window adapts to the expansion
+rate: ``window_gain * |tau|`` (clipped), so that the ground expands by about the same few
+pixels in every window, and at most ``max_events`` events (an even stride over the window)
+enter the objective: the cost of one estimate is bounded whatever the event rate.
 
 Assumptions: a pinhole camera (no distortion), a textured ground plane filling most of
 the view, a camera looking roughly along the plane's normal (the divergence of a tilted
@@ -57,9 +57,13 @@ class DivergenceParams:
 
     ``window_gain``: window length as a fraction of ``|tau|`` (the ground expands by about
     this fraction over a window); ``min_window`` / ``max_window`` clip it; ``max_events``
-    caps the events per estimate (an even stride); ``min_events`` below which no estimate
-    is made; ``sigma``: blur of the IWE in IWE pixels; ``max_divergence``: bound of ``D``
-    (1/s) in the search; ``levels``: IWE down-sampling factors, coarse to fine.
+    caps the events per estimate (an even stride); ``min_events`` below which no estimate is
+    made; ``sigma``: blur of the IWE in IWE pixels; ``max_divergence``: bound of ``D`` (1/s)
+    in the search; ``levels``: IWE down-sampling factors, coarse to fine (default: ``(2 n,
+    n)``, ``n = max(1, width // 120)``: ``(4, 2)`` for a DAVIS346); ``max_iterations``:
+    objective evaluations per level; ``trust_px``: largest motion of an event (IWE pixels)
+    per ascent step; ``search_px``: the first window's translation search range (sensor
+    pixels at the window's ends).
     """
 
     window_gain: float = 0.03
@@ -69,7 +73,7 @@ class DivergenceParams:
     min_events: int = 500
     sigma: float = 1.0
     max_divergence: float = 50.0
-    levels: tuple[int, ...] = (4, 2)
+    levels: tuple[int, ...] | None = None
     max_iterations: int = 8
     trust_px: float = 1.0
     search_px: float = 24.0
@@ -127,12 +131,15 @@ class DivergenceEstimator:
             raise ValueError(msg)
         self.R_cam_imu = rot
         self.params = params or DivergenceParams()
+        fine = max(1, self.width // 120)
+        self.levels = self.params.levels or (2 * fine, fine)
         self._events: deque[tuple[npt.NDArray[np.int64], FloatArray, FloatArray]] = deque()
         self._gyro_t: deque[npt.NDArray[np.int64]] = deque()
         self._gyro: deque[FloatArray] = deque()
         self._theta: FloatArray | None = None
         self._tau: float | None = None
         self._normal = np.array([0.0, 0.0, 1.0])
+        self._first_ns: int | None = None
 
     # -- input ---------------------------------------------------------------------------
     def update(
@@ -159,6 +166,8 @@ class DivergenceEstimator:
             self._normal = n / np.linalg.norm(n)
         t = np.asarray(t_ns, dtype=np.int64).ravel()
         if t.size:
+            if self._first_ns is None:
+                self._first_ns = int(t[0])
             xn = (np.asarray(x, dtype=np.float64).ravel() - self.cx) / self.fx
             yn = (np.asarray(y, dtype=np.float64).ravel() - self.cy) / self.fy
             self._events.append((t, xn, yn))
@@ -194,9 +203,10 @@ class DivergenceEstimator:
         pr = self.params
         win = self.window()
         t0 = end_ns - round(win * 1e9)
-        if not self._events:
+        if not self._events or self._first_ns is None:
             return None
         t = np.concatenate([e[0] for e in self._events])
+        t0 = max(t0, int(self._first_ns))  # the stream's start: no window before it
         sel = (t >= t0) & (t <= end_ns)
         n = int(np.count_nonzero(sel))
         if n < pr.min_events:
@@ -259,7 +269,7 @@ class DivergenceEstimator:
     def _maximise(
         self, xr: FloatArray, yr: FloatArray, dt: FloatArray, win: float
     ) -> tuple[FloatArray, float]:
-        """Gradient ascent of the IWE's contrast per level, with a Barzilai-Borwein step
+        """Gradient ascent of the IWE's contrast per level, with an adaptive step
         inside a trust region of ``trust_px`` IWE pixels of motion at the window's ends."""
         pr = self.params
         dmax = min(pr.max_divergence, 1.0 / max(win, 1e-3))
@@ -271,10 +281,10 @@ class DivergenceEstimator:
         radius = float(np.sqrt(np.mean(xr**2 + yr**2))) + 1e-6
         metric = np.array([1.0, 1.0, radius])
         dt_max = float(np.max(np.abs(dt))) + 1e-6
-        iwe = _Iwe(self, xr, yr, dt, pr.levels[0])
+        iwe = _Iwe(self, xr, yr, dt, self.levels[0])
         if self._theta is None:
             theta = self._search_translation(iwe, dt_max, lo, hi)
-        for scale in pr.levels:
+        for scale in self.levels:
             iwe = _Iwe(self, xr, yr, dt, scale)
             # a parameter step of `trust` (metric units) moves an event by <= trust_px
             trust = pr.trust_px * scale / (self.fx * dt_max)
@@ -308,8 +318,8 @@ class DivergenceEstimator:
         """First window (no previous motion): the best translation on a grid of motions
         up to ``search_px`` sensor pixels at the window's ends, with no divergence."""
         pr = self.params
-        n = int(np.ceil(pr.search_px / pr.levels[0]))
-        u = np.arange(-n, n + 1) * pr.levels[0] / (self.fx * dt_max)
+        n = int(np.ceil(pr.search_px / self.levels[0]))
+        u = np.arange(-n, n + 1) * self.levels[0] / (self.fx * dt_max)
         best, best_v = np.zeros(3), -np.inf
         for ux in u:
             for uy in u:
