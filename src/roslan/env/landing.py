@@ -193,6 +193,7 @@ class LandingEnv(gym.Env[dict[str, NDArray[Any]], F32]):
         return {
             "t": ms.t,
             "state": {"gaps": ms.gaps, "rates": ms.rates, "accels": ms.accels},
+            "R_world_goal": self._traj.R_world_goal.copy(),
             "events": self._last_events,
             "taps": out.taps,
             "clipped": clipped,

@@ -167,7 +167,7 @@ class ConstantDescentPolicy:
     vehicle over the goal (time constant ``horizontal_time``, s) and levels its attitude
     gaps; no braking at all before contact."""
 
-    def __init__(self, speed: float = 0.4, horizontal_time: float = 1.0) -> None:
+    def __init__(self, speed: float = 0.6, horizontal_time: float = 1.0) -> None:
         self.speed = float(speed)
         self.horizontal_time = float(horizontal_time)
         self._ctx: PolicyContext | None = None
