@@ -38,6 +38,10 @@ F64 = NDArray[np.float64]
 SAMPLES = 9
 """Instants per control step at which the vehicle's paths are cast (ends included)."""
 
+CONTACT_TOL = 1e-6
+"""m: a contact point this close to the goal's plane touches it (a soft tau landing
+closes the height gap with zero speed: the plane is reached tangentially)."""
+
 
 @dataclass(frozen=True)
 class StepEvent:
@@ -99,10 +103,11 @@ class ContactModel:
         return out
 
     def _crossing(self, t0_ns: int, t1_ns: int) -> int | None:
-        """First instant (ns) in (t0, t1] with the contact point on or below the plane."""
+        """First instant (ns) in [t0, t1] with the contact point on (within
+        :data:`CONTACT_TOL`) or below the goal's plane."""
         t = np.linspace(t0_ns, t1_ns, SAMPLES) * 1e-9
         h = self.height(t)
-        below = np.flatnonzero(h <= 0.0)
+        below = np.flatnonzero(h <= CONTACT_TOL)
         if not below.size:
             return None
         i = int(below[0])
@@ -112,7 +117,7 @@ class ContactModel:
         hi = min(round(float(t[i]) * 1e9), t1_ns)
         while hi - lo > 1:
             mid = (lo + hi) // 2
-            if self.height(np.array([mid * 1e-9]))[0] <= 0.0:
+            if self.height(np.array([mid * 1e-9]))[0] <= CONTACT_TOL:
                 hi = mid
             else:
                 lo = mid
