@@ -84,8 +84,8 @@ class EventPacket:
         t: (N,) int64 trajectory time, ns.
         p: (N,) int8 polarity, +1 ON / -1 OFF.
 
-    ``packet["x"]`` and ``packet.get("x")`` work too. Not a dict, so that Gymnasium's vector environments keep
-    each environment's packet whole (one object per environment).
+    ``packet["x"]`` and ``packet.get("x")`` work too. Not a dict, so that Gymnasium's
+    vector environments keep each environment's packet whole (one object per environment).
     """
 
     x: NDArray[np.int32]
