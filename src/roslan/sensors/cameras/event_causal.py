@@ -122,6 +122,8 @@ def causal_instants(
                 t = min(t, clock.end_ns)
                 break
             yield wait(floor(t_prev))
+            if clock.align and clock.end_ns is None and t_prev < clock.horizon_ns < t:
+                t = clock.horizon_ns  # the new step's end is sampled
         sampler = forced.cover(t)
         inst, rate = sample_instant(sensor, ctx, t, t in forced.gt_set)
         if brightness:
