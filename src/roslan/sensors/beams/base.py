@@ -280,7 +280,8 @@ class PointCloudSensor:
     def read_span_ns(self) -> int:
         """How far past its start a scan reads the trajectory (ns): its sweep, ``1 / rate``
         (a scanner whose firing poses pad past it says so)."""
-        return round(1e9 / self.config.rate)
+        rate: float = self.config.rate
+        return round(1e9 / rate)
 
     def draw(self, rng: np.random.Generator) -> BeamDraws:  # pragma: no cover - overridden
         """The random draws of one scan (:func:`draw_beams`)."""
