@@ -22,10 +22,10 @@ from roslan.sensors.base import (
     SimContext,
     StaticTransform,
     TopicSpec,
+    paced,
     sample_times_ns,
 )
 from roslan.sensors.beams.pointcloud import POINTCLOUD2, pointcloud2
-from roslan.sensors.clock import paced
 
 if TYPE_CHECKING:
     from roslan.render.base import BeamCaster

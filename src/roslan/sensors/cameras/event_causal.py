@@ -26,7 +26,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from roslan.events.sampling import AdaptiveSampler
-from roslan.sensors.base import Message, SimContext, sample_times_ns
+from roslan.sensors.base import Message, SimContext, sample_times_ns, wait
 from roslan.sensors.cameras.event_chains import (
     ChainSensor,
     Instant,
@@ -34,7 +34,7 @@ from roslan.sensors.cameras.event_chains import (
     brightness_rate,
     sample_instant,
 )
-from roslan.sensors.clock import Clock, wait
+from roslan.sensors.clock import Clock
 
 if TYPE_CHECKING:
     from roslan.events.model import EventGenerator
