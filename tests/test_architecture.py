@@ -1,7 +1,16 @@
 """The layout rules of the README's "Architecture" section, checked on the source tree:
-no import cycles between modules (deferred imports inside functions included), no module
-over 600 lines, no function over 120 lines, every package re-exports its public names
-with ``__all__``, and no reference to a file outside the repository."""
+no import circle between files and no import from a lower layer into a higher one
+(:data:`LAYERS`; deferred and type-only imports included), no module over 600 lines, no
+function over 120 lines, every package re-exports its public names with ``__all__``, and
+no reference to a file outside the repository.
+
+What a file imports (:func:`_imports`) is what Python runs for it: every ``roslan``
+module it names anywhere (module level, inside functions, under ``if TYPE_CHECKING:``:
+a type-only import still ties the file to the other one), and every package on the way
+(``from roslan.a.b import x`` first runs ``roslan/a/__init__.py``, which may import the
+file back), except the packages the file itself sits in (they are already being
+imported when it runs). A file that imports its own package by name (``from roslan.a
+import x`` inside ``roslan/a/m.py``) depends on that ``__init__``."""
 
 from __future__ import annotations
 
@@ -15,11 +24,38 @@ SRC = Path(__file__).resolve().parents[1] / "src" / "roslan"
 MAX_MODULE_LINES = 600
 MAX_FUNCTION_LINES = 120
 
+LAYERS: tuple[tuple[str, tuple[str, ...], str], ...] = (
+    (
+        "foundation",
+        ("roslan", "roslan.errors", "roslan.limits", "roslan.lazy", "roslan.frames"),
+        "the version, exceptions, documented bounds, lazy package loading, rotations",
+    ),
+    ("io", ("roslan.io",), "bags, messages, atomic files, PNG, text, child processes"),
+    ("config", ("roslan.config",), "pydantic base models, units (not the run's config)"),
+    ("trajectory", ("roslan.trajectory",), "tau and file trajectories"),
+    ("vehicle", ("roslan.vehicle",), "the body and its contact points"),
+    ("events", ("roslan.events",), "the event model (ESIM), its files and messages"),
+    ("scene", ("roslan.scene",), "scenes: files, built-ins, meshes, clearance, export"),
+    ("render", ("roslan.render",), "OpenGL rasterizer, Embree ray caster"),
+    ("sensors", ("roslan.sensors",), "the sensor interface, registry and every sensor"),
+    ("run config", ("roslan.config.sim",), "the whole simulation YAML (SimConfig)"),
+    ("run folder", ("roslan.rundir",), "the output folder's files and their readers"),
+    ("figures", ("roslan.plots",), "figures of a run, a trajectory or a scene"),
+    ("pipeline", ("roslan.pipeline",), "one run: plan, workers, merge, report"),
+    ("many runs", ("roslan.batch",), "sweeps and the paper's dataset"),
+    ("viewer", ("roslan.view",), "the Rerun recording of a run folder"),
+    ("environment", ("roslan.env",), "the closed-loop Gymnasium environment"),
+    ("command line", ("roslan.cli", "roslan.__main__"), "argparse and handlers only"),
+)
+"""Lowest first: a module may import its own layer and the layers below it, never one
+above. An entry names a module or a package (then every module inside it too, but
+``roslan`` only its ``__init__``); a module belongs to its longest entry."""
 
-def _modules() -> dict[str, Path]:
+
+def _modules(root: Path = SRC) -> dict[str, Path]:
     out = {}
-    for path in sorted(SRC.rglob("*.py")):
-        parts = ["roslan", *path.relative_to(SRC).with_suffix("").parts]
+    for path in sorted(root.rglob("*.py")):
+        parts = ["roslan", *path.relative_to(root).with_suffix("").parts]
         if parts[-1] == "__init__":
             parts = parts[:-1]
         out[".".join(parts)] = path
@@ -39,23 +75,46 @@ def _type_checking_nodes(tree: ast.AST) -> set[int]:
     return skip
 
 
-def _imports(path: Path) -> set[str]:
-    """roslan modules imported anywhere in the module: at module level and deferred inside
-    functions or methods (imports under TYPE_CHECKING excluded)."""
+def _packages_of(name: str, path: Path) -> set[str]:
+    """The packages module ``name`` sits in (a package's ``__init__``: itself too)."""
+    parts = name.split(".")
+    own = parts if path.name == "__init__.py" else parts[:-1]
+    return {".".join(own[:i]) for i in range(1, len(own) + 1)}
+
+
+def _imports(
+    path: Path,
+    name: str = "",
+    modules: dict[str, Path] | None = None,
+    *,
+    type_checking: bool = True,
+) -> set[str]:
+    """roslan modules that module ``name`` (file ``path``) imports, anywhere in it (see the
+    module docstring): those it names, and the packages on the way to them but its own."""
+    modules = MODULES if modules is None else modules
     tree = ast.parse(path.read_text(encoding="utf-8"))
-    skip = _type_checking_nodes(tree)
-    out: set[str] = set()
+    skip = set() if type_checking else _type_checking_nodes(tree)
+    named: set[str] = set()
     for node in ast.walk(tree):
         if id(node) in skip:
             continue
         if isinstance(node, ast.ImportFrom) and node.module and node.module.startswith("roslan"):
-            subs = {f"{node.module}.{a.name}" for a in node.names} & MODULES.keys()
-            out |= subs
+            subs = {f"{node.module}.{a.name}" for a in node.names} & modules.keys()
+            named |= subs
             if len(subs) < len(node.names):
-                out.add(node.module)
+                named.add(node.module)
         elif isinstance(node, ast.Import):
-            out |= {a.name for a in node.names if a.name.startswith("roslan")}
-    return out & MODULES.keys()
+            named |= {a.name for a in node.names if a.name.startswith("roslan")}
+    own = _packages_of(name, path) if name else {"roslan"}
+    out = set(named)
+    for target in named:
+        parts = target.split(".")
+        out |= {".".join(parts[:i]) for i in range(1, len(parts))} - own
+    return (out & modules.keys()) - {name}
+
+
+def _graph(modules: dict[str, Path]) -> dict[str, set[str]]:
+    return {name: _imports(path, name, modules) for name, path in modules.items()}
 
 
 def _cycles(graph: dict[str, set[str]]) -> list[list[str]]:
@@ -93,12 +152,36 @@ def _cycles(graph: dict[str, set[str]]) -> list[list[str]]:
     return found
 
 
+def _layer(name: str, layers: tuple[tuple[str, tuple[str, ...], str], ...] = LAYERS) -> int:
+    """Index in ``layers`` of module ``name`` (-1: in none)."""
+    best, depth = -1, -1
+    for i, (_, entries, _) in enumerate(layers):
+        for e in entries:
+            inside = name.startswith(e + ".") and e != "roslan"
+            if (name == e or inside) and e.count(".") > depth:
+                best, depth = i, e.count(".")
+    return best
+
+
+def _upward(
+    graph: dict[str, set[str]], layers: tuple[tuple[str, tuple[str, ...], str], ...] = LAYERS
+) -> list[str]:
+    """Every import of a higher layer: ``"a (layer) -> b (layer)"``."""
+    out = []
+    for a in sorted(graph):
+        for b in sorted(graph[a]):
+            la, lb = _layer(a, layers), _layer(b, layers)
+            if lb > la:
+                out.append(f"{a} ({layers[la][0]}) -> {b} ({layers[lb][0]})")
+    return out
+
+
 def test_the_cycle_finder_finds_a_cycle() -> None:
     graph = {"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}
     assert _cycles(graph) == [["a", "b", "c"]]
 
 
-def test_imports_include_deferred_ones_but_not_type_checking(tmp_path: Path) -> None:
+def test_imports_include_deferred_and_type_checking_ones(tmp_path: Path) -> None:
     src = tmp_path / "m.py"
     src.write_text(
         "from typing import TYPE_CHECKING\n"
@@ -112,14 +195,102 @@ def test_imports_include_deferred_ones_but_not_type_checking(tmp_path: Path) -> 
         "        import roslan.vehicle\n",
         encoding="utf-8",
     )
-    assert _imports(src) == {"roslan.errors", "roslan.sensors.registry", "roslan.vehicle"}
+    # the packages on the way count: importing roslan.sensors.registry runs sensors/__init__
+    assert _imports(src) == {
+        "roslan.errors",
+        "roslan.limits",
+        "roslan.sensors",
+        "roslan.sensors.registry",
+        "roslan.vehicle",
+    }
+    assert _imports(src, type_checking=False) == _imports(src) - {"roslan.limits"}
+
+
+def _tree(root: Path, files: dict[str, str]) -> dict[str, Path]:
+    """A synthetic ``roslan`` source tree under ``root``: its modules by name."""
+    for rel, text in files.items():
+        path = root / rel
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(text, encoding="utf-8")
+    return _modules(root)
+
+
+def test_a_circle_through_a_package_init_is_found(tmp_path: Path) -> None:
+    """``p/m.py`` imports ``q/x.py``, which looks clean, but importing it first runs
+    ``q/__init__.py``, which imports ``q/y.py``, which imports ``p`` (whose ``__init__``
+    imports ``p/m.py``): a circle between files. A file importing its own package by name
+    is one too; importing a sibling module through the package is not."""
+    mods = _tree(
+        tmp_path,
+        {
+            "__init__.py": "",
+            "p/__init__.py": "from roslan.p.m import f\n",
+            "p/m.py": "from roslan.q.x import g\n",
+            "q/__init__.py": "from roslan.q.y import h\n",
+            "q/x.py": "",
+            "q/y.py": "from roslan.p import f\n",
+            "r/__init__.py": "from roslan.r.s import k\n",
+            "r/s.py": "K = 1\ndef k():\n    from roslan.r import K\n",
+            "r/t.py": "from roslan.r import s\n",
+        },
+    )
+    graph = _graph(mods)
+    assert graph["roslan.p.m"] == {"roslan.q", "roslan.q.x"}
+    assert graph["roslan.r.t"] == {"roslan.r.s"}  # (its package is already being imported)
+    assert _cycles(graph) == [
+        ["roslan.p", "roslan.p.m", "roslan.q", "roslan.q.y"],
+        ["roslan.r", "roslan.r.s"],
+    ]
+    # without the package on the way, the first circle would hide
+    hidden = {n: _imports(p, n, mods) - {"roslan.q"} for n, p in mods.items()}
+    assert _cycles(hidden) == [["roslan.r", "roslan.r.s"]]
+
+
+def test_the_layer_checker_finds_an_upward_import(tmp_path: Path) -> None:
+    layers = (
+        ("low", ("roslan", "roslan.low"), ""),
+        ("mid", ("roslan.mid",), ""),
+        ("mid top", ("roslan.mid.top",), ""),
+        ("high", ("roslan.high",), ""),
+    )
+    mods = _tree(
+        tmp_path,
+        {
+            "__init__.py": "",
+            "low/__init__.py": "",
+            "low/a.py": "from typing import TYPE_CHECKING\n"
+            "if TYPE_CHECKING:\n    from roslan.mid.b import B\n",
+            "mid/__init__.py": "",
+            "mid/b.py": "from roslan.low.a import A\nfrom roslan.mid.c import C\n",
+            "mid/c.py": "def f():\n    from roslan.mid.top import T\n",
+            "mid/top.py": "from roslan.mid.b import B\n",
+            "high.py": "import roslan.low.a\nfrom roslan.mid import top\n",
+        },
+    )
+    assert [_layer(n, layers) for n in sorted(mods)] == [0, 3, 0, 0, 1, 1, 1, 2]
+    assert _upward(_graph(mods), layers) == [
+        "roslan.low.a (low) -> roslan.mid (mid)",
+        "roslan.low.a (low) -> roslan.mid.b (mid)",
+        "roslan.mid.c (mid) -> roslan.mid.top (mid top)",
+    ]
 
 
 def test_no_import_cycles() -> None:
-    """No cycle, counting deferred (function-level) imports too: a deferred import only
-    hides a cycle until the function runs."""
-    graph = {name: _imports(path) - {name} for name, path in MODULES.items()}
-    assert _cycles(graph) == []
+    """No circle between files, counting deferred and type-only imports and the package
+    ``__init__`` files an import runs: a deferred import only hides a circle until the
+    function runs."""
+    assert _cycles(_graph(MODULES)) == []
+
+
+def test_every_module_has_a_layer() -> None:
+    """A new package gets its place in :data:`LAYERS` (and the README's Architecture)."""
+    assert [n for n in MODULES if _layer(n) < 0] == []
+
+
+def test_no_upward_imports() -> None:
+    """Lower layers never import higher ones (deferred and type-only imports included):
+    what a lower layer needs from above is handed to it (a protocol, an argument)."""
+    assert _upward(_graph(MODULES)) == []
 
 
 @pytest.mark.parametrize("name", sorted(MODULES))

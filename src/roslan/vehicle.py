@@ -19,8 +19,8 @@ ground truth keep describing base_link.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
-from typing import TYPE_CHECKING, Annotated, Any, Literal
+from collections.abc import Mapping, Sequence
+from typing import TYPE_CHECKING, Annotated, Any, Literal, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
@@ -29,11 +29,11 @@ from pydantic import Field, model_validator
 from roslan.config.base import Coord, FiniteFloat, Pose, StrictModel, Vec3
 
 if TYPE_CHECKING:
-    from roslan.scene.model import Scene
     from roslan.trajectory.config import TrajectoryConfig
 
 __all__ = [
     "Body",
+    "Perches",
     "VehicleConfig",
     "base_link_trajectory",
     "body_points",
@@ -43,6 +43,23 @@ __all__ = [
     "resolve_contact",
     "vehicle_from_mapping",
 ]
+
+
+class _Object(Protocol):
+    @property
+    def source(self) -> str: ...
+
+    @property
+    def vertices(self) -> NDArray[np.floating]: ...
+
+
+class Perches(Protocol):
+    """What the contact choice reads of a scene (:class:`roslan.scene.model.Scene`, which
+    sits above the vehicle): its objects, the perches among them by ``source``."""
+
+    @property
+    def objects(self) -> Sequence[_Object]: ...
+
 
 F64 = NDArray[np.float64]
 
@@ -116,7 +133,7 @@ def contact_depends_on_scene(vehicle: VehicleConfig) -> bool:
     )
 
 
-def goal_on_perch(scene: Scene | None, goal: Pose) -> bool:
+def goal_on_perch(scene: Perches | None, goal: Pose) -> bool:
     """Whether ``goal`` lies on a perch object of ``scene`` (within 2 cm of its bounds)."""
     if scene is None:
         return False
@@ -132,7 +149,7 @@ def goal_on_perch(scene: Scene | None, goal: Pose) -> bool:
 
 
 def resolve_contact(
-    vehicle: VehicleConfig, scene: Scene | None, goal: Pose
+    vehicle: VehicleConfig, scene: Perches | None, goal: Pose
 ) -> Literal["feet", "grasp"]:
     """``vehicle.contact`` with ``auto`` resolved against the scene."""
     if vehicle.contact != "auto":
@@ -141,7 +158,7 @@ def resolve_contact(
 
 
 def base_link_trajectory(
-    trajectory: TrajectoryConfig, vehicle: VehicleConfig, scene: Scene | None = None
+    trajectory: TrajectoryConfig, vehicle: VehicleConfig, scene: Perches | None = None
 ) -> TrajectoryConfig:
     """``trajectory`` with its goal moved from the contact point to base_link.
 

@@ -515,8 +515,8 @@ def test_scene_preview_top_view_is_scaled_to_the_plant(
 ) -> None:
     import matplotlib.figure
 
+    from roslan.plots.scene import write_preview
     from roslan.scene import load_scene
-    from roslan.scene.preview import write_preview
 
     scene = load_scene("refinery", seed=0)
     captured: list[Any] = []

@@ -72,7 +72,7 @@ def test_ordered_chunks_write_in_submission_order() -> None:
         oc = OrderedChunks(pool, compress, lambda k, c: written.append((k, c)), depth=3)
         for k in range(5):
             oc.submit(k, bytes([k, 9]))
-            assert len(oc._pending) <= 3
+            assert oc.waiting <= 3
         oc.drain()
     assert written == [(k, bytes([9, k])) for k in range(5)]
 

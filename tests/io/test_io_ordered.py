@@ -183,3 +183,45 @@ def test_close_drops_waiting_calls_and_wakes_those_waiting_for_their_turn() -> N
     with pytest.raises(RuntimeError, match="closed"):
         pool.submit(work, 9)
     pool.close()  # idempotent
+
+
+def test_on_a_shared_executor_close_stops_only_this_pools_calls() -> None:
+    """On a shared executor (the bags' chunk pool) results still come back in order; close
+    drops this pool's calls not started, waits for its running one, and leaves the
+    executor running for its other users."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    release = threading.Event()
+    started = threading.Event()
+    ran: list[int] = []
+
+    def work(turn: Turn, i: int) -> int:
+        if i == 0:
+            started.set()
+            release.wait(5)
+        time.sleep(0.001 * (5 - i % 5))  # later calls finish first
+        ran.append(i)
+        return i
+
+    with ThreadPoolExecutor(1) as shared:
+        pool: OrderedPool[int] = OrderedPool(1, "t", depth=4, executor=shared)
+        assert not pool.inline
+        release.set()
+        assert _run(pool, 12, work) == list(range(12))
+        release.clear()
+        started.clear()
+        stopped: OrderedPool[int] = OrderedPool(1, "t", depth=8, executor=shared)
+        for i in range(5):
+            stopped.submit(work, i)  # call 0 holds the executor's one thread
+        assert stopped.in_flight == 5
+        assert started.wait(5)
+        closer = threading.Thread(target=stopped.close)
+        closer.start()
+        time.sleep(0.05)
+        assert closer.is_alive()  # it waits for the running call
+        release.set()
+        closer.join(5)
+        assert not closer.is_alive()
+        assert ran[12:] == [0]  # calls 1-4 never started
+        assert stopped.in_flight == 0
+        assert shared.submit(lambda: 7).result(5) == 7  # the executor still runs

@@ -44,13 +44,13 @@ def _traj() -> TauTrajectory:
     )
 
 
-def _config(type_name: str) -> Any:
+def _config(type_name: str, **extra: Any) -> Any:
     data = {"type": type_name, "name": f"s_{type_name}", "rate": RATE, "topic": f"/s_{type_name}"}
-    return config_class(type_name).model_validate(data)
+    return config_class(type_name).model_validate({**data, **extra})
 
 
-def _engine(type_name: str, outdir: Path, traj: Any, clock: Clock) -> SensorEngine:
-    cfg = _config(type_name)
+def _engine(type_name: str, outdir: Path, traj: Any, clock: Clock, **extra: Any) -> SensorEngine:
+    cfg = _config(type_name, **extra)
     sensor = sensor_class(type_name)(cfg)
     ctx = Context(
         traj,
@@ -79,6 +79,32 @@ def _wire(msgs: list[Any]) -> list[tuple[int, str, bytes, bytes]]:
     return out
 
 
+def _stepped(
+    type_name: str, outdir: Path, traj: Any, clock: Clock, step: int = STEP_NS, **extra: Any
+) -> tuple[list[Any], list[dict[str, Any]]]:
+    """Every message and tap of a run stepped every ``step`` ns on a HorizonGuard; each
+    step's messages and taps end at the step's end."""
+    end = traj.duration_ns
+    guard = HorizonGuard(traj)
+    eng = _engine(type_name, outdir, guard, clock, **extra)
+    eng.enable_taps()
+    msgs: list[Any] = []
+    taps: list[dict[str, Any]] = []
+    h = 0
+    while h + step < end:
+        h += step
+        guard.set_horizon(h)
+        out = eng.advance(h)
+        assert all(m.t_ns <= h for m in out.messages)
+        step_taps = out.tap(f"s_{type_name}")
+        assert all(np.all(np.asarray(tap["t"]) <= h) for tap in step_taps)
+        msgs += out.messages
+        taps += step_taps
+    guard.finish()
+    last = eng.finish(end)
+    return msgs + last.messages, taps + last.tap(f"s_{type_name}")
+
+
 @pytest.mark.parametrize("type_name", sorted(SENSOR_TYPES))
 def test_every_sensor_type_is_causal_and_stepping_changes_no_byte(
     type_name: str, tmp_path: Path
@@ -87,29 +113,63 @@ def test_every_sensor_type_is_causal_and_stepping_changes_no_byte(
     the same end as a one-shot run: the same messages in the same order, byte for byte."""
     traj = _traj()
     end = traj.duration_ns
-    one = _engine(type_name, tmp_path / "one", traj, Clock.fixed(end))
-    whole = one.finish(end)
-
-    guard = HorizonGuard(traj)
-    eng = _engine(type_name, tmp_path / "step", guard, Clock(0))
-    eng.enable_taps()
-    stepped = []
-    taps = 0
-    h = 0
-    while h + STEP_NS < end:
-        h += STEP_NS
-        guard.set_horizon(h)
-        out = eng.advance(h)
-        assert all(m.t_ns <= h for m in out.messages)
-        stepped += out.messages
-        taps += len(out.tap(f"s_{type_name}"))
-    guard.finish()
-    last = eng.finish(end)
-    stepped += last.messages
-    taps += len(last.tap(f"s_{type_name}"))
+    whole = _engine(type_name, tmp_path / "one", traj, Clock.fixed(end)).finish(end)
+    stepped, taps = _stepped(type_name, tmp_path / "step", traj, Clock(0))
     assert len(stepped) == len(whole.messages)
     assert _wire(stepped) == _wire(whole.messages)
-    assert taps > 0
+    assert taps
+
+
+@pytest.mark.parametrize(
+    ("type_name", "extra"),
+    [
+        ("event_camera", {"sampling": "brightness"}),
+        ("event_camera", {"optic_flow": True, "depthmap": True, "ground_truth_rate": 50.0}),
+        ("camera", {"exposure_time": 0.004, "auto_exposure": {"time_constant": 0.05}}),
+    ],
+    ids=["brightness", "flow-depth", "auto-exposure"],
+)
+def test_stateful_sampling_is_causal_too(
+    type_name: str, extra: dict[str, Any], tmp_path: Path
+) -> None:
+    """Brightness sampling (the next instant reads ESIM's state), ground-truth flow and
+    depth instants, auto-exposure metered frame by frame: stepped == one-shot."""
+    traj = _traj()
+    end = traj.duration_ns
+    one = _engine(type_name, tmp_path / "one", traj, Clock.fixed(end), **extra).finish(end)
+    stepped, _ = _stepped(type_name, tmp_path / "step", traj, Clock(0), **extra)
+    assert _wire(stepped) == _wire(one.messages)
+
+
+def test_aligned_event_camera_samples_every_step_end(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Closed loop (``align``): the event camera renders every step's end, so a step's
+    events reach it; the camera_info stamps stay the run's grid."""
+    from roslan.sensors.cameras.event import EventCamera
+
+    rendered: list[int] = []
+    render = EventCamera.render
+
+    def spy(self: Any, ctx: Any, t_ns: int, **kw: Any) -> Any:
+        rendered.append(t_ns)
+        return render(self, ctx, t_ns, **kw)
+
+    monkeypatch.setattr(EventCamera, "render", spy)
+    traj = _traj()
+    step = 9_999_999  # (ns: off the sampler's grid of 2 ms steps)
+    ends = list(range(step, traj.duration_ns, step))
+    _stepped("event_camera", tmp_path / "free", traj, Clock(0), step)
+    assert not set(ends) & set(rendered)  # (else this test would prove nothing)
+    rendered.clear()
+    msgs, taps = _stepped("event_camera", tmp_path / "a", traj, Clock(0, align=True), step)
+    assert set(ends) <= set(rendered)
+    assert rendered == sorted(set(rendered))
+    t = np.concatenate([np.asarray(tap["t"]) for tap in taps])
+    assert t.size > 100
+    assert np.all(np.diff(t) >= 0)
+    info = [m.t_ns for m in msgs if m.topic.endswith("/camera_info")]
+    assert info == sample_times_ns(RATE, traj.duration_ns).tolist()
 
 
 def test_horizon_guard_raises_past_its_horizon() -> None:

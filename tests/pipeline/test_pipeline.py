@@ -33,9 +33,9 @@ from roslan.trajectory.frames import quat_xyzw_to_matrix
 def no_plot(monkeypatch: pytest.MonkeyPatch) -> None:
     """Skip the trajectory.png rendering (about a second of matplotlib) where a test does not
     look at it; the contract and determinism tests keep it."""
-    import roslan.trajectory.export as export
+    import roslan.plots.landing as landing
 
-    monkeypatch.setattr(export, "write_trajectory_plot", lambda traj, path: None)
+    monkeypatch.setattr(landing, "write_trajectory_plot", lambda traj, path: None)
 
 
 @pytest.fixture(scope="module")

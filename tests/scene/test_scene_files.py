@@ -370,7 +370,7 @@ def test_cli_info_preview_export(tmp_path: Path, capsys: pytest.CaptureFixture[s
 
 # ---------------------------------------------------------------- rendered preview
 def test_look_at_points_the_optical_axis_at_the_target() -> None:
-    from roslan.scene.preview import look_at
+    from roslan.plots.scene import look_at
 
     rng = np.random.default_rng(4)
     for _ in range(20):
@@ -392,7 +392,7 @@ def test_preview_renders_the_goal_at_the_centre_of_the_approach_view(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     from roslan.errors import RenderError
-    from roslan.scene import preview as pv
+    from roslan.plots import scene as pv
 
     (tmp_path / "red.yaml").write_text(
         yaml.safe_dump(

@@ -146,9 +146,9 @@ def test_stream_conformance_and_determinism(
                 assert header.frame_id in frames, (m.topic, header.frame_id, frames)
 
     # the same job through the pipeline (same seed): identical messages and files
-    import roslan.trajectory.export as export
+    import roslan.plots.landing as landing
 
-    monkeypatch.setattr(export, "write_trajectory_plot", lambda traj, path: None)
+    monkeypatch.setattr(landing, "write_trajectory_plot", lambda traj, path: None)
     sim = SimConfig.model_validate(
         {
             "trajectory": TRAJ,

@@ -69,7 +69,7 @@ def landing(tmp_path_factory: pytest.TempPathFactory) -> tuple[TauTrajectory, Fi
     )
     tau = TauTrajectory(cfg, warn=False)
     out = tmp_path_factory.mktemp("landing")
-    write_trajectory_files(tau, out, plot=False)
+    write_trajectory_files(tau, out)
     flown = FileTrajectory(TrajectoryConfig.model_validate({"file": str(out / "groundtruth.txt")}))
     return tau, flown
 

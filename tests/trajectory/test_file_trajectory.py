@@ -256,7 +256,7 @@ def test_trajectory_csv_flies_back_in_its_goal_frame(tmp_path: Path) -> None:
     tau = TauTrajectory(
         TrajectoryConfig.model_validate({"goal": goal, "sample_dt": 0.005}), warn=False
     )
-    write_trajectory_files(tau, tmp_path, plot=False)
+    write_trajectory_files(tau, tmp_path)
     recorded = json.loads((tmp_path / "summary.json").read_text())["goal"]
     assert recorded == goal
     cfg = TrajectoryConfig.model_validate({"file": "trajectory.csv", "goal": recorded})

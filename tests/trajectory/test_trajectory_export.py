@@ -15,6 +15,7 @@ import roslan.cli.plot
 from roslan.errors import OutputError
 from roslan.io.files import atomic_write
 from roslan.io.text import format_seconds, write_columns
+from roslan.plots.landing import write_trajectory_plot
 from roslan.trajectory import TauTrajectory, Trajectory, TrajectoryConfig
 from roslan.trajectory.export import write_trajectory_files
 from roslan.trajectory.frames import quat_xyzw_to_matrix
@@ -144,7 +145,8 @@ def test_write_trajectory_files(tmp_path: Path) -> None:
         {"goal": {"position": [10.0, 5.0, 0.0], "rpy": [0.0, 0.0, 1.57]}, "hold": 0.25}
     )
     traj = TauTrajectory(cfg)
-    write_trajectory_files(traj, tmp_path, plot=True)
+    write_trajectory_files(traj, tmp_path)
+    write_trajectory_plot(traj, tmp_path / "trajectory.png")
     _check_outputs(tmp_path, traj)
     png = (tmp_path / "trajectory.png").read_bytes()
     assert png[:8] == b"\x89PNG\r\n\x1a\n"
@@ -157,7 +159,8 @@ def test_write_trajectory_files(tmp_path: Path) -> None:
     # deterministic: byte-identical on a second run
     second = tmp_path / "again"
     second.mkdir()
-    write_trajectory_files(traj, second, plot=True)
+    write_trajectory_files(traj, second)
+    write_trajectory_plot(traj, second / "trajectory.png")
     for name in ("trajectory.csv", "groundtruth.txt", "summary.json", "trajectory.png"):
         assert (second / name).read_bytes() == (tmp_path / name).read_bytes(), name
 

@@ -27,14 +27,14 @@ def _export(args: argparse.Namespace) -> int:
 
 
 def _info(args: argparse.Namespace) -> int:
-    from roslan.scene.preview import scene_info
+    from roslan.plots.scene import scene_info
 
     print(scene_info(_load(args)))
     return 0
 
 
 def _preview(args: argparse.Namespace) -> int:
-    from roslan.scene.preview import write_preview
+    from roslan.plots.scene import write_preview
 
     write_preview(_load(args), Path(args.output), rendered=not args.top_only)
     print(f"wrote {args.output}")

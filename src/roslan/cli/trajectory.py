@@ -44,15 +44,24 @@ def write_into(
         if not out.is_dir():
             msg = f"{out}: exists and is not a folder"
             raise OutputError(msg)
-        write_trajectory_files(traj, out, plot=plot, ground_truth_rate=ground_truth_rate)
+        _write(traj, out, plot=plot, ground_truth_rate=ground_truth_rate)
         return
     tmp = make_temp(out.absolute())
     try:
-        write_trajectory_files(traj, tmp, plot=plot, ground_truth_rate=ground_truth_rate)
+        _write(traj, tmp, plot=plot, ground_truth_rate=ground_truth_rate)
         finalize(tmp, out.absolute(), overwrite=False)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
+
+
+def _write(traj: Trajectory, folder: Path, *, plot: bool, ground_truth_rate: float) -> None:
+    """The trajectory files, and trajectory.png if ``plot``."""
+    write_trajectory_files(traj, folder, ground_truth_rate=ground_truth_rate)
+    if plot:
+        from roslan.plots.landing import write_trajectory_plot
+
+        write_trajectory_plot(traj, folder / "trajectory.png")
 
 
 def load_trajectory_block(path: Path) -> TrajectoryConfig:

@@ -139,7 +139,7 @@ class Pose(StrictModel):
 
     def matrix(self) -> np.ndarray:
         """4x4 homogeneous transform ``T_parent_child`` (float64)."""
-        from roslan.trajectory.frames import rpy_to_matrix
+        from roslan.frames import rpy_to_matrix
 
         T = np.eye(4)
         T[:3, :3] = rpy_to_matrix(np.asarray(self.rpy, dtype=float))

@@ -6,7 +6,8 @@ appends them to the bag's chunks. A full chunk is compressed in a shared thread 
 (lz4, zstd and bz2 release the GIL) while the next one fills; :class:`OrderedChunks`
 writes the compressed chunks to the file strictly in the order they were closed, so a
 bag's bytes are the same as when every chunk is compressed inline, whatever the number
-of threads (the writers in :mod:`roslan.io.bag` are byte-identical to rosbags' own).
+of threads (the writers in :mod:`roslan.io.bag` are byte-identical to rosbags' own): an
+:class:`~roslan.io.ordered.OrderedPool` on the run's shared chunk pool.
 
 Memory stays bounded: each bag thread's queue holds at most :data:`QUEUE_BATCHES` batches
 of at most :data:`BATCH_BYTES` (plus one message), and at most ``depth`` chunks wait for
@@ -20,10 +21,11 @@ import os
 import queue
 import threading
 import time
-from collections import deque
 from collections.abc import Callable
-from concurrent.futures import Future, ThreadPoolExecutor
+from concurrent.futures import ThreadPoolExecutor
 from typing import Any
+
+from roslan.io.ordered import OrderedPool, Turn
 
 __all__ = ["BATCH_BYTES", "BagThread", "OrderedChunks", "chunk_pool"]
 
@@ -52,9 +54,11 @@ def chunk_pool(n_bags: int) -> ThreadPoolExecutor | None:
 
 class OrderedChunks:
     """Chunks compressed in ``pool`` and written by ``write_out(payload, compressed)`` in
-    the order :meth:`submit` received them; without a pool, inline.
+    the order :meth:`submit` received them (an :class:`OrderedPool` on ``pool``); without
+    a pool, inline.
 
-    At most ``depth`` chunks wait; :meth:`drain` (``keep=0``) writes every one that waits.
+    At most ``depth`` chunks wait (compressing, or compressed behind an earlier one);
+    :meth:`drain` writes every one that waits.
     """
 
     def __init__(
@@ -64,11 +68,13 @@ class OrderedChunks:
         write_out: Callable[[Any, bytes], None],
         depth: int = 4,
     ) -> None:
-        self.pool = pool
         self.compress = compress
         self.write_out = write_out
         self.depth = max(1, depth)
-        self._pending: deque[tuple[Any, Future[bytes]]] = deque()
+        # (the pool's depth counts the chunk being submitted too)
+        self._ordered: OrderedPool[tuple[Any, bytes]] = OrderedPool(
+            1, "roslan-chunk", self.depth + 1, executor=pool
+        )
         self._cpu: list[float] = []  # CPU seconds of each compression (list.append is atomic)
 
     @property
@@ -76,34 +82,36 @@ class OrderedChunks:
         """CPU seconds spent compressing chunks so far (on whichever thread)."""
         return sum(self._cpu)
 
-    def _compress(self, data: bytes) -> bytes:
+    @property
+    def waiting(self) -> int:
+        """Chunks submitted and not yet written."""
+        return self._ordered.in_flight
+
+    def _compress(self, turn: Turn, payload: Any, data: bytes) -> tuple[Any, bytes]:
         c0 = time.thread_time()
         out = self.compress(data)
         self._cpu.append(time.thread_time() - c0)
-        return out
+        return payload, out
+
+    def _write(self, done: list[tuple[Any, bytes]]) -> None:
+        for payload, compressed in done:
+            self.write_out(payload, compressed)
 
     def submit(self, payload: Any, data: bytes, *, now: bool = False) -> None:
         """Compress ``data`` (the chunk's uncompressed bytes) and write ``payload`` out once
         every earlier chunk is written; ``now``: before returning."""
-        if self.pool is None:
+        self._write(self._ordered.submit(self._compress, payload, data))
+        if now:
             self.drain()
-            self.write_out(payload, self._compress(data))
-            return
-        self._pending.append((payload, self.pool.submit(self._compress, data)))
-        self.drain(0 if now else self.depth)
 
-    def drain(self, keep: int = 0) -> None:
-        """Write out the finished chunks at the head, and wait until at most ``keep`` wait."""
-        pending = self._pending
-        while pending and (len(pending) > keep or pending[0][1].done()):
-            payload, fut = pending.popleft()
-            self.write_out(payload, fut.result())
+    def drain(self) -> None:
+        """Write out every waiting chunk (waiting for their compression)."""
+        self._write(self._ordered.finish())
 
     def cancel(self) -> None:
-        """Forget the waiting chunks (a failed run)."""
-        for _, fut in self._pending:
-            fut.cancel()
-        self._pending.clear()
+        """Forget the waiting chunks (a failed run): those not started are dropped, the
+        running ones finish unwritten."""
+        self._ordered.close()
 
 
 class BagThread:

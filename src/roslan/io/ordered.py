@@ -20,7 +20,11 @@ and message is the same whatever the number of threads:
 * :meth:`OrderedPool.close` (call it in a ``finally``) drops the calls not yet started,
   wakes the ones waiting for their turn and waits for the running ones: afterwards
   nothing writes into the run's folder any more (a failed run removes it next);
-* ``threads == 1`` runs every call inline in :meth:`OrderedPool.submit`: no thread at all.
+* ``threads == 1`` runs every call inline in :meth:`OrderedPool.submit`: no thread at all;
+* ``executor``: the calls run on a shared executor instead of the pool's own threads (the
+  bags' chunk compression, :class:`~roslan.io.bag_threads.OrderedChunks`); closing the
+  pool then cancels its own waiting calls and waits for its running ones, and leaves the
+  executor to its owner.
 """
 
 from __future__ import annotations
@@ -28,7 +32,7 @@ from __future__ import annotations
 import threading
 from collections import deque
 from collections.abc import Callable
-from concurrent.futures import Future, ThreadPoolExecutor
+from concurrent.futures import Executor, Future, ThreadPoolExecutor, wait
 from typing import Any, Generic, TypeVar
 
 __all__ = ["OrderedPool", "PoolClosedError", "Turn"]
@@ -103,19 +107,24 @@ class OrderedPool(Generic[T]):
     """Calls ``fn(turn, *args)`` on ``threads`` threads; results in submission order.
 
     Args:
-        threads: worker threads (1: every call runs inline in :meth:`submit`).
+        threads: worker threads of its own (1: every call runs inline in :meth:`submit`).
         name: thread name prefix (shows in profilers).
         depth: most calls in flight (default ``2 * threads``; at least ``threads``).
+        executor: run the calls on this shared executor instead (``threads`` then only
+            sets the default ``depth``); None: the pool's own threads.
     """
 
-    def __init__(self, threads: int, name: str, depth: int | None = None) -> None:
+    def __init__(
+        self, threads: int, name: str, depth: int | None = None, *, executor: Executor | None = None
+    ) -> None:
         self.threads = max(1, int(threads))
         self.depth = max(self.threads, int(depth) if depth is not None else 2 * self.threads)
         self._turns = _Turns()
         self._count = 0
         self._pending: deque[Future[T]] = deque()
-        self._exec: ThreadPoolExecutor | None = None
-        if self.threads > 1:
+        self._exec: Executor | None = executor
+        self._owned = executor is None and self.threads > 1
+        if self._owned:
             self._exec = ThreadPoolExecutor(self.threads, thread_name_prefix=name)
         self._closed = False
 
@@ -123,6 +132,11 @@ class OrderedPool(Generic[T]):
     def inline(self) -> bool:
         """Whether calls run on the submitting thread (``threads == 1``)."""
         return self._exec is None
+
+    @property
+    def in_flight(self) -> int:
+        """Calls submitted whose results are not yet handed back."""
+        return len(self._pending)
 
     def _call(self, turn: Turn, fn: Callable[..., T], args: tuple[Any, ...]) -> T:
         try:
@@ -165,6 +179,10 @@ class OrderedPool(Generic[T]):
             return
         self._closed = True
         self._turns.close()
-        if self._exec is not None:
+        if self._owned and self._exec is not None:
             self._exec.shutdown(wait=True, cancel_futures=True)
+        elif self._pending:  # a shared executor: only this pool's calls
+            for fut in self._pending:
+                fut.cancel()
+            wait(self._pending)
         self._pending.clear()

@@ -8,7 +8,7 @@
   (:func:`~roslan.pipeline.merge.pump`), exactly as before the engine existed;
 * closed loop: a growing clock. :meth:`SensorEngine.advance` moves the horizon to the end
   of the control step and runs every generator until it needs the trajectory past it (it
-  yields a wait marker, :func:`~roslan.sensors.clock.wait`); :meth:`SensorEngine.finish`
+  yields a wait marker, :func:`~roslan.sensors.base.wait`); :meth:`SensorEngine.finish`
   fixes the end and runs them out, then closes the sensors.
 
 Each step returns a :class:`StepOutput`: the messages no later message can precede (below
@@ -29,8 +29,7 @@ from typing import Any
 
 from roslan.errors import SensorError
 from roslan.pipeline.merge import CheckedStream, MergeItem, tagged
-from roslan.sensors.base import Message, Sensor, SimContext
-from roslan.sensors.clock import WAIT_TOPIC
+from roslan.sensors.base import WAIT_TOPIC, Message, Sensor, SimContext
 
 __all__ = ["SensorEngine", "StepOutput"]
 

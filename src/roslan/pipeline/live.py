@@ -229,7 +229,7 @@ class LiveRun(_Run):
 
         assert self.outdir is not None
         rate = self.config.output.ground_truth_rate
-        write_trajectory_files(self.traj, self.tmp, plot=False, ground_truth_rate=rate)
+        write_trajectory_files(self.traj, self.tmp, ground_truth_rate=rate)
         self.plot = BackgroundPlot(self.traj, self.tmp)
         counts = self._close()
         manifest = self._write_run_files(counts)

@@ -18,8 +18,7 @@ from operator import itemgetter
 from typing import TYPE_CHECKING, Protocol
 
 from roslan.errors import SensorError
-from roslan.sensors.base import Message
-from roslan.sensors.clock import WAIT_TOPIC
+from roslan.sensors.base import WAIT_TOPIC, Message
 
 if TYPE_CHECKING:
     from roslan.io.bag import MultiBagWriter

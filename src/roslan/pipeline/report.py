@@ -115,7 +115,7 @@ class Progress:
 
 
 def _draw_trajectory(traj: Trajectory, folder: Path) -> None:
-    from roslan.trajectory.export import write_trajectory_plot
+    from roslan.plots.landing import write_trajectory_plot
 
     write_trajectory_plot(traj, folder / "trajectory.png")
 

@@ -244,9 +244,7 @@ class _Run:
         self.progress.phase("preparing sensors (the first run compiles kernels, then cached)")
         if self.pool is not None:  # the workers render while this process sets up
             self._send_jobs(self.pool)
-        write_trajectory_files(
-            self.traj, tmp, plot=False, ground_truth_rate=config.output.ground_truth_rate
-        )
+        write_trajectory_files(self.traj, tmp, ground_truth_rate=config.output.ground_truth_rate)
         self.plot = BackgroundPlot(self.traj, tmp)
         if self.scene is not None:  # written beside the streaming (after the plot's fork)
             import roslan.scene as scene_mod

@@ -62,9 +62,10 @@ def vehicle_points(vehicle: Any = None, sensors: Sequence[Any] = ()) -> VehicleP
     Args:
         vehicle: a :class:`roslan.vehicle.VehicleConfig` (None: the default vehicle).
         sensors: sensor configs: each one's ``pose`` origin, and for rendering sensors
-            (camera-like configs) the near-plane corners and centre of every eye.
+            (camera-like configs: those with ``calibration_cameras()``, as
+            :class:`roslan.sensors.cameras.config.CameraIntrinsics`) the near-plane
+            corners and centre of every eye.
     """
-    from roslan.sensors.cameras.config import CameraIntrinsics
     from roslan.vehicle import VehicleConfig, body_points
 
     v = vehicle if vehicle is not None else VehicleConfig()
@@ -74,7 +75,7 @@ def vehicle_points(vehicle: Any = None, sensors: Sequence[Any] = ()) -> VehicleP
         name = str(s.name)
         pts.append(np.asarray(s.pose.position, dtype=np.float64)[None, :])
         labels.append(f"sensor {name!r} (origin)")
-        if isinstance(s, CameraIntrinsics):
+        if hasattr(s, "calibration_cameras"):
             near = float(getattr(s, "near_clip", 0.01))
             for cam in s.calibration_cameras():
                 m = cam.model

@@ -8,11 +8,11 @@ known when the episode ends (:attr:`Clock.end_ns`). A sensor therefore
 * takes its instants from :meth:`Clock.grid` (the fixed grids ``i / rate`` whose last
   instant depends on the end) or checks :meth:`Clock.ready` before reading any other
   instant;
-* yields a **wait marker** (:func:`wait`, a :class:`~roslan.sensors.base.Message` on the
-  empty topic) when it needs an instant past the horizon. The marker carries the smallest
-  stamp the sensor may still yield (its *floor*): the engine releases the step's messages
-  below every sensor's floor, in one stamp order, so that the concatenated steps equal
-  one run over the whole trajectory;
+* yields a **wait marker** (:func:`roslan.sensors.base.wait`, a
+  :class:`~roslan.sensors.base.Message` on the empty topic) when it needs an instant past
+  the horizon. The marker carries the smallest stamp the sensor may still yield (its
+  *floor*): the engine releases the step's messages below every sensor's floor, in one
+  stamp order, so that the concatenated steps equal one run over the whole trajectory;
 * resumes, after the marker, with a larger horizon, or with the end known
   (:attr:`Clock.ended`), and then ends its stream.
 
@@ -27,35 +27,13 @@ step, :class:`~roslan.pipeline.engine.StepOutput`).
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from roslan.sensors.base import Message
-
-__all__ = ["WAIT_TOPIC", "Clock", "Grid", "is_wait", "paced", "wait"]
-
-WAIT_TOPIC = ""
-"""The topic of a wait marker (no real topic is empty)."""
-
-
-def _never(store: Any) -> Any:  # pragma: no cover - a wait marker is never written
-    msg = "a wait marker is not a message"
-    raise RuntimeError(msg)
-
-
-def wait(floor_ns: int) -> Message:
-    """The wait marker a sensor yields when it needs the trajectory past the horizon;
-    ``floor_ns``: the smallest stamp it may still yield (its next message's at the
-    earliest)."""
-    return Message(int(floor_ns), WAIT_TOPIC, "", _never)
-
-
-def is_wait(msg: Message) -> bool:
-    """Whether ``msg`` is a wait marker."""
-    return msg.topic == WAIT_TOPIC
+__all__ = ["Clock", "Grid"]
 
 
 class Clock:
@@ -196,19 +174,3 @@ class Grid:
         i1 = min(n, (i0 // block + 1) * block)
         self.done = i1
         return i0, self._known[i0:i1]
-
-
-def paced(
-    grid: Grid, block: int, floor: Callable[[], int]
-) -> Iterator[tuple[int, NDArray[np.int64]] | Message]:
-    """The chunks ``(i0, instants)`` of ``grid`` (:meth:`Grid.take`), with a wait marker
-    (floor ``floor()``) wherever the sensor must wait; ends when the grid is exhausted.
-    The sensor yields the markers on (``isinstance(item, Message)``)."""
-    while True:
-        got = grid.take(block)
-        if got is None:
-            yield wait(floor())
-        elif got[1].size == 0:
-            return
-        else:
-            yield got

@@ -47,8 +47,7 @@ from roslan.scene.markers import (
     scene_marker_bytes,
     scene_mesh,
 )
-from roslan.sensors.base import Message, SimContext, StaticTransform, TopicSpec
-from roslan.sensors.clock import paced
+from roslan.sensors.base import Message, SimContext, StaticTransform, TopicSpec, paced
 from roslan.trajectory.base import (
     COMPONENTS,
     DEFAULT_GROUND_TRUTH_RATE,

@@ -40,9 +40,9 @@ from roslan.sensors.base import (
     SimContext,
     StaticTransform,
     TopicSpec,
+    paced,
     sample_times_ns,
 )
-from roslan.sensors.clock import paced
 from roslan.trajectory.frames import matrix_to_quat_xyzw
 
 __all__ = ["GRAVITY", "Imu", "ImuConfig", "imu_measurements"]

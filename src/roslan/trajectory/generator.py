@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 import warnings
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -12,10 +12,8 @@ from numpy.typing import ArrayLike, NDArray
 from roslan.trajectory.base import GAPS, State, Trajectory, check_duration
 from roslan.trajectory.config import Flapping, TrajectoryConfig
 from roslan.trajectory.frames import euler_zyx_kinematics, rpy_to_matrix, rpy_to_quat_xyzw
+from roslan.trajectory.instant import InstantEvaluator
 from roslan.trajectory.tau import Terminal, classify, exponent, powers
-
-if TYPE_CHECKING:
-    from roslan.trajectory.instant import InstantEvaluator
 
 __all__ = ["TauTrajectory", "TrajectoryWarning", "add_flapping", "fill_pose", "table_times"]
 
@@ -275,8 +273,6 @@ class TauTrajectory(Trajectory):
         instant: :meth:`state_ns`'s values, bit for bit, ~20x cheaper
         (:class:`~roslan.trajectory.instant.InstantEvaluator`)."""
         if self._instant is None:
-            from roslan.trajectory.instant import InstantEvaluator
-
             self._instant = InstantEvaluator(self)
         return self._instant.pose_twist_ns(t_ns)
 

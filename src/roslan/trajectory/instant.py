@@ -13,7 +13,7 @@ the results equal :meth:`TauTrajectory.state_ns`'s bit for bit (tests/trajectory
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
@@ -22,11 +22,37 @@ from roslan.trajectory.frames import quaternion_matrix_entries, reference_yaw, z
 from roslan.trajectory.tau import _EPS, S_FLOOR
 
 if TYPE_CHECKING:
-    from roslan.trajectory.generator import TauTrajectory
+    from roslan.trajectory.config import Flapping
 
-__all__ = ["InstantEvaluator"]
+__all__ = ["InstantEvaluator", "TauLanding"]
 
 F64 = NDArray[np.float64]
+
+
+class TauLanding(Protocol):
+    """What the evaluator reads of a :class:`~roslan.trajectory.generator.TauTrajectory`
+    (which imports this module): the landing's constants."""
+
+    @property
+    def T(self) -> float: ...
+
+    @property
+    def initial_gaps(self) -> F64: ...
+
+    @property
+    def exponents(self) -> F64: ...
+
+    @property
+    def R_world_goal(self) -> F64: ...
+
+    @property
+    def p_world_goal(self) -> F64: ...
+
+    @property
+    def _q_world_goal(self) -> F64: ...
+
+    @property
+    def _flap(self) -> Flapping | None: ...
 
 
 def _pow(s: float, e: float) -> float:
@@ -59,7 +85,7 @@ class InstantEvaluator:
     """``position, velocity, R_world_body, omega_body`` of a :class:`TauTrajectory` at one
     instant, equal to its :meth:`~TauTrajectory.state_ns` (see the module docstring)."""
 
-    def __init__(self, traj: TauTrajectory) -> None:
+    def __init__(self, traj: TauLanding) -> None:
         self.T = float(traj.T)
         self.g0 = [float(g) for g in traj.initial_gaps]
         self.e = [float(e) for e in traj.exponents]

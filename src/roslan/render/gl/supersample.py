@@ -5,7 +5,7 @@ and the box filter back to the output size."""
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import Any, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
@@ -15,13 +15,50 @@ from roslan.render.base import RenderResult
 from roslan.render.color import REC709_LUMA
 from roslan.render.gl.settings import MAX_SUPERSAMPLING
 
-if TYPE_CHECKING:
-    from roslan.render.gl.renderer import Renderer
-
-__all__ = ["DEPTH_SPREAD", "box_down", "combine_depth", "render_supersampled", "supersampled_K"]
+__all__ = [
+    "DEPTH_SPREAD",
+    "Passes",
+    "box_down",
+    "combine_depth",
+    "render_supersampled",
+    "supersampled_K",
+]
 
 F32 = NDArray[np.float32]
 F64 = NDArray[np.float64]
+
+
+class Passes(Protocol):
+    """What the supersampled reference needs of the renderer
+    (:class:`~roslan.render.gl.renderer.Renderer`, which imports this module): its size
+    limit and GL context, its views and its depth and colour passes (``view``: the
+    renderer's own view record)."""
+
+    @property
+    def max_size(self) -> int: ...
+
+    @property
+    def ctx(self) -> Any: ...
+
+    def _view(
+        self, T_world_cam: F64, K: F64, width: int, height: int, near: float | None
+    ) -> Any: ...
+
+    def _render_depth(self, width: int, height: int, view: Any) -> F32: ...
+
+    def _render_color(
+        self,
+        view: Any,
+        width: int,
+        height: int,
+        color: bool,
+        depth: bool,
+        luminance: bool,
+        ns: int,
+        reference: bool,
+        out: F32 | None,
+    ) -> RenderResult: ...
+
 
 DEPTH_SPREAD = 0.05
 """A pixel's N x N inverse depths that spread by more than this fraction of the largest
@@ -70,7 +107,7 @@ def combine_depth(z: F32, n: int) -> F32:
 
 
 def render_supersampled(
-    r: Renderer,
+    r: Passes,
     T_world_cam: F64,
     K: F64,
     width: int,

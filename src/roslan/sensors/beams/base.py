@@ -22,10 +22,10 @@ from roslan.sensors.base import (
     SimContext,
     StaticTransform,
     TopicSpec,
+    paced,
     sample_times_ns,
 )
 from roslan.sensors.beams.pointcloud import POINTCLOUD2, pointcloud2
-from roslan.sensors.clock import paced
 
 if TYPE_CHECKING:
     from roslan.render.base import BeamCaster
@@ -280,7 +280,8 @@ class PointCloudSensor:
     def read_span_ns(self) -> int:
         """How far past its start a scan reads the trajectory (ns): its sweep, ``1 / rate``
         (a scanner whose firing poses pad past it says so)."""
-        return round(1e9 / self.config.rate)
+        rate: float = self.config.rate
+        return round(1e9 / rate)
 
     def draw(self, rng: np.random.Generator) -> BeamDraws:  # pragma: no cover - overridden
         """The random draws of one scan (:func:`draw_beams`)."""

@@ -36,11 +36,11 @@ from roslan.sensors.base import (
     StaticTransform,
     TopicName,
     TopicSpec,
+    paced,
     sample_times_ns,
 )
 from roslan.sensors.beams.base import BeamConfig, measure
 from roslan.sensors.beams.rays import rays_in_world
-from roslan.sensors.clock import paced
 
 if TYPE_CHECKING:
     from roslan.render.base import BeamCaster

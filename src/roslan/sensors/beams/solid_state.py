@@ -161,7 +161,7 @@ class SolidStateLidar(PointCloudSensor):
         after them (interpolated poses), ns."""
         j = min(self.instants, _INSTANTS_PER_KNOT)
         k = -(-self.instants // j)
-        return max(round(1e9 / self.config.rate), math.ceil(k * j * self.firing_dt * 1e9) + 1)
+        return int(max(round(1e9 / self.config.rate), math.ceil(k * j * self.firing_dt * 1e9) + 1))
 
     def draw(self, rng: np.random.Generator) -> BeamDraws:
         """The random draws of one scan's beams (:func:`~.base.draw_beams`)."""

@@ -33,11 +33,12 @@ from roslan.sensors.base import (
     SimContext,
     StaticTransform,
     TopicSpec,
+    paced,
     sample_times_ns,
 )
 from roslan.sensors.cameras.model import CameraModel, RenderPlan
 from roslan.sensors.cameras.shutter import shutter_plan
-from roslan.sensors.clock import Grid, paced
+from roslan.sensors.clock import Grid
 
 __all__ = ["CAMERA_INFO", "IMAGE", "RAW_ROWS_FACTOR", "CameraBase", "Eye", "Shot", "pose_matrices"]
 

@@ -26,7 +26,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from roslan.events.sampling import AdaptiveSampler
-from roslan.sensors.base import Message, SimContext, sample_times_ns
+from roslan.sensors.base import Message, SimContext, sample_times_ns, wait
 from roslan.sensors.cameras.event_chains import (
     ChainSensor,
     Instant,
@@ -34,7 +34,7 @@ from roslan.sensors.cameras.event_chains import (
     brightness_rate,
     sample_instant,
 )
-from roslan.sensors.clock import Clock, wait
+from roslan.sensors.clock import Clock
 
 if TYPE_CHECKING:
     from roslan.events.model import EventGenerator
@@ -122,6 +122,8 @@ def causal_instants(
                 t = min(t, clock.end_ns)
                 break
             yield wait(floor(t_prev))
+            if clock.align and clock.end_ns is None and t_prev < clock.horizon_ns < t:
+                t = clock.horizon_ns  # the new step's end is sampled
         sampler = forced.cover(t)
         inst, rate = sample_instant(sensor, ctx, t, t in forced.gt_set)
         if brightness:

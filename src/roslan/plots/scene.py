@@ -1,7 +1,7 @@
 """Preview of a scene: a top view (matplotlib: object outlines coloured by height, goal,
 approach zone) beside two views rendered by the simulation's own renderer (the approach
 to the goal, and a high oblique overview), so a scene file can be checked by eye before
-anything is simulated in it."""
+anything is simulated in it (``roslan scene preview`` and ``roslan scene info``)."""
 
 from __future__ import annotations
 
