@@ -190,3 +190,24 @@ def test_fly_outdir_is_read_by_rosbag_mcap_and_evlib(flown: Path, tmp_path: Path
     assert int(df["y"].max()) < 48
     for name in ("groundtruth.txt", "imu.txt", "trajectory.csv", "README.md", "overview.png"):
         assert (flown / name).is_file(), name
+
+
+def test_fly_cli_bad_config_names_the_key_and_writes_nothing(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from roslan.cli.app import main
+
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("closed_loop:\n  control_rate: -5\n")
+    out = tmp_path / "out"
+    assert main(["fly", str(bad), "--policy", "tau-state", "-o", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert f"{bad}: closed_loop.control_rate = -5" in err
+    assert not out.exists()
+
+
+def test_fly_cli_offers_every_packaged_policy() -> None:
+    from roslan.cli.fly import POLICY_NAMES
+    from roslan.env import POLICIES
+
+    assert sorted(POLICY_NAMES) == sorted(POLICIES)
