@@ -79,7 +79,7 @@ class ClosedLoopConfig(StrictModel):
     control_rate: Annotated[FiniteFloat, Field(ge=1.0, le=1000.0)] = 50.0
     """Control steps per second, Hz."""
     time_limit: Annotated[FiniteFloat, Field(gt=0.0, le=MAX_DURATION_S)] | None = None
-    """Episode length (s) before ``truncated``; default twice the closed-form landing's
+    """Episode length (s) before ``truncated``; default four times the closed-form landing's
     touchdown time, plus one second."""
     dynamics: Dynamics = Dynamics()
     observation: ObservationConfig = ObservationConfig()

@@ -159,7 +159,7 @@ class LandingEnv(gym.Env[dict[str, NDArray[Any]], F32]):
         self._contact = ContactModel(cfg, scene, traj)
         limit = self.closed_loop.time_limit
         self.time_limit_ns = round(
-            1e9 * (limit if limit is not None else 2.0 * traj.reference_T + 1.0)
+            1e9 * (limit if limit is not None else 4.0 * traj.reference_T + 1.0)
         )
         self.config = cfg
         from roslan.env.session import SensorSession
