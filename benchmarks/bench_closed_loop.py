@@ -146,14 +146,13 @@ def figure(results: dict[str, list[dict[str, Any]]], path: Path) -> None:
 
     fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(11, 4.2), width_ratios=(1.6, 1))
     drew = False
-    for name, eps in results.items():
+    for j, (name, eps) in enumerate(results.items()):
         for i, ep in enumerate(eps[:5]):
             s = np.asarray(ep["series"], dtype=np.float64)
             if s.size == 0 or np.all(np.isnan(s[:, 2])):
                 continue
-            ax1.plot(
-                s[:, 0], s[:, 2], lw=0.9, alpha=0.8, label=f"{name} estimate" if i == 0 else None
-            )
+            label = f"{name} estimate (seeds 0-4)" if i == 0 else None
+            ax1.plot(s[:, 0], s[:, 2], color=f"C{j}", lw=0.9, alpha=0.8, label=label)
             ax1.plot(s[:, 0], s[:, 1], "k--", lw=0.8, label="true" if not drew else None)
             drew = True
     if not drew:
@@ -176,7 +175,7 @@ def figure(results: dict[str, list[dict[str, Any]]], path: Path) -> None:
     ]
     for i, d in enumerate(data):
         x = np.full(len(d), i) + np.random.default_rng(i).uniform(-0.12, 0.12, len(d))
-        ax2.scatter(x, d, s=14, alpha=0.8)
+        ax2.scatter(x, d, s=14, alpha=0.8, color=f"C{i}")
     ax2.axhline(0.5, color="r", lw=0.8, ls=":", label="0.5 m/s")
     ax2.set_xticks(range(len(names)), names, rotation=15)
     ax2.set_ylabel("touchdown vertical speed, m/s")
