@@ -260,7 +260,11 @@ def landings(args: argparse.Namespace) -> None:
 def _report(args: argparse.Namespace, results: dict[str, list[dict[str, Any]]]) -> None:
     text = table(results)
     print(text)
-    cfg = args.config or "the benchmark landing (BENCH_LANDING in the script)"
+    cfg = args.config or (
+        "the benchmark landing (BENCH_LANDING: the warehouse marker from 2.3 m up and 2.9 m "
+        "away, closed-form touchdown at 2.3 s, flapping on; 1 kHz IMU and a 128x96 "
+        "downward event camera, realistic pixel preset)"
+    )
     n = len(next(iter(results.values())))
     header = f"{n} seeds per policy, {cfg}; {_machine()}."
     if not args.no_docs:
