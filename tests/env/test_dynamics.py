@@ -198,3 +198,18 @@ def test_closed_loop_block_is_left_out_of_simulate_dumps() -> None:
     cfg = SimConfig.model_validate({"closed_loop": {"control_rate": 25}})
     assert cfg.model_dump(mode="json")["closed_loop"]["control_rate"] == 25.0
     assert ClosedLoopConfig().control_rate == 50.0
+
+
+def test_long_flights_keep_every_step() -> None:
+    """Past the buffers' first growth, every step's start state is still what the
+    vehicle was at that step (read back at the step boundaries)."""
+    cfg = _config(0.03)
+    assert cfg.closed_loop is not None
+    traj = DynamicsTrajectory(cfg.trajectory, cfg.closed_loop.dynamics, STEP_NS)
+    rng = np.random.default_rng(7)
+    seen = [traj.mean_state().gaps]
+    for _ in range(150):
+        traj.step(rng.uniform(-1, 1, 3), rng.uniform(-0.3, 0.3, 3))
+        seen.append(traj.mean_state().gaps)
+    t = np.arange(151) * STEP_NS * 1e-9
+    np.testing.assert_allclose(traj.gaps_at(t)[1], np.asarray(seen), atol=1e-12)

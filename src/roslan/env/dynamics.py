@@ -150,10 +150,11 @@ class DynamicsTrajectory(Trajectory):
         self._flap = config.flapping if config.flapping.enabled else None
         self._lags = (float(dynamics.acceleration_lag), float(dynamics.body_rate_lag))
         first = np.concatenate([s0.gaps[0], s0.rates[0], s0.accels[0, :3]])
-        self._starts: list[F64] = [first]
-        self._cmds: list[F64] = []
-        self._start_arr = first[None, :]
-        self._cmd_arr = np.zeros((0, 6))
+        # step start states (n + 1, 15) and commands (n, 6), in buffers grown by doubling
+        self._n = 0
+        self._start_buf = np.zeros((64, 15))
+        self._cmd_buf = np.zeros((64, 6))
+        self._start_buf[0] = first
         self._horizon_ns = 0
         self._end_ns: int | None = None
         self.hold = float(config.hold)
@@ -173,11 +174,11 @@ class DynamicsTrajectory(Trajectory):
     @property
     def steps(self) -> int:
         """Control steps flown."""
-        return len(self._cmds)
+        return self._n
 
     def mean_state(self) -> MeanState:
         """The state (no flapping) at the horizon: what a state-feedback controller reads."""
-        start = self._starts[-1]
+        start = self._start_buf[self._n]
         return MeanState(
             t=self._horizon_ns * 1e-9,
             gaps=start[:6].copy(),
@@ -195,16 +196,19 @@ class DynamicsTrajectory(Trajectory):
         if self._end_ns is not None:
             msg = "the closed-loop trajectory is finished; no more steps"
             raise HorizonError(msg)
-        start = self._starts[-1]
+        start = self._start_buf[self._n].copy()
         a_goal = self.R_world_goal.T @ np.asarray(accel_world, dtype=np.float64)
         e_rates = body_rates_to_euler_rates(start[3:6], np.asarray(body_rates, dtype=float))
         cmd = np.concatenate([a_goal, e_rates])
-        self._cmds.append(cmd)
-        self._cmd_arr = np.asarray(self._cmds)
+        n = self._n
+        if n + 1 >= self._cmd_buf.shape[0]:
+            self._start_buf = np.concatenate([self._start_buf, np.zeros_like(self._start_buf)])
+            self._cmd_buf = np.concatenate([self._cmd_buf, np.zeros_like(self._cmd_buf)])
+        self._cmd_buf[n] = cmd
         u = np.array([self.step_ns * 1e-9])
         g, r, a = _evaluate(u, start[None, :], cmd[None, :], self._lags)
-        self._starts.append(np.concatenate([g[0], r[0], a[0, :3]]))
-        self._start_arr = np.asarray(self._starts)
+        self._start_buf[n + 1] = np.concatenate([g[0], r[0], a[0, :3]])
+        self._n = n + 1
         self._horizon_ns += self.step_ns
 
     def finish(self, end_ns: int) -> None:
@@ -231,18 +235,19 @@ class DynamicsTrajectory(Trajectory):
     # ------------------------------------------------------------------ sampling
     def _mean(self, tt: F64) -> tuple[F64, F64, F64]:
         """(n, 6) gaps, rates, accels without flapping at instants tt (s) in [0, horizon]."""
-        t0 = np.arange(self._start_arr.shape[0]) * (self.step_ns * 1e-9)
+        starts, cmds = self._start_buf[: self._n + 1], self._cmd_buf[: self._n]
+        t0 = np.arange(starts.shape[0]) * (self.step_ns * 1e-9)
         k = np.clip(np.searchsorted(t0, tt, side="right") - 1, 0, None)
-        last = self._cmd_arr.shape[0]
+        last = cmds.shape[0]
         inside = k < last
-        gaps = self._start_arr[k, :6].copy()
-        rates = self._start_arr[k, 6:12].copy()
+        gaps = starts[k, :6].copy()
+        rates = starts[k, 6:12].copy()
         accels = np.zeros((tt.shape[0], 6))
-        accels[:, :3] = self._start_arr[k, 12:15]
+        accels[:, :3] = starts[k, 12:15]
         if inside.any():
             ki = k[inside]
             u = np.clip(tt[inside] - t0[ki], 0.0, None)
-            g, r, a = _evaluate(u, self._start_arr[ki], self._cmd_arr[ki], self._lags)
+            g, r, a = _evaluate(u, starts[ki], cmds[ki], self._lags)
             gaps[inside], rates[inside], accels[inside] = g, r, a
         return gaps, rates, accels
 
@@ -308,7 +313,7 @@ class DynamicsTrajectory(Trajectory):
             "control_rate": 1e9 / self.step_ns,
             "steps": self.steps,
             "dynamics": self.dynamics.model_dump(mode="json"),
-            "initial_gaps": dict(zip(GAPS, self._starts[0][:6].tolist(), strict=True)),
+            "initial_gaps": dict(zip(GAPS, self._start_buf[0, :6].tolist(), strict=True)),
             "reference_touchdown_time": self.reference_T,
             "flapping": self._flap is not None,
             "warnings": [],
