@@ -61,10 +61,12 @@ class LandingEnv(gym.Env[dict[str, NDArray[Any]], F32]):
     Args:
         config: a YAML path, a dict of the same keys, a :class:`SimConfig`, or None for
             :data:`DEFAULT_CONFIG`.
-        record: OUTDIR: each episode is written there as ``simulate`` writes a run, plus
+        record: OUTDIR: the episode is written there as ``simulate`` writes a run, plus
             ``episode.json`` (the folder appears complete at the episode's end; a reset
-            before that leaves nothing).
-        overwrite: let ``record`` replace an existing roslan OUTDIR.
+            or ``close()`` before that leaves nothing). An existing OUTDIR is an
+            OutputError at ``reset`` unless ``overwrite``.
+        overwrite: let ``record`` replace an existing roslan OUTDIR (each episode then
+            replaces the previous one).
         render_mode: ``"rgb_array"`` (or None).
         policy_name: recorded in episode.json (``roslan fly`` sets it).
         vector_kwargs: ignored here: the registered ids carry ``{"context": "spawn"}`` for
