@@ -211,3 +211,18 @@ def test_fly_cli_offers_every_packaged_policy() -> None:
     from roslan.env import POLICIES
 
     assert sorted(POLICY_NAMES) == sorted(POLICIES)
+
+
+def test_voxel_observation_holds_the_steps_events() -> None:
+    env = LandingEnv(tiny_config(closed_loop={"observation": {"events": "voxel", "voxel_bins": 3}}))
+    assert env.observation_space["events"].shape == (3, 48, 64)
+    env.reset(seed=1)
+    seen = 0
+    for _ in range(5):
+        obs, _, _, _, info = env.step(np.zeros(6))
+        ev = info["events"]
+        assert obs["events"].sum() == pytest.approx(float(np.sum(ev.p)), abs=1e-2)
+        assert obs in env.observation_space
+        seen += len(ev)
+    assert seen > 0
+    env.close()
