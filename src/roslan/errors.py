@@ -8,6 +8,7 @@ instead of a traceback.
 from __future__ import annotations
 
 __all__ = [
+    "ActionError",
     "ConfigError",
     "Note",
     "OutputError",
@@ -64,3 +65,8 @@ class RecordingError(RoslanError):
 class Note(UserWarning):
     """Not a problem, a line worth knowing (a default roslan chose for the user): the
     command line prints it as ``note: ...`` instead of ``warning: ...``."""
+
+
+class ActionError(RoslanError, ValueError):
+    """An action given to :class:`roslan.env.LandingEnv` that cannot be flown (NaN, wrong
+    shape)."""

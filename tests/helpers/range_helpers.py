@@ -13,6 +13,7 @@ import numpy as np
 
 from roslan.render.raycast import get_raycaster
 from roslan.scene.model import Material, Scene, SceneObject
+from roslan.sensors.clock import Clock
 from roslan.trajectory.base import State
 
 START_NS = 1_700_000_000_000_000_000
@@ -129,6 +130,7 @@ class FakeContext:
         self.root_imu: str | None = None
         self.sensor_threads = 1
         self.outdir = outdir
+        self._clock: Clock | None = None
 
     def stamp(self, t_ns: int) -> int:
         return self.start_time_ns + int(t_ns)
@@ -145,6 +147,13 @@ class FakeContext:
     @property
     def scene(self) -> Scene:
         return self._scene
+
+    @property
+    def clock(self) -> Clock:
+        """The whole trajectory known in advance (as ``simulate``), made on first use."""
+        if self._clock is None:
+            self._clock = Clock.fixed(self.trajectory.duration_ns)
+        return self._clock
 
     def renderer(self) -> Any:  # pragma: no cover - beams never rasterize
         raise NotImplementedError

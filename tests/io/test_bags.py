@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import shutil
 import subprocess
-import textwrap
 from pathlib import Path
 
 import numpy as np
@@ -16,6 +15,7 @@ from rosbags.rosbag2 import StoragePlugin
 from rosbags.rosbag2 import Writer as StockRos2Writer
 
 from pipeline_helpers import short_config
+from reader_helpers import ros1_topic_counts
 from roslan.io.bag import BagTopic, MultiBagWriter, _ros2_qos
 from roslan.io.messages import Flavor, MessageStore
 from roslan.io.packing import FixedLayout
@@ -227,49 +227,9 @@ def test_bag_metadata_and_latching(landing: Path) -> None:
     assert "storage_identifier: mcap" in meta
 
 
-ROS1_SCRIPT = textwrap.dedent(
-    """
-    import sys, rosbag, genpy
-    counts = {}
-    with rosbag.Bag(sys.argv[1]) as bag:
-        info = bag.get_type_and_topic_info()
-        for topic, msg, t in bag.read_messages():
-            assert isinstance(msg, genpy.Message), type(msg)
-            # deserialize fully: touch every slot
-            msg._check_types()
-            stamp = getattr(getattr(msg, "header", None), "stamp", None)
-            if stamp is not None:
-                assert stamp == t, (topic, stamp, t)
-            counts[topic] = counts.get(topic, 0) + 1
-    for topic in sorted(counts):
-        print(topic, info.topics[topic].msg_type, counts[topic])
-    """
-)
-
-
 @pytest.mark.ros1
 def test_ros1_native_reader(landing: Path, tmp_path: Path) -> None:
-    py = shutil.which("python3", path="/usr/bin")
-    if py is None:
-        pytest.skip("/usr/bin/python3 not found")
-    probe = subprocess.run(
-        [py, "-c", "import rosbag, sensor_msgs.msg, tf2_msgs.msg, nav_msgs.msg"],
-        capture_output=True,
-    )
-    if probe.returncode != 0:
-        pytest.skip(
-            "Debian's python3-rosbag / message packages are not installed for /usr/bin/python3"
-        )
-    script = tmp_path / "read.py"
-    script.write_text(ROS1_SCRIPT)
-    proc = subprocess.run(
-        [py, str(script), str(landing / "landing.bag")], capture_output=True, text=True, timeout=120
-    )
-    assert proc.returncode == 0, proc.stderr
-    rows = {
-        line.split()[0]: (line.split()[1], int(line.split()[2]))
-        for line in proc.stdout.splitlines()
-    }
+    rows = ros1_topic_counts(landing / "landing.bag", tmp_path)
     assert rows["/imu"][0] == "sensor_msgs/Imu"
     assert rows["/tf"][0] == "tf2_msgs/TFMessage"
     assert rows["/ground_truth/odometry"][0] == "nav_msgs/Odometry"

@@ -208,7 +208,7 @@ def test_every_interval_is_inside_the_run(flow_runs: dict[int, Path]) -> None:
         rows = forward_rows(run.folder) - run.start_us
         with h5py.File(run.folder / "events.h5", "r") as f:
             t_ev = f["events/t"]
-            first_ev, last_ev = int(t_ev[0]), int(t_ev[-1])
+            first_ev = int(t_ev[0])
         assert rows.shape[0] >= 10
         assert rows[0, 0] >= first_ev
         assert rows[-1, 1] <= gt_last_us

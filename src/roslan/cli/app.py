@@ -23,6 +23,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "roslan.cli.dataset",
     "roslan.cli.batch",
     "roslan.cli.simulate",
+    "roslan.cli.fly",
     "roslan.cli.plot",
     "roslan.cli.preview",
     "roslan.cli.scene",

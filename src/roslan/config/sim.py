@@ -9,13 +9,17 @@ from typing import Annotated, Any, Literal
 from pydantic import (
     BeforeValidator,
     Field,
+    SerializationInfo,
     SerializeAsAny,
+    SerializerFunctionWrapHandler,
     ValidationInfo,
     field_validator,
+    model_serializer,
     model_validator,
 )
 
 from roslan.config.base import FiniteFloat, ModelFor, StrictModel
+from roslan.config.closed_loop import ClosedLoopConfig
 from roslan.limits import MAX_RATE_HZ, MAX_SEED
 from roslan.sensors.base import SensorConfig
 from roslan.sensors.registry import SENSOR_TYPES, config_class, config_class_for
@@ -103,6 +107,18 @@ class SimConfig(StrictModel):
     vehicle: VehicleConfig = VehicleConfig()
     """Body shape and contact points in base_link (:mod:`roslan.vehicle`)."""
     output: OutputConfig = OutputConfig()
+    closed_loop: ClosedLoopConfig | None = None
+    """How ``roslan fly`` and :class:`roslan.env.LandingEnv` fly (``simulate`` ignores it);
+    left out of the dump when absent, so simulate's run.json is unchanged."""
+
+    @model_serializer(mode="wrap")
+    def _drop_absent_closed_loop(
+        self, handler: SerializerFunctionWrapHandler, info: SerializationInfo
+    ) -> Any:
+        data = handler(self)
+        if isinstance(data, dict) and data.get("closed_loop") is None:
+            data.pop("closed_loop", None)
+        return data
 
     @model_validator(mode="after")
     def _unique(self) -> SimConfig:

@@ -4,6 +4,7 @@ files."""
 
 from __future__ import annotations
 
+from roslan.events.divergence import DivergenceEstimate, DivergenceEstimator, DivergenceParams
 from roslan.events.files import EventH5Writer, EventTextWriter, format_events_txt
 from roslan.events.model import (
     EVENT_PRESETS,
@@ -26,6 +27,9 @@ __all__ = [
     "EVENT_ARRAY",
     "EVENT_PRESETS",
     "AdaptiveSampler",
+    "DivergenceEstimate",
+    "DivergenceEstimator",
+    "DivergenceParams",
     "EventBatch",
     "EventGenerator",
     "EventH5Writer",

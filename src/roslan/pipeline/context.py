@@ -13,6 +13,7 @@ import numpy as np
 from roslan.errors import ConfigError
 from roslan.rundir.calibration import camera_folder, root_camera, root_imu
 from roslan.sensors.base import SensorConfig
+from roslan.sensors.clock import Clock
 
 if TYPE_CHECKING:
     from roslan.render.base import BeamCaster, FrameRenderer
@@ -44,6 +45,8 @@ class Context:
             (:class:`~roslan.io.ordered.OrderedPool`; 1: all on the sensor's thread).
         render_helpers: render helper processes per sensor name (event cameras' chains,
             :mod:`roslan.sensors.cameras.event_chains`); absent names get none.
+        clock: how far sensors may read the trajectory (default: all of it,
+            :meth:`Clock.fixed`; closed loop: the engine's growing clock).
     """
 
     def __init__(
@@ -59,8 +62,10 @@ class Context:
         scene: Scene | None = None,
         sensor_threads: int = 1,
         render_helpers: Mapping[str, int] | None = None,
+        clock: Clock | None = None,
     ) -> None:
         self.trajectory = trajectory
+        self.clock = clock if clock is not None else Clock.fixed(trajectory.duration_ns)
         self.outdir = Path(outdir)
         self.seed = int(seed)
         self.start_time_ns = int(start_time_ns)

@@ -18,7 +18,7 @@ from operator import itemgetter
 from typing import TYPE_CHECKING, Protocol
 
 from roslan.errors import SensorError
-from roslan.sensors.base import Message
+from roslan.sensors.base import WAIT_TOPIC, Message
 
 if TYPE_CHECKING:
     from roslan.io.bag import MultiBagWriter
@@ -50,6 +50,9 @@ class CheckedStream:
         self.profile = profile
         self.seconds = 0.0
         self.count = 0
+        self.waits = True
+        """Pass the sensor's wait markers on (:mod:`roslan.sensors.clock`); False: a
+        marker is an error (a fixed clock, where nothing may wait)."""
 
     def __iter__(self) -> Iterator[Message]:
         last = -1
@@ -65,21 +68,30 @@ class CheckedStream:
                 msg = next(it, None)
             if msg is None:
                 return
-            if msg.t_ns < last or msg.t_ns < 0:
-                err = (
-                    f"sensor {self.name!r} yielded t_ns={msg.t_ns} after {last}: "
-                    "streams must be time-ordered"
-                )
-                raise SensorError(err)
-            if msg.topic not in topics:
-                err = (
-                    f"sensor {self.name!r} yielded topic {msg.topic!r} not declared in "
-                    f"its topics(): {sorted(topics)}"
-                )
-                raise SensorError(err)
+            if msg.topic not in topics or msg.t_ns < last or msg.t_ns < 0:
+                if msg.topic == WAIT_TOPIC and self.waits:  # the engine's business
+                    yield msg
+                    continue
+                self._fail(msg, last)
             last = msg.t_ns
             self.count += 1
             yield msg
+
+    def _fail(self, msg: Message, last: int) -> None:
+        if msg.topic == WAIT_TOPIC:
+            err = f"sensor {self.name!r} waited for the trajectory past the end of the run"
+            raise SensorError(err)
+        if msg.t_ns < last or msg.t_ns < 0:
+            err = (
+                f"sensor {self.name!r} yielded t_ns={msg.t_ns} after {last}: "
+                "streams must be time-ordered"
+            )
+            raise SensorError(err)
+        err = (
+            f"sensor {self.name!r} yielded topic {msg.topic!r} not declared in "
+            f"its topics(): {sorted(self.topics)}"
+        )
+        raise SensorError(err)
 
     def close(self) -> None:
         """Close the generator (sensors stop their writer threads in its ``finally``)."""

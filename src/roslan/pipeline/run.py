@@ -46,7 +46,8 @@ from roslan.io.background import BackgroundSink
 from roslan.io.bag import BAG_NAMES, MultiBagWriter
 from roslan.io.messages import Flavor
 from roslan.pipeline.context import Context
-from roslan.pipeline.merge import CheckedStream, MergeItem, pump, tagged
+from roslan.pipeline.engine import SensorEngine
+from roslan.pipeline.merge import CheckedStream, MergeItem, pump
 from roslan.pipeline.plan import RunPlan, load_checked_scene, make_plan
 from roslan.pipeline.report import BackgroundPlot, Progress, playback_text, print_profile
 from roslan.pipeline.worker import WorkerJob, WorkerPool, sensor_stats, worker_nice
@@ -178,6 +179,7 @@ class _Run:
         self.plot: BackgroundPlot | None = None
         self.export: BackgroundSink | None = None  # the scene export's thread
         self.warm: threading.Thread | None = None  # overview.png's warm-up thread
+        self.engine: SensorEngine | None = None
         self.streams: list[CheckedStream] = []
         self.ticks: dict[str, float] = {}
         self.write_s = 0.0
@@ -298,20 +300,13 @@ class _Run:
         assert self.writers is not None
         self.ctx = ctx = self._context()
         self.ticks["stream"] = time.perf_counter()
-        gt = plan.ground_truth
-        # merge order: ground truth 0, sensor i -> i + 1 (ties resolve alike in workers)
-        self.streams = [
-            CheckedStream("ground_truth", gt.messages(ctx), {t.topic for t in gt.topics()}, profile)
-        ]
-        orders = [0]
-        for i, s in enumerate(plan.sensors):
-            if i not in self.remote:
-                topics = {t.topic for t in s.topics()}
-                self.streams.append(CheckedStream(s.config.name, s.messages(ctx), topics, profile))
-                orders.append(i + 1)
-        sources: list[Iterable[MergeItem]] = [
-            tagged(o, st) for o, st in zip(orders, self.streams, strict=True)
-        ]
+        # one step over the whole trajectory (the clock is fixed: nothing waits); merge
+        # order: ground truth 0, sensor i -> i + 1 (ties resolve alike in workers)
+        self.engine = SensorEngine(
+            ctx, plan.sensors, plan.ground_truth, skip=self.remote, profile=profile
+        )
+        self.streams = self.engine.streams
+        sources: list[Iterable[MergeItem]] = list(self.engine.sources())
         if self.pool is not None:
             sources += self.pool.streams(plan.formats)
         if self.opts.overview:  # matplotlib's first-draw costs, beside the streaming
@@ -336,11 +331,8 @@ class _Run:
         self.plot.finish()
         if self.export is not None:
             self.export.close()  # raises the export's error, if any
-        for i, s in enumerate(self.plan.sensors):
-            if i not in self.remote:
-                t0 = time.perf_counter()
-                s.close(self.ctx)
-                self.close_s[s.config.name] = time.perf_counter() - t0
+        if self.engine is not None:
+            self.close_s = self.engine.close_sensors()
         t0 = time.perf_counter()
         self.writers.close()
         self.write_s += time.perf_counter() - t0
@@ -451,9 +443,8 @@ class _Run:
             self.plot.kill()
         if self.export is not None:
             self.export.abort()  # its running call ends before the folder is removed
-        for st in self.streams:  # sensors stop their own writer threads (before removing tmp)
-            with contextlib.suppress(BaseException):
-                st.close()
+        if self.engine is not None:  # sensors stop their own threads (before removing tmp)
+            self.engine.abort()
         self.progress.stop()
         if self.writers is not None:
             self.writers.abort()

@@ -24,7 +24,7 @@ from numpy.typing import NDArray
 from roslan.scene.model import Scene
 from roslan.trajectory import Trajectory
 
-__all__ = ["VehiclePoints", "check_clearance", "vehicle_points"]
+__all__ = ["PathHit", "VehiclePoints", "check_clearance", "path_hit", "vehicle_points"]
 
 F64 = NDArray[np.float64]
 
@@ -193,14 +193,43 @@ def check_clearance(
     for i0 in range(0, t.shape[0] - 1, block - 1):
         tb = t[i0 : i0 + block]
         sb = trajectory.state(tb)
-        wb = sb.position[:, None, :] + np.einsum("nij,kj->nki", sb.R_world_body, P)
-        a, b = wb[:-1].reshape(-1, 3), wb[1:].reshape(-1, 3)
-        prim, frac = _cast(es, a, b)
-        hit = np.flatnonzero(prim >= 0)
-        if hit.size:
-            j = int(hit[0])  # row-major: the earliest segment first
-            seg, k = divmod(j, K)
-            where = a[j] + frac[j] * (b[j] - a[j])
-            when = float(tb[seg] + frac[j] * (tb[seg + 1] - tb[seg]))
-            return message(vp.labels[k], int(prim[j]), where, when)
+        hit = path_hit(scene, P, tb, sb.position, sb.R_world_body)
+        if hit is not None:
+            return message(vp.labels[hit.point], hit.triangle, hit.where, hit.time)
     return static(T_end)
+
+
+class PathHit(NamedTuple):
+    """The earliest hit of points moving with base_link (:func:`path_hit`)."""
+
+    point: int
+    """Index of the point (row of ``points``)."""
+    triangle: int
+    """The scene triangle hit."""
+    obj: str
+    """Name of the scene object hit."""
+    time: float
+    """When, s (linear between the two instants around the hit)."""
+    where: F64
+    """(3,) world position of the hit, m."""
+
+
+def path_hit(scene: Scene, points: F64, t: F64, position: F64, R_world_body: F64) -> PathHit | None:
+    """The earliest hit of ``points`` (K, 3, base_link) with the scene's triangles while
+    base_link goes through poses ``position`` (n, 3), ``R_world_body`` (n, 3, 3) at
+    instants ``t`` (n,) (straight segments between consecutive instants); None if clear."""
+    if scene.n_triangles == 0 or t.shape[0] < 2:
+        return None
+    K = points.shape[0]
+    wb = position[:, None, :] + np.einsum("nij,kj->nki", R_world_body, points)
+    a, b = wb[:-1].reshape(-1, 3), wb[1:].reshape(-1, 3)
+    prim, frac = _cast(_embree(scene), a, b)
+    hit = np.flatnonzero(prim >= 0)
+    if not hit.size:
+        return None
+    j = int(hit[0])  # row-major: the earliest segment first
+    seg, k = divmod(j, K)
+    where = a[j] + frac[j] * (b[j] - a[j])
+    when = float(t[seg] + frac[j] * (t[seg + 1] - t[seg]))
+    name = scene.objects[int(scene.triangles[2][int(prim[j])])].name
+    return PathHit(k, int(prim[j]), name, when, where)

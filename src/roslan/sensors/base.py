@@ -1,10 +1,11 @@
 """The one small interface every sensor implements.
 
 A sensor is built from its validated config, gets a :class:`SimContext` (the
-trajectory, the scene, its random stream, a place for its dataset files, the
-shared renderer / ray caster) and yields :class:`Message` objects in
-non-decreasing trajectory time. The pipeline merges all sensors' streams by
-stamp and writes them to the bags; sensors write their own dataset files
+trajectory and its clock, the scene, its random stream, a place for its dataset files,
+the shared renderer / ray caster) and yields :class:`Message` objects in non-decreasing
+trajectory time, never reading the trajectory past the clock's horizon
+(:mod:`roslan.sensors.clock`: it yields a wait marker instead). The pipeline merges all
+sensors' streams by stamp and writes them to the bags; sensors write their own dataset files
 (``imu.txt``, ``events.txt``...) through ``ctx.path(...)`` while they stream.
 
 Adding a sensor = one new module (a config model with ``type: Literal[...]`` and a
@@ -39,16 +40,21 @@ if TYPE_CHECKING:
     from roslan.io.messages import MessageStore
     from roslan.render.base import BeamCaster, FrameRenderer
     from roslan.scene.model import Scene
+    from roslan.sensors.clock import Clock, Grid
     from roslan.trajectory.base import Trajectory
 
 __all__ = [
+    "WAIT_TOPIC",
     "Message",
     "Sensor",
     "SensorConfig",
     "SimContext",
     "StaticTransform",
     "TopicSpec",
+    "is_wait",
+    "paced",
     "sample_times_ns",
+    "wait",
 ]
 
 _NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_]*$")
@@ -136,12 +142,18 @@ class Message(NamedTuple):
     topic: str
     msgtype: str
     build: Callable[[MessageStore], Any]
+    data: Any = None
+    """Optional raw data of the message (a frame's image array, a scan's points...),
+    read by closed-loop callers instead of decoding wire bytes; never written."""
 
 
 class SimContext(Protocol):
     """What the pipeline hands every sensor."""
 
     trajectory: Trajectory
+    clock: Clock
+    """How far the trajectory may be read now (:mod:`roslan.sensors.clock`): a sensor
+    never reads past ``clock.horizon_ns`` and yields a wait marker instead."""
     start_time_ns: int
     seed: int
     sensors: Sequence[SensorConfig]
@@ -209,3 +221,41 @@ class Sensor(Protocol):
     def close(self, ctx: SimContext) -> None:
         """Finish dataset files (flush, close). Called after the stream ends."""
         ...
+
+
+# ------------------------------------------------ the causal contract (sensors.clock)
+WAIT_TOPIC = ""
+"""The topic of a wait marker (no real topic is empty)."""
+
+
+def _never(store: Any) -> Any:  # pragma: no cover - a wait marker is never written
+    msg = "a wait marker is not a message"
+    raise RuntimeError(msg)
+
+
+def wait(floor_ns: int) -> Message:
+    """The wait marker a sensor yields when it needs the trajectory past the horizon;
+    ``floor_ns``: the smallest stamp it may still yield (its next message's at the
+    earliest)."""
+    return Message(int(floor_ns), WAIT_TOPIC, "", _never)
+
+
+def is_wait(msg: Message) -> bool:
+    """Whether ``msg`` is a wait marker."""
+    return msg.topic == WAIT_TOPIC
+
+
+def paced(
+    grid: Grid, block: int, floor: Callable[[], int]
+) -> Iterator[tuple[int, NDArray[np.int64]] | Message]:
+    """The chunks ``(i0, instants)`` of ``grid`` (:meth:`Grid.take`), with a wait marker
+    (floor ``floor()``) wherever the sensor must wait; ends when the grid is exhausted.
+    The sensor yields the markers on (``isinstance(item, Message)``)."""
+    while True:
+        got = grid.take(block)
+        if got is None:
+            yield wait(floor())
+        elif got[1].size == 0:
+            return
+        else:
+            yield got

@@ -47,12 +47,13 @@ from roslan.scene.markers import (
     scene_marker_bytes,
     scene_mesh,
 )
-from roslan.sensors.base import Message, SimContext, StaticTransform, TopicSpec
+from roslan.sensors.base import Message, SimContext, StaticTransform, TopicSpec, paced
 from roslan.trajectory.base import (
     COMPONENTS,
     DEFAULT_GROUND_TRUTH_RATE,
     GAPS,
     ground_truth_times_ns,
+    sample_times_ns,
 )
 from roslan.trajectory.frames import matrix_to_quat_xyzw
 
@@ -265,10 +266,20 @@ class GroundTruth:
 
             yield Message(0, SCENE_TOPIC, SCENE_MSGTYPE, scene_msg)
         # the record ends exactly at the end of the run; groundtruth.txt has the same rows
-        times = ground_truth_times_ns(self.rate, int(ctx.trajectory.duration_ns))
+        rate = self.rate
+        # before the end is known, the grid's instants up to the horizon (the end itself
+        # joins when it is known)
+        grid = ctx.clock.grid(
+            lambda end: ground_truth_times_ns(rate, end), lambda h: sample_times_ns(rate, h)
+        )
         per_chunk = max(1, round(self.rate * CHUNK_S))
-        for i0 in range(0, times.size, per_chunk):
-            t = times[i0 : i0 + per_chunk]
+        last = [0]
+        for item in paced(grid, per_chunk, lambda: last[0] + 1):
+            if isinstance(item, Message):
+                yield item  # wait for the horizon
+                continue
+            i0, t = item
+            last[0] = int(t[-1])
             yield from self._chunk(ctx, t, i0)
 
     def _chunk(self, ctx: SimContext, t: NDArray[np.int64], i0: int) -> Iterator[Message]:

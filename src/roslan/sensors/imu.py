@@ -40,6 +40,7 @@ from roslan.sensors.base import (
     SimContext,
     StaticTransform,
     TopicSpec,
+    paced,
     sample_times_ns,
 )
 from roslan.trajectory.frames import matrix_to_quat_xyzw
@@ -138,7 +139,8 @@ class Imu:
     def messages(self, ctx: SimContext) -> Iterator[Message]:
         c = self.config
         T_bs = c.pose.matrix()
-        times = sample_times_ns(c.rate, ctx.trajectory.duration_ns)
+        rate = c.rate
+        grid = ctx.clock.grid(lambda end: sample_times_ns(rate, end))
         per_chunk = max(1, round(c.rate * CHUNK_S))
         sig_a, sig_g = self.sigmas
         dt = 1.0 / c.rate
@@ -157,20 +159,43 @@ class Imu:
         self._bias = (b_a.copy(), b_g.copy())
         fh = ctx.path(self._file_stem(ctx) + ".txt").open("w", encoding="utf-8", newline="\n")
         self._fh = fh
+        last = [-1]
+        # a chunk of ``per_chunk`` samples may come in pieces (closed loop: up to each
+        # step's end); the bias walk sums are carried over so that every value is the
+        # one of the whole chunk: b_chunk + cumsum(steps), accumulated left to right
+        walk = [b_a, b_g]  # the bias at the start of the current chunk
+        carry: list[F64 | None] = [None, None]  # the chunk's running sums so far
+        end_bias = [b_a, b_g]
         try:
             # t ax ay az gx gy gz (s since trajectory start; m/s^2, rad/s; IMU frame); the
             # Event Camera Dataset's imu.txt has no header line (columns in OUTDIR/README.md)
-            for i0 in range(0, times.size, per_chunk):
-                t = times[i0 : i0 + per_chunk]
+            for item in paced(grid, per_chunk, lambda: last[0] + 1):
+                if isinstance(item, Message):
+                    yield item  # wait for the horizon
+                    continue
+                i0, t = item
                 n = t.size
+                last[0] = int(t[-1])
+                if i0 % per_chunk == 0:
+                    walk, carry = list(end_bias), [None, None]
                 f, g, R_ws = imu_measurements(ctx.trajectory, t, T_bs, c.gravity)
-                # bias random walk: b_k = b_{k-1} + rw sqrt(dt) n_k (continues across chunks)
-                walk_a = b_a + np.cumsum(rw_a * rng["acc_walk"].standard_normal((n, 3)), axis=0)
-                walk_g = b_g + np.cumsum(rw_g * rng["gyro_walk"].standard_normal((n, 3)), axis=0)
-                b_a, b_g = walk_a[-1].copy(), walk_g[-1].copy()
-                acc = f + walk_a + sig_a * rng["acc_noise"].standard_normal((n, 3))
-                gyro = g + walk_g + sig_g * rng["gyro_noise"].standard_normal((n, 3))
+                steps = (
+                    rw_a * rng["acc_walk"].standard_normal((n, 3)),
+                    rw_g * rng["gyro_walk"].standard_normal((n, 3)),
+                )
+                walks = []
+                for k in range(2):
+                    st = steps[k]
+                    if carry[k] is not None:
+                        st[0] += carry[k]
+                    sums = np.cumsum(st, axis=0)
+                    carry[k] = sums[-1].copy()
+                    walks.append(walk[k] + sums)
+                end_bias = [walks[0][-1].copy(), walks[1][-1].copy()]
+                acc = f + walks[0] + sig_a * rng["acc_noise"].standard_normal((n, 3))
+                gyro = g + walks[1] + sig_g * rng["gyro_noise"].standard_normal((n, 3))
                 write_columns(fh, t, *acc.T, *gyro.T)
+                ctx.clock.tap(c.name, t=t, acc=acc, gyro=gyro)
                 yield from self._chunk_messages(ctx, t, i0, acc, gyro, R_ws)
         finally:
             fh.close()

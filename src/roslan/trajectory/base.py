@@ -16,12 +16,16 @@ from typing import Any, Protocol
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from roslan.errors import TrajectoryError
 from roslan.trajectory.config import TrajectoryConfig
 
 __all__ = [
     "COMPONENTS",
     "DEFAULT_GROUND_TRUTH_RATE",
     "GAPS",
+    "GrowingTrajectory",
+    "HorizonError",
+    "HorizonGuard",
     "State",
     "Trajectory",
     "check_duration",
@@ -179,3 +183,134 @@ class Trajectory(Protocol):
     def touchdown_ns(self) -> int:
         """``T`` in integer nanoseconds (rounded)."""
         return round(self.T * 1e9)
+
+
+_ANY_TIME_NS = 2**62
+"""A horizon past every instant."""
+
+
+class HorizonError(TrajectoryError):
+    """A trajectory was read past its horizon: the instant it is defined up to so far
+    (a closed-loop trajectory grows one control step at a time; a sensor that reads
+    past the current step's end is not causal)."""
+
+
+class GrowingTrajectory(Trajectory, Protocol):
+    """A :class:`Trajectory` that grows step by step (closed loop: the vehicle's state
+    is known up to the end of the last control step).
+
+    Every method may be called for instants ``<= horizon_ns`` only (they raise
+    :class:`HorizonError` past it). ``duration``, ``duration_ns``, ``T`` and
+    ``table_times`` are only meaningful once ``finished`` (the end of the run is then
+    known); until then a sensor learns how far it may read from the engine's clock
+    (:class:`roslan.sensors.clock.Clock`), never from the trajectory's duration.
+    """
+
+    @property
+    def horizon_ns(self) -> int:
+        """Last instant (trajectory ns) the trajectory may be read at, inclusive."""
+        ...
+
+    @property
+    def finished(self) -> bool:
+        """True once the run's end is fixed (``duration`` is then final)."""
+        ...
+
+
+class HorizonGuard:
+    """A :class:`Trajectory` wrapper that raises :class:`HorizonError` when read past a
+    settable horizon: the causality check of every sensor type (tests) and a debugging
+    aid. ``duration`` / ``duration_ns`` / ``T`` / ``table_times`` raise until
+    :meth:`finish` (a causal sensor never asks them before the end is known).
+
+    Args:
+        trajectory: the wrapped trajectory (its values are returned unchanged).
+        horizon_ns: the initial horizon (ns, inclusive).
+    """
+
+    def __init__(self, trajectory: Trajectory, horizon_ns: int = 0) -> None:
+        self.inner = trajectory
+        self.config = trajectory.config
+        self.hold = trajectory.hold
+        self.p_world_goal = trajectory.p_world_goal
+        self.R_world_goal = trajectory.R_world_goal
+        self.horizon_ns = int(horizon_ns)
+        self.finished = False
+        self.max_read_ns = -1
+        """The latest instant read so far (ns)."""
+
+    def set_horizon(self, horizon_ns: int) -> None:
+        """Allow reads up to ``horizon_ns`` (never decreases)."""
+        self.horizon_ns = max(self.horizon_ns, int(horizon_ns))
+
+    def finish(self) -> None:
+        """The end is known: ``duration`` etc. may be read, and any instant (a finished
+        trajectory is defined everywhere: clamped past its end, as every trajectory)."""
+        self.finished = True
+        self.horizon_ns = _ANY_TIME_NS
+
+    def _check_ns(self, t_ns: NDArray[np.int64]) -> None:
+        if t_ns.size == 0:
+            return
+        top = int(t_ns.max())
+        self.max_read_ns = max(self.max_read_ns, top)
+        if top > self.horizon_ns:
+            msg = f"trajectory read at t = {top} ns, past its horizon {self.horizon_ns} ns"
+            raise HorizonError(msg)
+
+    def _check_s(self, t: ArrayLike) -> None:
+        # a time in seconds reads the trajectory at the nanosecond it rounds to
+        ts = np.atleast_1d(np.asarray(t, dtype=np.float64))
+        self._check_ns(np.round(ts * 1e9).astype(np.int64))
+
+    def _need_end(self, what: str) -> None:
+        if not self.finished:
+            msg = f"trajectory.{what} read before the run's end is known"
+            raise HorizonError(msg)
+
+    @property
+    def T(self) -> float:
+        self._need_end("T")
+        return self.inner.T
+
+    @property
+    def duration(self) -> float:
+        self._need_end("duration")
+        return self.inner.duration
+
+    @property
+    def duration_ns(self) -> int:
+        self._need_end("duration_ns")
+        return self.inner.duration_ns
+
+    @property
+    def touchdown_ns(self) -> int:
+        self._need_end("touchdown_ns")
+        return self.inner.touchdown_ns
+
+    def state(self, t: ArrayLike) -> State:
+        self._check_s(t)
+        return self.inner.state(t)
+
+    def state_ns(self, t_ns: ArrayLike) -> State:
+        self._check_ns(np.atleast_1d(np.asarray(t_ns, dtype=np.int64)))
+        return self.inner.state_ns(t_ns)
+
+    def pose_twist_ns(self, t_ns: int) -> tuple[F64, F64, F64, F64]:
+        self._check_ns(np.array([t_ns], dtype=np.int64))
+        return self.inner.pose_twist_ns(t_ns)
+
+    def gaps_at(self, t: ArrayLike) -> tuple[F64, F64, F64, F64]:
+        self._check_s(t)
+        return self.inner.gaps_at(t)
+
+    def table_times(self) -> F64:
+        self._need_end("table_times")
+        return self.inner.table_times()
+
+    def summary(self) -> dict[str, Any]:
+        self._need_end("summary")
+        return self.inner.summary()
+
+    def warnings(self) -> list[str]:
+        return self.inner.warnings()

@@ -10,17 +10,80 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from roslan.trajectory.base import GAPS, State, Trajectory, check_duration
-from roslan.trajectory.config import TrajectoryConfig
+from roslan.trajectory.config import Flapping, TrajectoryConfig
 from roslan.trajectory.frames import euler_zyx_kinematics, rpy_to_matrix, rpy_to_quat_xyzw
 from roslan.trajectory.instant import InstantEvaluator
 from roslan.trajectory.tau import Terminal, classify, exponent, powers
 
-__all__ = ["TauTrajectory", "TrajectoryWarning"]
+__all__ = ["TauTrajectory", "TrajectoryWarning", "add_flapping", "fill_pose", "table_times"]
 
 F64 = NDArray[np.float64]
 
 CHUNK = 16384
 """Instants evaluated per block inside :meth:`TauTrajectory.state` (keeps temporaries in cache)."""
+
+
+def add_flapping(f: Flapping, z0: float, tc: F64, gaps: F64, rates: F64, accels: F64) -> None:
+    """Superimpose flapping on (N, 6) gaps, rates and accels at instants ``tc`` (s), in place:
+    heave (on z) and pitch oscillation, faded by the envelope e = z / z0 of the height gap
+    (its value before the heave is added), so the oscillation stops at touchdown. Shared by
+    the closed-form landing and the closed-loop vehicle (:mod:`roslan.env.dynamics`)."""
+    w = 2.0 * math.pi * f.frequency
+    ph = w * tc + f.phase
+    sn, cs = np.sin(ph), np.cos(ph)
+    # envelope e = z/z0 (before the heave is added) fades the oscillation out at touchdown
+    e, de, dde = gaps[:, 2] / z0, rates[:, 2] / z0, accels[:, 2] / z0
+    osc = e * sn
+    dosc = de * sn + e * w * cs
+    ddosc = dde * sn + 2.0 * w * de * cs - (w * w) * osc
+    for col, amp in ((2, f.heave), (4, f.pitch)):
+        if amp > 0:
+            gaps[:, col] += amp * osc
+            rates[:, col] += amp * dosc
+            accels[:, col] += amp * ddosc
+
+
+def fill_pose(
+    gaps: tuple[F64, F64, F64],
+    goal: tuple[F64, F64, F64],
+    linear: tuple[F64, F64, F64],
+    angular: tuple[F64, F64, F64, F64],
+) -> None:
+    """base_link's world pose and twist from the 18 components in F, in place.
+
+    Args:
+        gaps: (n, 6) gaps, rates and accels in F.
+        goal: R_world_goal transposed (3, 3, C-contiguous), p_world_goal (3,),
+            q_world_goal (4,).
+        linear: (n, 3) position, velocity, acceleration out (world).
+        angular: (n, 4) quat_xyzw, (n, 3, 3) R_world_body, (n, 3) omega_body and
+            alpha_body out.
+    """
+    g, r, ac = gaps
+    RT, p_goal, q_goal = goal
+    position, velocity, acceleration = linear
+    np.dot(g[:, :3], RT, out=position)
+    position += p_goal
+    np.dot(r[:, :3], RT, out=velocity)
+    np.dot(ac[:, :3], RT, out=acceleration)
+    euler_zyx_kinematics(g[:, 3:], r[:, 3:], ac[:, 3:], q_goal, out=angular)
+
+
+def table_times(T: float, hold: float, dt: float) -> F64:
+    """Instants of the exported table (s): every ``dt`` from 0 up to ``T``, exactly ``T``,
+    then every ``dt`` after ``T`` through the hold, ending exactly at ``T + hold``."""
+    duration = T + hold
+    tol = 1e-9 * max(1.0, T)
+    n = math.floor(T / dt + 1e-9)
+    before = np.arange(n + 1, dtype=np.float64) * dt
+    before = before[before < T - tol]  # a grid point within tol of T becomes T
+    parts = [before, np.array([T])]
+    if hold > 0.0:
+        m = math.floor(hold / dt + 1e-9)
+        after = T + np.arange(1, m + 1, dtype=np.float64) * dt
+        after = after[after < duration - tol]
+        parts += [after, np.array([duration])]
+    return np.concatenate(parts)
 
 
 class TrajectoryWarning(UserWarning):
@@ -151,18 +214,7 @@ class TauTrajectory(Trajectory):
     def table_times(self) -> F64:
         """Instants of the exported table (s): every ``sample_dt`` from 0 up to T, exactly T,
         then every ``sample_dt`` after T through the hold, ending exactly at T + hold."""
-        dt = self.config.sample_dt
-        tol = 1e-9 * max(1.0, self.T)
-        n = math.floor(self.T / dt + 1e-9)
-        before = np.arange(n + 1, dtype=np.float64) * dt
-        before = before[before < self.T - tol]  # a grid point within tol of T becomes T
-        parts = [before, np.array([self.T])]
-        if self.hold > 0.0:
-            m = math.floor(self.hold / dt + 1e-9)
-            after = self.T + np.arange(1, m + 1, dtype=np.float64) * dt
-            after = after[after < self.duration - tol]
-            parts += [after, np.array([self.duration])]
-        return np.concatenate(parts)
+        return table_times(self.T, self.hold, self.config.sample_dt)
 
     def gaps_at(self, t: ArrayLike) -> tuple[F64, F64, F64, F64]:
         """The 18 components in F: (t, gaps, rates, accels), each (N,) / (N, 6)."""
@@ -213,22 +265,8 @@ class TauTrajectory(Trajectory):
 
     def _add_flapping(self, tc: F64, gaps: F64, rates: F64, accels: F64) -> None:
         """Superimpose heave (on z) and pitch oscillation, faded by e = z/z0 (in place)."""
-        f = self._flap
-        assert f is not None
-        w = 2.0 * math.pi * f.frequency
-        ph = w * tc + f.phase
-        sn, cs = np.sin(ph), np.cos(ph)
-        z0 = float(self.initial_gaps[2])
-        # envelope e = z/z0 (before the heave is added) fades the oscillation out at touchdown
-        e, de, dde = gaps[:, 2] / z0, rates[:, 2] / z0, accels[:, 2] / z0
-        osc = e * sn
-        dosc = de * sn + e * w * cs
-        ddosc = dde * sn + 2.0 * w * de * cs - (w * w) * osc
-        for col, amp in ((2, f.heave), (4, f.pitch)):
-            if amp > 0:
-                gaps[:, col] += amp * osc
-                rates[:, col] += amp * dosc
-                accels[:, col] += amp * ddosc
+        assert self._flap is not None
+        add_flapping(self._flap, float(self.initial_gaps[2]), tc, gaps, rates, accels)
 
     def pose_twist_ns(self, t_ns: int) -> tuple[F64, F64, F64, F64]:
         """(3,) position, (3,) velocity, (3, 3) R_world_body and (3,) omega_body at one
@@ -255,16 +293,11 @@ class TauTrajectory(Trajectory):
             sl = slice(a, a + CHUNK)
             g, r, ac = gaps[sl], rates[sl], accels[sl]
             self._gaps_into(tt[sl], g, r, ac)
-            np.dot(g[:, :3], RT, out=position[sl])
-            position[sl] += self.p_world_goal
-            np.dot(r[:, :3], RT, out=velocity[sl])
-            np.dot(ac[:, :3], RT, out=acceleration[sl])
-            euler_zyx_kinematics(
-                g[:, 3:],
-                r[:, 3:],
-                ac[:, 3:],
-                self._q_world_goal,
-                out=(quat[sl], R_world_body[sl], omega[sl], alpha[sl]),
+            fill_pose(
+                (g, r, ac),
+                (RT, self.p_world_goal, self._q_world_goal),
+                (position[sl], velocity[sl], acceleration[sl]),
+                (quat[sl], R_world_body[sl], omega[sl], alpha[sl]),
             )
         return State(
             t=tt,

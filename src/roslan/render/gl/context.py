@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import ctypes
 import ctypes.util
+import os
 import threading
 from collections.abc import Callable
 from typing import Any
@@ -33,6 +34,7 @@ GL_DEPTH = 0x1801
 """``GL_DEPTH``: the ``buffer`` argument of ``glClearBufferfv`` for the depth buffer."""
 
 _context: Any = None
+_context_pid = 0
 _context_lock = threading.Lock()
 
 
@@ -40,10 +42,20 @@ def create_context() -> Any:
     """The process-wide headless moderngl context (created on first call).
 
     Raises:
-        RenderError: no EGL/OpenGL 3.3+ available; names the Debian packages to install.
+        RenderError: no EGL/OpenGL 3.3+ available (names the Debian packages to install);
+            or this process was forked from one that had a context (EGL does not survive
+            a fork, and a new context would hang: start such processes with ``spawn``).
     """
-    global _context
+    global _context, _context_pid
     with _context_lock:
+        if _context is not None and _context_pid != os.getpid():
+            msg = (
+                "this process was forked from one that had an OpenGL context, which does not "
+                "survive a fork; start rendering processes with the 'spawn' method (e.g. "
+                "gymnasium.make_vec(..., vector_kwargs={'context': 'spawn'}), roslan.env's "
+                "default)"
+            )
+            raise RenderError(msg)
         if _context is not None:
             return _context
         try:
@@ -61,7 +73,7 @@ def create_context() -> Any:
                 "machine install the vendor's EGL driver instead"
             )
             raise RenderError(msg) from err
-        _context = ctx
+        _context, _context_pid = ctx, os.getpid()
         return ctx
 
 

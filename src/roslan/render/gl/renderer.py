@@ -15,6 +15,7 @@ nothing is hit. The depth buffer only resolves visibility.
 from __future__ import annotations
 
 import ctypes
+import os
 import weakref
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
@@ -55,6 +56,8 @@ FLUSH_CHUNKS = 4
 vertex work, which runs on the calling thread (see docs/performance.md)."""
 
 _renderers: weakref.WeakKeyDictionary[Scene, Renderer] = weakref.WeakKeyDictionary()
+_owner: dict[int, int] = {}
+"""id(renderer) -> the process that created it."""
 
 
 @dataclass(frozen=True)
@@ -71,11 +74,15 @@ class _View:
 
 
 def get_renderer(scene: Scene) -> Renderer:
-    """The renderer of ``scene`` in this process: created (scene uploaded) on first use."""
+    """The renderer of ``scene`` in this process: created (scene uploaded) on first use
+    (and again after a fork: a renderer lives in the GL context of its process)."""
     r = _renderers.get(scene)
+    if r is not None and _owner.get(id(r)) != os.getpid():
+        r = None  # inherited through fork: its context belongs to the parent
     if r is None:
         r = Renderer(scene)
         _renderers[scene] = r
+        _owner[id(r)] = os.getpid()
         weakref.finalize(scene, r.release)
     return r
 

@@ -22,6 +22,7 @@ from roslan.sensors.base import (
     SimContext,
     StaticTransform,
     TopicSpec,
+    paced,
     sample_times_ns,
 )
 from roslan.sensors.beams.pointcloud import POINTCLOUD2, pointcloud2
@@ -244,6 +245,7 @@ class PointCloudSensor:
         def emit(done: list[tuple[int, int, NDArray[Any]]]) -> Iterator[Message]:
             for seq, t0, pts in done:
                 writer.listed(seq, t0)
+                ctx.clock.tap(cfg.name, t=t0, points=pts)
                 stamp = ctx.stamp(t0)
 
                 def build(
@@ -257,13 +259,29 @@ class PointCloudSensor:
 
         # a scan fires over [t0, t0 + 1/rate): only whole scans that end within the
         # trajectory (and so within the ground-truth record) are produced
-        last_start = ctx.trajectory.duration_ns - round(1e9 / cfg.rate)
+        period, rate = round(1e9 / cfg.rate), cfg.rate
+        grid = ctx.clock.grid(
+            lambda end: sample_times_ns(rate, end - period), lead_ns=self.read_span_ns()
+        )
+        last = [-1]
         try:
-            for seq, t0 in enumerate(sample_times_ns(cfg.rate, last_start).tolist()):
+            for item in paced(grid, 1, lambda: last[0] + 1):
+                if isinstance(item, Message):
+                    yield from emit(pool.finish())  # every scan submitted, then wait
+                    yield item
+                    continue
+                seq, t0 = item[0], int(item[1][0])
+                last[0] = t0
                 yield from emit(pool.submit(task, seq, t0, self.draw(rng)))
             yield from emit(pool.finish())
         finally:
             pool.close()  # a failed or abandoned run: no write into its folder after this
+
+    def read_span_ns(self) -> int:
+        """How far past its start a scan reads the trajectory (ns): its sweep, ``1 / rate``
+        (a scanner whose firing poses pad past it says so)."""
+        rate: float = self.config.rate
+        return round(1e9 / rate)
 
     def draw(self, rng: np.random.Generator) -> BeamDraws:  # pragma: no cover - overridden
         """The random draws of one scan (:func:`draw_beams`)."""

@@ -36,6 +36,7 @@ from roslan.sensors.base import (
     StaticTransform,
     TopicName,
     TopicSpec,
+    paced,
     sample_times_ns,
 )
 from roslan.sensors.beams.base import BeamConfig, measure
@@ -169,9 +170,17 @@ class Laser:
         # t r_0 .. r_n: no header line (columns and angles in OUTDIR/README.md)
         angle_max = float(self.angles[-1])
         # a scan sweeps over [t0, t0 + 1/rate): only whole scans within the trajectory
-        last_start = ctx.trajectory.duration_ns - round(1e9 / c.rate)
-        for seq, t0 in enumerate(sample_times_ns(c.rate, last_start).tolist()):
+        period, rate = round(1e9 / c.rate), c.rate
+        grid = ctx.clock.grid(lambda end: sample_times_ns(rate, end - period), lead_ns=period)
+        last = [-1]
+        for item in paced(grid, 1, lambda: last[0] + 1):
+            if isinstance(item, Message):
+                yield item  # wait for the horizon
+                continue
+            seq, t0 = item[0], int(item[1][0])
+            last[0] = t0
             ranges, inten = self.scan(ctx.trajectory, caster, t0, rng)
+            ctx.clock.tap(c.name, t=t0, ranges=ranges, intensities=inten)
             txt = " ".join(np.char.mod("%.6f", ranges.astype(np.float64)).tolist())
             self._fh.write(f"{format_seconds([t0])[0]} {txt}\n")
             stamp = ctx.stamp(t0)

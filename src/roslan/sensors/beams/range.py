@@ -38,6 +38,7 @@ from roslan.sensors.base import (
     StaticTransform,
     TopicName,
     TopicSpec,
+    paced,
     sample_times_ns,
 )
 from roslan.sensors.beams.rays import rays_in_world
@@ -198,17 +199,38 @@ class RangeSensor:
 
     def messages(self, ctx: SimContext) -> Iterator[Message]:
         c = self.config
-        times = sample_times_ns(c.rate, ctx.trajectory.duration_ns)
+        rate = c.rate
+        grid = ctx.clock.grid(lambda end: sample_times_ns(rate, end))
         caster = ctx.raycaster()
         rng = ctx.rng(c.name)
         self._fh = ctx.path(f"range_{c.name}.txt").open("w", encoding="utf-8", newline="\n")
         chunk = max(1, round(c.rate))  # one second of readings per batch of rays
-        for i0 in range(0, times.shape[0], chunk):
-            t = times[i0 : i0 + chunk]
+        # a batch's noise draws depend on its size: in closed loop a batch is read once
+        # whole (or cut by the end), so that every reading is a one-shot run's
+        pending: list[NDArray[np.int64]] = []
+        i0 = 0
+        last = [-1]
+
+        def floor() -> int:
+            return int(pending[0][0]) if pending else last[0] + 1
+
+        for item in paced(grid, chunk, floor):
+            if isinstance(item, Message):
+                yield item  # wait for the horizon
+                continue
+            j0, piece = item
+            pending.append(piece)
+            if (j0 + piece.size) % chunk and not grid.closed:
+                continue  # the batch is not complete yet
+            t = np.concatenate(pending) if len(pending) > 1 else pending[0]
+            pending = []
             r = self.read(ctx.trajectory, caster, t, rng)
             write_columns(self._fh, t, r, fmt="%.6f", allow_nonfinite=True)
+            ctx.clock.tap(c.name, t=t, range=r)
+            last[0] = int(t[-1])
             for k, (tk, rk) in enumerate(zip(t.tolist(), r.tolist(), strict=True)):
                 yield Message(tk, c.topic, RANGE, self._builder(ctx.stamp(tk), rk, i0 + k))
+            i0 += t.size
 
     def _builder(self, stamp: int, value: float, seq: int) -> Any:
         c = self.config

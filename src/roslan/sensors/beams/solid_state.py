@@ -156,6 +156,13 @@ class SolidStateLidar(PointCloudSensor):
         self.instants = math.floor(1.0 / (config.rate * self.firing_dt) + 1e-9)
         self.T_body_sensor = config.pose.matrix()
 
+    def read_span_ns(self) -> int:
+        """A frame's firing instants padded to whole knots (:meth:`scan`), and the knot
+        after them (interpolated poses), ns."""
+        j = min(self.instants, _INSTANTS_PER_KNOT)
+        k = -(-self.instants // j)
+        return int(max(round(1e9 / self.config.rate), math.ceil(k * j * self.firing_dt * 1e9) + 1))
+
     def draw(self, rng: np.random.Generator) -> BeamDraws:
         """The random draws of one scan's beams (:func:`~.base.draw_beams`)."""
         return draw_beams(rng, self.instants * self.spec.lines, self.spec.noise_sigma, self.config)

@@ -33,10 +33,12 @@ from roslan.sensors.base import (
     SimContext,
     StaticTransform,
     TopicSpec,
+    paced,
     sample_times_ns,
 )
 from roslan.sensors.cameras.model import CameraModel, RenderPlan
 from roslan.sensors.cameras.shutter import shutter_plan
+from roslan.sensors.clock import Grid
 
 __all__ = ["CAMERA_INFO", "IMAGE", "RAW_ROWS_FACTOR", "CameraBase", "Eye", "Shot", "pose_matrices"]
 
@@ -142,10 +144,16 @@ class CameraBase:
                     raise SensorError(msg) from None
         return renderer
 
-    def _stamps(self, ctx: SimContext) -> NDArray[np.int64]:
+    def _grid(self, ctx: SimContext) -> Grid:
+        """The image stamps (:meth:`_stamps`) as the horizon reveals them: a frame is
+        rendered once its whole shutter window lies before the horizon."""
+        lead = max(0, int(self._window_offsets().max()))
+        return ctx.clock.grid(self._stamps, lead_ns=lead)
+
+    def _stamps(self, end: int) -> NDArray[np.int64]:
         """Image stamps every ``1 / rate`` from 0 whose every rendered instant (the
-        longest shutter window's) lies within the run (the ground truth covers them)."""
-        end = int(ctx.trajectory.duration_ns)
+        longest shutter window's) lies within a run ending at ``end`` (ns; the ground
+        truth covers them)."""
         stamps = sample_times_ns(self.config.rate, end)
         offs = self._window_offsets()
         if stamps.size == 0:
@@ -217,11 +225,13 @@ class CameraBase:
     def _frames(
         self,
         ctx: SimContext,
-        stamps: list[int],
+        grid: Grid,
         render: Callable[[bool, int, int], Any],
         post: Callable[[Turn, int, int, Any], list[Shot]],
     ) -> Iterator[Message]:
-        """The messages of the frames at ``stamps``: ``render(inline, i, t)`` on this
+        """The messages of the frames at the instants of ``grid`` (waiting for the horizon
+        where it must, every frame submitted so far published first):
+        ``render(inline, i, t)`` on this
         thread (every renderer call; ``inline``: ``post`` runs right after, on this
         thread, so work buffers of this thread may be handed over), then
         ``post(turn, i, t, job)`` on the sensor's pool (random draws inside ``turn``),
@@ -238,10 +248,18 @@ class CameraBase:
                 for s in shots:
                     if s.png:
                         self._listed(s.eye, i, t)
+                    ctx.clock.tap(self.config.name, t=t, image=s.data, eye=s.eye.suffix)
                     yield from self._messages(ctx, t, i, s.eye, s.data, s.encoding)
 
+        last = [-1]
         try:
-            for i, t in enumerate(stamps):
+            for item in paced(grid, 1, lambda: last[0] + 1):
+                if isinstance(item, Message):
+                    yield from emit(pool.finish())  # every frame rendered, then wait
+                    yield item
+                    continue
+                i, t = item[0], int(item[1][0])
+                last[0] = t
                 job = render(pool.inline, i, t)
                 yield from emit(pool.submit(task, i, t, job))
             yield from emit(pool.finish())

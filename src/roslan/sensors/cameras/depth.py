@@ -211,4 +211,4 @@ class DepthCamera(CameraBase):
                 self._png(ctx, e, i, np.nan_to_num(mm).astype(np.uint16))
             return [Shot(e, z.astype("<f4"), "32FC1", c.write_images)]
 
-        yield from self._frames(ctx, self._stamps(ctx).tolist(), render, post)
+        yield from self._frames(ctx, self._grid(ctx), render, post)

@@ -54,7 +54,8 @@ from roslan.sensors.base import (
     TopicSpec,
     sample_times_ns,
 )
-from roslan.sensors.cameras.event_chains import ChainFarm, brightness_instants
+from roslan.sensors.cameras.event_causal import ForcedInstants, causal_instants
+from roslan.sensors.cameras.event_chains import ChainFarm, Instant, brightness_instants
 from roslan.sensors.cameras.event_config import EventCameraConfig
 from roslan.sensors.cameras.event_stream import AfterRender
 from roslan.sensors.cameras.event_truth import DepthH5Writer, FlowPngWriter
@@ -251,30 +252,39 @@ class EventCamera:
     def _stream(self, ctx: SimContext) -> Iterator[Message]:
         c = self.config
         self.stats = {}
-        end = int(ctx.trajectory.duration_ns)
-        info_times = sample_times_ns(c.rate, end)
         gt_rate = c.ground_truth_rate or c.rate
-        gt_times = (
-            sample_times_ns(gt_rate, end) if (c.optic_flow or c.depthmap) else np.zeros(0, np.int64)
-        )
-        # the ends of the DSEC flow maps' intervals are rendered too (their depth)
-        flow_ends = (
-            flow_end_times(gt_times, c.flow_interval_ns, end)
-            if c.optic_flow
-            else np.zeros(0, np.int64)
-        )
-        truth_times = np.union1d(gt_times, flow_ends)
-        forced = np.union1d(info_times, truth_times)
-        sampler = AdaptiveSampler(
-            c.sampling, c.adaptive_lambda, c.min_rate, c.max_rate, end, forced
-        )
+        # closed loop: instants rendered as the horizon reaches them (event_causal.py)
+        causal = None if ctx.clock.lookahead else ForcedInstants(c, ctx.clock)
+        end: int | None = None
+        if causal is None:
+            end = int(ctx.trajectory.duration_ns)
+            info_times = sample_times_ns(c.rate, end)
+            gt_times = (
+                sample_times_ns(gt_rate, end)
+                if (c.optic_flow or c.depthmap)
+                else np.zeros(0, np.int64)
+            )
+            # the ends of the DSEC flow maps' intervals are rendered too (their depth)
+            flow_ends = (
+                flow_end_times(gt_times, c.flow_interval_ns, end)
+                if c.optic_flow
+                else np.zeros(0, np.int64)
+            )
+            truth_times = np.union1d(gt_times, flow_ends)
+            forced = np.union1d(info_times, truth_times)
+            sampler = AdaptiveSampler(
+                c.sampling, c.adaptive_lambda, c.min_rate, c.max_rate, end, forced
+            )
+        else:
+            sampler = causal.cover(0)
+            info_times, gt_times = causal.info, causal.gt
         self._open_files(ctx, end)
         # dataset files are written beside the rendering, in order (io/background.py)
         self._sink = BackgroundSink(f"{c.name}-files")
         # ESIM, packets, messages and file writes of an instant do not feed back into the
         # next render (but for brightness sampling, which reads ESIM's state): they run
         # on a helper thread, in order, beside the next render (docs/performance.md)
-        pipelined = self.pipelined and c.sampling != "brightness"
+        pipelined = self.pipelined and c.sampling != "brightness" and causal is None
         post = AfterRender(self, ctx, info_times, gt_times, gt_rate, pipelined=pipelined)
         stage = None
         if pipelined:
@@ -282,7 +292,12 @@ class EventCamera:
         n_frames = n_capped = 0
         t = 0
         farm: ChainFarm | None = None
-        if c.sampling == "brightness":  # the next instant reads ESIM's state
+        instants: Iterator[Instant | Message]
+        if causal is not None:
+            causal.listeners.append(post.follow)
+            post.follow(causal)
+            instants = causal_instants(self, ctx, causal, post.gen, post.floor)
+        elif c.sampling == "brightness":  # the next instant reads ESIM's state
             instants = brightness_instants(self, ctx, sampler, set(truth_times.tolist()), post.gen)
         else:  # independent chains, rendered here and by render helper processes
             helpers = ctx.render_helpers(c.name)
@@ -290,6 +305,10 @@ class EventCamera:
             self._farm = farm
             instants = farm.instants()
         for inst in instants:
+            if isinstance(inst, Message):
+                yield from post.take()
+                yield inst  # wait for the horizon
+                continue
             t = inst.t
             n_frames += 1
             n_capped += inst.capped
@@ -311,10 +330,10 @@ class EventCamera:
             events=post.n_events,
             dropped=post.gen.n_dropped,
             capped=n_capped + self.stats.get("capped", 0),
-            duration_s=end * 1e-9,
+            duration_s=(t if end is None else end) * 1e-9,
         )
 
-    def _open_files(self, ctx: SimContext, end_ns: int) -> None:
+    def _open_files(self, ctx: SimContext, end_ns: int | None) -> None:
         """Open the dataset files: events, APS listing, ground truth."""
         c, W, H = self.config, self.camera.width, self.camera.height
         prefix = self._folder = self._prefix(ctx)
@@ -337,7 +356,7 @@ class EventCamera:
             )
         self._truth_writers(ctx, prefix, end_ns)
 
-    def _truth_writers(self, ctx: SimContext, prefix: str, end_ns: int) -> None:
+    def _truth_writers(self, ctx: SimContext, prefix: str, end_ns: int | None) -> None:
         """Open the ground-truth file writers this camera's config asks for."""
         c, cam = self.config, self.camera
         self._flow_file = self._depth_file = None

@@ -75,10 +75,12 @@ __all__ = [
     "ChainSensor",
     "Instant",
     "brightness_instants",
+    "brightness_rate",
     "chain_starts",
     "helper_main",
     "prestart",
     "render_chain",
+    "sample_instant",
 ]
 
 IN_FLIGHT = 2
@@ -167,20 +169,37 @@ def render_chain(
 ) -> list[Instant]:
     """The instants from ``start`` until the sampler reaches ``stop`` (the next chain's
     start; None: the trajectory's end), rendered (optical-flow or fixed sampling)."""
-    c = sensor.config
-    flow_sampling = c.sampling == "optical_flow"
     out: list[Instant] = []
     t: int | None = start
     while t is not None and (stop is None or t < stop):
-        inst, depth, v, w = _render(sensor, ctx, t, t in gt_set, need_depth=flow_sampling)
-        speed = 0.0  # max |flow|, px/s
-        if inst.flow is not None:  # (the ground-truth flow is at hand)
-            speed = float(np.max(np.hypot(inst.flow[..., 0], inst.flow[..., 1])))
-        elif depth is not None and flow_sampling:
-            speed = sensor.camera.max_flow_speed(depth, v, w)
-        t, capped = _next(sampler, t, speed if flow_sampling else 0.0)
+        inst, speed = sample_instant(sensor, ctx, t, t in gt_set)
+        t, capped = _next(sampler, t, speed)
         out.append(inst._replace(capped=capped))
     return out
+
+
+def sample_instant(sensor: ChainSensor, ctx: SimContext, t: int, gt: bool) -> tuple[Instant, float]:
+    """Instant ``t`` rendered (``capped`` still False) and the rate of change the
+    sampler steps on after it: ``max |flow|`` (px/s) for optical-flow sampling, 0 for
+    fixed sampling (``gt``: ``t`` is a ground-truth instant)."""
+    flow_sampling = sensor.config.sampling == "optical_flow"
+    inst, depth, v, w = _render(sensor, ctx, t, gt, need_depth=flow_sampling)
+    speed = 0.0  # max |flow|, px/s
+    if inst.flow is not None:  # (the ground-truth flow is at hand)
+        speed = float(np.max(np.hypot(inst.flow[..., 0], inst.flow[..., 1])))
+    elif depth is not None and flow_sampling:
+        speed = sensor.camera.max_flow_speed(depth, v, w)
+    return inst, speed if flow_sampling else 0.0
+
+
+def brightness_rate(
+    L: NDArray[np.float64], prev_L: NDArray[np.float64] | None, t: int, t_prev: int
+) -> float:
+    """Brightness sampling's rate of change at ``t``: ``max |dL/dt|`` of ESIM's log
+    intensity between the last two instants (inf before there are two)."""
+    if prev_L is None:
+        return math.inf  # no estimate yet: smallest step
+    return float(np.max(np.abs(L - prev_L))) / ((t - t_prev) * 1e-9)
 
 
 def brightness_instants(
@@ -199,10 +218,7 @@ def brightness_instants(
         inst, _, _, _ = _render(sensor, ctx, t, t in gt_set, need_depth=False)
         yield inst  # the consumer runs ESIM on it before asking for the next
         L = gen.lp.copy()
-        if prev_L is None:
-            rate = math.inf  # no estimate yet: smallest step
-        else:
-            rate = float(np.max(np.abs(L - prev_L))) / ((t - t_prev) * 1e-9)
+        rate = brightness_rate(L, prev_L, t, t_prev)
         prev_L, t_prev = L, t
         t, capped = _next(sampler, t, rate)
         if capped:

@@ -145,6 +145,7 @@ class AfterRender:
             batch.t[:] *= self.tick
         if batch.size:
             self.n_events += batch.size
+            ctx.clock.tap(c.name, x=batch.x, y=batch.y, t=batch.t, p=batch.p)
             if s._writers:
                 sink.submit(s._write_events, batch)
             self.buf.append(batch)
@@ -170,6 +171,24 @@ class AfterRender:
         self._push(*ready, *out)
         horizon = t if not self.buf else min(t, int(self.buf[0].t[0]))
         self._release(horizon)
+
+    def follow(self, forced: Any) -> None:
+        """Take the forced instants known so far (closed loop: they grow with the horizon,
+        :class:`~roslan.sensors.cameras.event_causal.ForcedInstants`)."""
+        self.info_set, self.gt_set, self.gt_times = forced.info_set, forced.gt_set, forced.gt
+
+    def floor(self, t: int) -> int:
+        """The smallest stamp a message may still have after instant ``t`` (every message
+        released so far taken): a queued message's, a buffered event's, or an event
+        after ``t`` (floored to the timestamp tick)."""
+        f = t + 1
+        if self.tick > 1:
+            f = (f // self.tick) * self.tick
+        if self.pending:
+            f = min(f, self.pending[0][0])
+        if self.buf:
+            f = min(f, int(self.buf[0].t[0]))
+        return f
 
     def finish(self, t: int) -> None:
         """After the last instant ``t``: the last packet, then everything queued."""

@@ -216,7 +216,8 @@ class FlowTruth:
         model: the lens model; rays: its output pixels' rays (:func:`displacement_flow`).
         pose: ``t_ns -> T_world_cam`` (4, 4) of the optical frame.
         writer: the PNG / timestamps writer.
-        interval_ns: ``flow_interval``; end_ns: the run's last instant.
+        interval_ns: ``flow_interval``; end_ns: the run's last instant (None: not known
+            yet, closed loop: every map starts, and those the run ends before are dropped).
         sky_valid: ``flow_sky: valid``.
     """
 
@@ -227,7 +228,7 @@ class FlowTruth:
         pose: Callable[[int], F64],
         writer: FlowPngWriter,
         interval_ns: int,
-        end_ns: int,
+        end_ns: int | None,
         *,
         sky_valid: bool,
     ) -> None:
@@ -236,7 +237,7 @@ class FlowTruth:
         self.pose = pose
         self.writer = writer
         self.interval_ns = int(interval_ns)
-        self.end_ns = int(end_ns)
+        self.end_ns = end_ns
         self.sky_valid = sky_valid
         self.open: deque[_Open] = deque()
 
@@ -263,7 +264,7 @@ class FlowTruth:
             if T_w_c is None:
                 T_w_c = self.pose(t)
             submit(self._write, m, np.array(depth, np.float32, copy=True), T_w_c)
-        if start and t + self.interval_ns <= self.end_ns:
+        if start and (self.end_ns is None or t + self.interval_ns <= self.end_ns):
             T0 = self.pose(t) if T_w_c is None else T_w_c
             d0 = np.array(depth, np.float32, copy=True)
             self.open.append(_Open(t, t + self.interval_ns, d0, T0))

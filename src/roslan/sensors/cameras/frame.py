@@ -53,6 +53,7 @@ from roslan.sensors.cameras.encoding import encode_image, srgb_lut
 from roslan.sensors.cameras.model import T_LINK_OPTICAL, CameraModel
 from roslan.sensors.cameras.shutter import (
     AutoExposure,
+    AutoExposureLoop,
     RollingShutterKeys,
     ShutterPlan,
     auto_exposure_sequence,
@@ -375,6 +376,36 @@ class _ImagingCamera(CameraBase):
 
         return auto_exposure_sequence(meter, int(stamps.size), c.exposure_time, ae, c.rate)
 
+    def _exposure_source(self, ctx: SimContext) -> Callable[[int, int], float]:
+        """``exposure(i, t)`` of frame ``i`` stamped ``t``, asked in frame order: the
+        metering pass over every stamp up front when the whole trajectory is known
+        (:meth:`exposures`), else the same loop frame by frame, each frame metered at its
+        own stamp (causal)."""
+        c, clock = self.config, ctx.clock
+        ae = c.auto_exposure
+        if ae is None:
+            return lambda i, t: float(c.exposure_time)
+        if clock.lookahead and clock.end_ns is not None:
+            table = self.exposures(ctx, self._stamps(clock.end_ns))
+            return lambda i, t: float(table[i])
+        renderer = ctx.renderer()
+        e = self._eyes[0]
+        K, w, h = meter_view(e.model.K, e.model.width, e.model.height)
+        scale = c.gain / c.exposure_time
+        loop = AutoExposureLoop(c.exposure_time, ae, c.rate)
+
+        def exposure(i: int, t: int) -> float:
+            now = loop.exposure
+            T_opt = pose_matrices(ctx, np.array([t])) @ self._T_body_sensor @ e.T_sensor_optical
+            res = renderer.render(
+                T_opt[0], K, w, h, color=False, depth=False, luminance=True, near=c.near_clip
+            )
+            assert res.luminance is not None
+            loop.update(meter_level(res.luminance, scale * now))
+            return now
+
+        return exposure
+
     def eye_poses(
         self, ctx: SimContext, e: Eye, t_ns: int, exposure: float
     ) -> tuple[ShutterPlan, F64]:
@@ -390,14 +421,14 @@ class _ImagingCamera(CameraBase):
         c = self.config
         rng = ctx.rng(f"{c.type}/{c.name}")
         renderer = self._plans(ctx)
-        stamps = self._stamps(ctx)
-        exposures = self.exposures(ctx, stamps)
+        grid = self._grid(ctx)
+        exposure_of = self._exposure_source(ctx)
         if c.write_images:
             for e in self._eyes:
                 self._open_index(ctx, e, "image")
 
         def render(inline: bool, i: int, t: int) -> tuple[float, list[Callable[[], F32]]]:
-            exposure = float(exposures[i])
+            exposure = exposure_of(i, t)
             for e in self._eyes:
                 if e.exposure_fh is not None:
                     e.exposure_fh.write(f"{format_seconds(np.array([t]))[0]} {exposure:.9f}\n")
@@ -425,7 +456,7 @@ class _ImagingCamera(CameraBase):
                 shots.append(Shot(e, img, c.encoding, c.write_images))
             return shots
 
-        yield from self._frames(ctx, stamps.tolist(), render, post)
+        yield from self._frames(ctx, grid, render, post)
 
 
 class Camera(_ImagingCamera):

@@ -46,6 +46,7 @@ __all__ = [
     "METER_DOWNSCALE",
     "METER_FIELD",
     "AutoExposure",
+    "AutoExposureLoop",
     "Band",
     "RollingShutterKeys",
     "ShutterPlan",
@@ -147,16 +148,29 @@ def auto_exposure_sequence(
     """Exposures (s) of ``n`` frames: frame 0 at ``initial`` (clipped to the bounds),
     frame ``k + 1`` from frame ``k``'s level ``meter(k, E_k)`` (see :class:`AutoExposure`).
     A black frame (level 0) opens to ``max_exposure``."""
-    a = ae.rate_per_frame(rate)
-    lo, hi = ae.min_exposure, ae.max_exposure
+    loop = AutoExposureLoop(initial, ae, rate)
     out = np.empty(n, dtype=np.float64)
-    e = min(max(float(initial), lo), hi)
     for k in range(n):  # one scalar per frame: the frames' metering is vectorized
-        out[k] = e
-        level = meter(k, e)
-        e = hi if level <= 0.0 else e * (ae.target / level) ** a
-        e = min(max(e, lo), hi)
+        out[k] = loop.exposure
+        loop.update(meter(k, loop.exposure))
     return out
+
+
+class AutoExposureLoop:
+    """The auto-exposure control loop one frame at a time (causal: frame ``k + 1``'s
+    exposure from frame ``k``'s metered level), :func:`auto_exposure_sequence`'s steps."""
+
+    def __init__(self, initial: float, ae: AutoExposure, rate: float) -> None:
+        self.a = ae.rate_per_frame(rate)
+        self.ae = ae
+        self.exposure = min(max(float(initial), ae.min_exposure), ae.max_exposure)
+        """The next frame's exposure (s)."""
+
+    def update(self, level: float) -> None:
+        """The exposure after a frame metered at ``level`` (its exposure's)."""
+        ae, e = self.ae, self.exposure
+        e = ae.max_exposure if level <= 0.0 else e * (ae.target / level) ** self.a
+        self.exposure = min(max(e, ae.min_exposure), ae.max_exposure)
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,346 @@
+"""Closed-loop results and cost: landings per policy, and one episode's CPU against simulate.
+
+Run by hand::
+
+    .venv/bin/python benchmarks/bench_closed_loop.py landings --seeds 20
+    .venv/bin/python benchmarks/bench_closed_loop.py speed
+
+``landings``: every policy (``--policies``, default all packaged ones) flies ``--seeds``
+episodes (seeds 0..N-1) of ``--config`` (default: ``roslan/Landing-v0``'s landing: the
+realistic event-noise preset, flapping on). It writes the per-episode rows to
+``--json``, the results table between the ``<!-- bench:closed-loop -->`` markers of
+docs/guide/closed-loop.md, and ``docs/img/closed_loop.png``: the height gap's time to
+contact estimated by each policy that reports one (``policy.estimate``) against the true
+one over time, and the touchdown vertical speeds per policy.
+
+``speed``: the CPU (user + system, this process and its children) of ``roslan fly`` with
+``tau-state`` against ``roslan simulate`` on the same config (same sensors, the
+closed-form landing), each writing its OUTDIR.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import platform
+import re
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parent.parent
+GUIDE = ROOT / "docs" / "guide" / "closed-loop.md"
+FIGURE = ROOT / "docs" / "img" / "closed_loop.png"
+MARK = ("<!-- bench:closed-loop -->", "<!-- /bench:closed-loop -->")
+
+
+def _estimate_ttc(policy: Any) -> float | None:
+    """The policy's current estimate of the height gap's time to contact (s), if any."""
+    est = getattr(policy, "estimate", None)
+    if est is None:
+        return None
+    tau = getattr(est, "tau", est)
+    try:
+        value = abs(float(tau))
+    except (TypeError, ValueError):
+        return None
+    return value if math.isfinite(value) else None
+
+
+def fly_one(config: Any, name: str, seed: int) -> dict[str, Any]:
+    """One episode: episode.json's content plus the time series (t, true and estimated
+    time to contact of the height gap)."""
+    from roslan.env import LandingEnv, PolicyContext, make_policy
+
+    policy = make_policy(name)
+    env = LandingEnv(config, policy_name=name)
+    series: list[tuple[float, float, float]] = []
+    try:
+        obs, info = env.reset(seed=seed)
+        assert env._traj is not None
+        dyn = env.closed_loop.dynamics
+        policy.reset(
+            PolicyContext(
+                env.config, env.dt, env._traj.R_world_goal, dyn.max_acceleration, dyn.max_body_rate
+            )
+        )
+        while True:
+            action = policy.act(obs, info)
+            st = info["state"]
+            z, vz = float(st["gaps"][2]), float(st["rates"][2])
+            true_ttc = -z / vz if vz < 0 else math.nan
+            est = _estimate_ttc(policy)
+            series.append((float(info["t"]), true_ttc, math.nan if est is None else est))
+            obs, _, term, trunc, info = env.step(action)
+            if term or trunc:
+                ep = dict(info["episode"])
+                break
+    finally:
+        env.close()
+    ep["series"] = series
+    return ep
+
+
+def _landed(ep: dict[str, Any]) -> bool:
+    """The issue's criterion: touchdown vertical speed <= 0.5 m/s and no collision."""
+    v = ep.get("touchdown_vertical_speed")
+    return ep["reason"] == "touchdown" and v is not None and v <= 0.5
+
+
+def _tau_error(ep: dict[str, Any]) -> float | None:
+    """Median |estimate - true| / true over the last 70 % of the descent (None: no
+    estimate)."""
+    s = np.asarray(ep["series"], dtype=np.float64)
+    if s.size == 0 or np.all(np.isnan(s[:, 2])):
+        return None
+    td = ep.get("touchdown_time") or s[-1, 0]
+    keep = (s[:, 0] >= 0.3 * td) & np.isfinite(s[:, 1]) & (s[:, 1] > 0)
+    rel = np.abs(s[keep, 2] - s[keep, 1]) / s[keep, 1]
+    rel = rel[np.isfinite(rel)]
+    return float(np.median(rel)) if rel.size else None
+
+
+def _stats(values: list[float]) -> str:
+    if not values:
+        return "-"
+    a = np.asarray(values)
+    return f"{np.median(a):.3f} [{a.min():.3f}, {a.max():.3f}]"
+
+
+def table(results: dict[str, list[dict[str, Any]]]) -> str:
+    """The markdown results table."""
+    rows = [
+        "| policy | landed (v_z <= 0.5 m/s, no collision) | success | touchdown v_z m/s "
+        "median [min, max] | position error m | median tau error, last 70 % |",
+        "|---|---|---|---|---|---|",
+    ]
+    for name, eps in results.items():
+        n = len(eps)
+        landed = sum(_landed(e) for e in eps)
+        ok = sum(bool(e["success"]) for e in eps)
+        vz = [
+            e["touchdown_vertical_speed"] for e in eps if e["touchdown_vertical_speed"] is not None
+        ]
+        pos = [e["position_error"] for e in eps if e["position_error"] is not None]
+        errs = [x for x in (_tau_error(e) for e in eps) if x is not None]
+        err = f"{100 * np.median(errs):.1f} %" if errs else "-"
+        rows.append(
+            f"| `{name}` | {landed}/{n} | {ok}/{n} | {_stats(vz)} | {_stats(pos)} | {err} |"
+        )
+    return "\n".join(rows)
+
+
+def figure(results: dict[str, list[dict[str, Any]]], path: Path) -> None:
+    """Estimated vs true time to contact over time; touchdown speeds per policy."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(11, 4.2), width_ratios=(1.6, 1))
+    drew = False
+    for j, (name, eps) in enumerate(results.items()):
+        for i, ep in enumerate(eps[:5]):
+            s = np.asarray(ep["series"], dtype=np.float64)
+            if s.size == 0 or np.all(np.isnan(s[:, 2])):
+                continue
+            label = f"{name} estimate (seeds 0-4)" if i == 0 else None
+            ax1.plot(s[:, 0], s[:, 2], color=f"C{j}", lw=0.9, alpha=0.8, label=label)
+            ax1.plot(s[:, 0], s[:, 1], "k--", lw=0.8, label="true" if not drew else None)
+            drew = True
+    if not drew:
+        for name, eps in results.items():
+            s = np.asarray(eps[0]["series"], dtype=np.float64)
+            ax1.plot(s[:, 0], s[:, 1], lw=1.0, label=f"true ({name})")
+    ax1.set_xlabel("time, s")
+    ax1.set_ylabel("time to contact of the height gap, s")
+    ax1.set_ylim(bottom=0)
+    ax1.set_title("time to contact: estimated (first 5 seeds) vs true")
+    ax1.legend(fontsize=8)
+    names = list(results)
+    data = [
+        [
+            e["touchdown_vertical_speed"]
+            for e in results[n]
+            if e["touchdown_vertical_speed"] is not None
+        ]
+        for n in names
+    ]
+    for i, d in enumerate(data):
+        x = np.full(len(d), i) + np.random.default_rng(i).uniform(-0.12, 0.12, len(d))
+        ax2.scatter(x, d, s=14, alpha=0.8, color=f"C{i}")
+    ax2.axhline(0.5, color="r", lw=0.8, ls=":", label="0.5 m/s")
+    ax2.set_xticks(range(len(names)), names, rotation=15)
+    ax2.set_ylabel("touchdown vertical speed, m/s")
+    ax2.set_title(f"touchdown speeds ({len(next(iter(results.values())))} seeds each)")
+    ax2.legend(fontsize=8)
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def write_table(text: str, header: str) -> None:
+    doc = GUIDE.read_text()
+    block = f"{MARK[0]}\n{header}\n\n{text}\n{MARK[1]}"
+    pattern = re.compile(re.escape(MARK[0]) + ".*?" + re.escape(MARK[1]), re.S)
+    if not pattern.search(doc):
+        msg = f"{GUIDE}: the markers {MARK} are missing"
+        raise SystemExit(msg)
+    GUIDE.write_text(pattern.sub(lambda _: block, doc))
+
+
+def _machine() -> str:
+    cpu = platform.processor() or platform.machine()
+    return f"{cpu}, {os.cpu_count()} CPUs (shared), {time.strftime('%Y-%m-%d')}"
+
+
+BENCH_LANDING: dict[str, Any] = {
+    # the warehouse marker approached from 2.3 m up and 3 m away (touchdown at 2.3 s),
+    # flapping on; a 1 kHz IMU and a 128x96 downward event camera, realistic pixel preset
+    "trajectory": {
+        "k": 0.5,
+        "initial": {"position": [-2.6, 1.2, 2.3], "rpy": [0.05, 0.1, 0.3], "descent_rate": 2.0},
+        "hold": 0.1,
+        "flapping": {"frequency": 4.5, "heave": 0.008, "pitch": 0.035},
+        "goal": {"position": [2.0, -1.0, 0.01], "rpy": [0.0, 0.0, 0.3]},
+    },
+    "scene": "warehouse",
+    "sensors": [
+        {"type": "imu", "name": "imu", "rate": 1000.0},
+        {
+            "type": "event_camera",
+            "name": "dvs",
+            "rate": 10.0,
+            "resolution": [128, 96],
+            "preset": "realistic",
+            "max_rate": 300.0,
+            "pose": {"position": [0.0, 0.0, -0.045], "rpy": [0.0, 1.5707963267948966, 0.0]},
+        },
+    ],
+    "output": {"ground_truth_rate": 50.0},
+}
+"""The landing of ``landings`` unless ``--config`` is given."""
+
+
+def landings(args: argparse.Namespace) -> None:
+    from roslan.env import POLICIES
+
+    if args.combine:
+        results = {}
+        for part in args.combine.split(","):
+            results.update(json.loads(Path(part).read_text()))
+        _report(args, results)
+        return
+    names = args.policies.split(",") if args.policies else list(POLICIES)
+    config = args.config or BENCH_LANDING
+    results = {}
+    for name in names:
+        results[name] = []
+        for seed in range(args.seeds):
+            t0 = time.perf_counter()
+            ep = fly_one(config, name, seed)
+            results[name].append(ep)
+            print(
+                f"{name} seed {seed}: {ep['reason']} v_z={ep['touchdown_vertical_speed']} "
+                f"success={ep['success']} ({time.perf_counter() - t0:.1f} s)",
+                flush=True,
+            )
+    Path(args.json).write_text(json.dumps(results))
+    _report(args, results)
+
+
+def _report(args: argparse.Namespace, results: dict[str, list[dict[str, Any]]]) -> None:
+    text = table(results)
+    print(text)
+    cfg = args.config or (
+        "the benchmark landing (BENCH_LANDING: the warehouse marker from 2.3 m up and 2.9 m "
+        "away, closed-form touchdown at 2.3 s, flapping on; 1 kHz IMU and a 128x96 "
+        "downward event camera, realistic pixel preset)"
+    )
+    n = len(next(iter(results.values())))
+    header = f"{n} seeds per policy, {cfg}; {_machine()}."
+    if not args.no_docs:
+        write_table(text, header)
+        figure(results, FIGURE)
+        print(f"wrote {GUIDE} and {FIGURE}")
+
+
+def _cpu_of(cmd: list[str]) -> float:
+    before = os.times()
+    subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL)
+    after = os.times()
+    return (after.children_user - before.children_user) + (
+        after.children_system - before.children_system
+    )
+
+
+def speed(args: argparse.Namespace) -> None:
+    from roslan.env.landing import DEFAULT_CONFIG
+
+    config = str(args.config or DEFAULT_CONFIG)
+    py = sys.executable
+    with tempfile.TemporaryDirectory() as tmp:
+        sim = _cpu_of(
+            [
+                py,
+                "-m",
+                "roslan",
+                "simulate",
+                config,
+                "-o",
+                f"{tmp}/sim",
+                "--quiet",
+                "--workers",
+                "0",
+            ]
+        )
+        fly = _cpu_of(
+            [
+                py,
+                "-m",
+                "roslan",
+                "fly",
+                config,
+                "--policy",
+                "tau-state",
+                "-o",
+                f"{tmp}/fly",
+                "--quiet",
+            ]
+        )
+    print(
+        f"simulate CPU {sim:.1f} s, fly (tau-state, 50 Hz) CPU {fly:.1f} s: ratio {fly / sim:.2f}"
+    )
+    print(_machine())
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    sub = p.add_subparsers(dest="what", required=True)
+    a = sub.add_parser("landings")
+    a.add_argument("--seeds", type=int, default=20)
+    a.add_argument("--policies", default=None, help="comma-separated (default: all)")
+    a.add_argument("--config", default=None, help="YAML (default: roslan/Landing-v0's)")
+    a.add_argument("--json", default=str(Path(tempfile.gettempdir()) / "closed_loop.json"))
+    a.add_argument("--no-docs", action="store_true", help="print only")
+    a.add_argument("--combine", default=None, help="comma-separated --json files: report only")
+    a.set_defaults(func=landings)
+    b = sub.add_parser("speed")
+    b.add_argument("--config", default=None)
+    b.set_defaults(func=speed)
+    args = p.parse_args()
+    args.func(args)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,54 @@
+"""Closed loop: a Gymnasium landing environment where perception flies the ornithopter.
+
+``import roslan.env`` registers ``roslan/Landing-v0`` (the default landing in the
+warehouse, :data:`~roslan.env.landing.DEFAULT_CONFIG`) and ``roslan/Perching-v0`` (the
+refinery's perching pipe). docs/guide/closed-loop.md is the user guide.
+"""
+
+from __future__ import annotations
+
+import gymnasium
+
+from roslan.env.dynamics import DynamicsTrajectory, MeanState
+from roslan.env.landing import DEFAULT_CONFIG, PERCHING_CONFIG, LandingEnv, load_env_config
+from roslan.env.policies import (
+    POLICIES,
+    ConstantDescentPolicy,
+    Policy,
+    PolicyContext,
+    TauStatePolicy,
+    make_policy,
+)
+
+__all__ = [
+    "DEFAULT_CONFIG",
+    "PERCHING_CONFIG",
+    "POLICIES",
+    "ConstantDescentPolicy",
+    "DynamicsTrajectory",
+    "LandingEnv",
+    "MeanState",
+    "Policy",
+    "PolicyContext",
+    "TauStatePolicy",
+    "load_env_config",
+    "make_policy",
+]
+
+
+def _register() -> None:
+    for env_id, path in (
+        ("roslan/Landing-v0", DEFAULT_CONFIG),
+        ("roslan/Perching-v0", PERCHING_CONFIG),
+    ):
+        if env_id not in gymnasium.registry:
+            gymnasium.register(
+                id=env_id,
+                entry_point="roslan.env.landing:LandingEnv",
+                # GL never crosses a fork: async vector workers are spawned
+                kwargs={"config": str(path), "vector_kwargs": {"context": "spawn"}},
+                disable_env_checker=False,
+            )
+
+
+_register()

@@ -1,0 +1,342 @@
+"""``roslan.env.LandingEnv``: a Gymnasium environment where perception flies the ornithopter.
+
+Built from the same YAML as ``roslan simulate`` (scene, vehicle, sensors, the
+``trajectory:`` block's start state and goal) plus an optional ``closed_loop:`` block
+(:mod:`roslan.config.closed_loop`). Each :meth:`LandingEnv.step` holds one action for one
+control period (default 50 Hz) on the vehicle model of :mod:`roslan.env.dynamics`, runs
+every sensor causally up to the step's end and returns their data
+(:mod:`roslan.env.observe`). docs/guide/closed-loop.md documents the spaces, the reward
+and the episode's end.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+from numpy.typing import NDArray
+
+from roslan.config.closed_loop import ClosedLoopConfig
+from roslan.config.sim import SimConfig
+from roslan.env.contact import ContactModel, Outcome, StepEvent, is_success, reward_terms
+from roslan.env.dynamics import MAX_PITCH, DynamicsTrajectory
+from roslan.env.observe import EventPacket, ObservationBuilder
+from roslan.errors import ActionError, ConfigError
+
+__all__ = ["DEFAULT_CONFIG", "PERCHING_CONFIG", "LandingEnv", "load_env_config"]
+
+DEFAULT_CONFIG = Path(__file__).resolve().parent.parent / "data" / "landing.yaml"
+"""The configuration of ``roslan/Landing-v0`` and of ``roslan fly`` without CONFIG."""
+PERCHING_CONFIG = Path(__file__).resolve().parent.parent / "data" / "perching.yaml"
+"""The configuration of ``roslan/Perching-v0`` (the refinery's perching pipe)."""
+
+F32 = NDArray[np.float32]
+
+
+def load_env_config(
+    config: str | Path | Mapping[str, Any] | SimConfig | None,
+) -> tuple[SimConfig, Path | None]:
+    """The validated config and the file it came from (None: the default file's folder
+    is not used for a dict). Raises :class:`~roslan.errors.ConfigError` naming the key."""
+    from roslan.config.base import load_yaml_model, validate_model
+
+    if config is None:
+        config = DEFAULT_CONFIG
+    if isinstance(config, SimConfig):
+        return config, None
+    if isinstance(config, Mapping):
+        return validate_model(SimConfig, dict(config), "<config dict>"), None
+    path = Path(config)
+    return load_yaml_model(SimConfig, path), path
+
+
+class LandingEnv(gym.Env[dict[str, NDArray[Any]], F32]):
+    """A closed-loop landing (module docstring).
+
+    Args:
+        config: a YAML path, a dict of the same keys, a :class:`SimConfig`, or None for
+            :data:`DEFAULT_CONFIG`.
+        record: OUTDIR: the episode is written there as ``simulate`` writes a run, plus
+            ``episode.json`` (the folder appears complete at the episode's end; a reset
+            or ``close()`` before that leaves nothing). An existing OUTDIR is an
+            OutputError at ``reset`` unless ``overwrite``.
+        overwrite: let ``record`` replace an existing roslan OUTDIR (each episode then
+            replaces the previous one).
+        render_mode: ``"rgb_array"`` (or None).
+        policy_name: recorded in episode.json (``roslan fly`` sets it).
+        vector_kwargs: ignored here: the registered ids carry ``{"context": "spawn"}`` for
+            ``gymnasium.make_vec(..., vectorization_mode="async")``, whose workers must not
+            inherit an OpenGL context through fork.
+
+    Action: ``Box(6,)`` float32 ``[ax, ay, az, p, q, r]``: the commanded acceleration of
+    base_link in the world frame (m/s^2, each within +-``closed_loop.dynamics.
+    max_acceleration``; gravity is the wings' job, so 0 holds the velocity) and the
+    commanded body rates (rad/s, each within +-``max_body_rate``). Values out of range
+    are clipped (``info["clipped"]``); NaN, inf or a wrong shape raise
+    :class:`~roslan.errors.ActionError`.
+    """
+
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 50}  # noqa: RUF012 (gym's name)
+
+    def __init__(
+        self,
+        config: str | Path | Mapping[str, Any] | SimConfig | None = None,
+        *,
+        record: str | Path | None = None,
+        overwrite: bool = False,
+        render_mode: str | None = None,
+        policy_name: str | None = None,
+        vector_kwargs: Mapping[str, Any] | None = None,
+    ) -> None:
+        del vector_kwargs  # gymnasium.make_vec's (the registration's spawn default)
+        cfg, path = load_env_config(config)
+        self.base_config = cfg
+        self.config_path = path
+        self.closed_loop: ClosedLoopConfig = cfg.closed_loop or ClosedLoopConfig()
+        if cfg.trajectory.file is not None:
+            msg = (
+                "trajectory.file: a closed-loop episode starts from the tau block's initial "
+                "state; remove 'file' (the vehicle's path is flown, not read)"
+            )
+            raise ConfigError(msg)
+        if render_mode not in (None, "rgb_array"):
+            msg = f"render_mode = {render_mode!r}: allowed: 'rgb_array' or None"
+            raise ConfigError(msg)
+        self.render_mode = render_mode
+        self.record = None if record is None else Path(record).absolute()
+        self.overwrite = overwrite
+        self.policy_name = policy_name
+        self.step_ns = round(1e9 / self.closed_loop.control_rate)
+        self.dt = self.step_ns * 1e-9
+        self.metadata = {**self.metadata, "render_fps": self.closed_loop.control_rate}
+        dyn = self.closed_loop.dynamics
+        hi = np.array([dyn.max_acceleration] * 3 + [dyn.max_body_rate] * 3, dtype=np.float32)
+        self._box = spaces.Box(-hi, hi, dtype=np.float32)
+        self.action_space = self._box
+        self._obs = ObservationBuilder(cfg.sensors, self.closed_loop)
+        self.observation_space = self._obs.space  # type: ignore[assignment]
+        self._scenes: dict[int, Any] = {}
+        self._session: Any = None
+        self._traj: DynamicsTrajectory | None = None
+        self._contact: ContactModel | None = None
+        self._done = True
+        self._episode: dict[str, Any] = {}
+        self._last_events = EventPacket.empty()
+        self._return = 0.0
+
+    # ------------------------------------------------------------------ episode
+    def _scene(self, seed: int) -> Any:
+        if self.base_config.scene is None:
+            return None
+        if seed not in self._scenes:
+            import roslan.scene as scene_mod
+
+            base = self.config_path.parent if self.config_path is not None else None
+            # one scene kept: a new seed replaces it
+            self._scenes = {
+                seed: scene_mod.load_scene(self.base_config.scene, base_dir=base, seed=seed)
+            }
+        return self._scenes[seed]
+
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[dict[str, NDArray[Any]], dict[str, Any]]:
+        """Start an episode at the config's initial state. ``seed`` (default: drawn from
+        the environment's generator) is the episode's ``seed``: sensor noise and scene."""
+        super().reset(seed=seed)
+        del options
+        self._close_session()
+        ep_seed = int(seed) if seed is not None else int(self.np_random.integers(0, 2**31 - 1))
+        cfg = self.base_config.model_copy(update={"seed": ep_seed})
+        from roslan.vehicle import base_link_trajectory
+
+        scene = self._scene(ep_seed)  # as `simulate` loads it with the run's seed
+        traj_cfg = base_link_trajectory(cfg.trajectory, cfg.vehicle, scene)
+        self._traj = traj = DynamicsTrajectory(traj_cfg, self.closed_loop.dynamics, self.step_ns)
+        self._contact = ContactModel(cfg, scene, traj)
+        limit = self.closed_loop.time_limit
+        self.time_limit_ns = round(
+            1e9 * (limit if limit is not None else 4.0 * traj.reference_T + 1.0)
+        )
+        self.config = cfg
+        from roslan.env.session import SensorSession
+
+        self._session = SensorSession(
+            cfg,
+            traj,
+            scene,
+            record=self.record,
+            overwrite=self.overwrite,
+            config_path=self.config_path,
+        )
+        self._obs.reset()
+        self._done = False
+        self._return = 0.0
+        self._episode = {
+            "policy": self.policy_name,
+            "seed": ep_seed,
+            "success": False,
+            "reason": None,
+            **Outcome().as_dict(),
+        }
+        out = self._session.advance(0)
+        obs = self._obs.build(out.taps, (0, 0))
+        self._last_events = self._obs.raw_events(out.taps)
+        return obs, self._info(out, clipped=False)
+
+    def _info(self, out: Any, *, clipped: bool) -> dict[str, Any]:
+        assert self._traj is not None
+        ms = self._traj.mean_state()
+        return {
+            "t": ms.t,
+            "state": {"gaps": ms.gaps, "rates": ms.rates, "accels": ms.accels},
+            "R_world_goal": self._traj.R_world_goal.copy(),
+            "events": self._last_events,
+            "taps": out.taps,
+            "clipped": clipped,
+            "reason": self._episode.get("reason"),
+            "success": self._episode.get("success", False),
+        }
+
+    def check_action(self, action: Any) -> tuple[NDArray[np.float64], bool]:
+        """The action as (6,) float64 within bounds and whether it was clipped.
+
+        Raises:
+            ActionError: wrong shape, NaN or infinite value (named by index and meaning).
+        """
+        a = np.asarray(action, dtype=np.float64)
+        if a.shape != (6,):
+            msg = (
+                f"action: shape {a.shape}; expected (6,): [ax, ay, az] m/s^2 (world) and "
+                "[p, q, r] rad/s (body rates)"
+            )
+            raise ActionError(msg)
+        bad = np.flatnonzero(~np.isfinite(a))
+        if bad.size:
+            i = int(bad[0])
+            what = ("ax", "ay", "az", "p", "q", "r")[i]
+            msg = (
+                f"action[{i}] ({what}) = {a[i]}: every action value must be finite "
+                f"(bounds: +-{self._box.high[i]:g} "
+                f"{'m/s^2' if i < 3 else 'rad/s'})"
+            )
+            raise ActionError(msg)
+        hi = self._box.high.astype(np.float64)
+        clipped = np.clip(a, -hi, hi)
+        return clipped, bool(np.any(clipped != a))
+
+    def step(
+        self, action: Any
+    ) -> tuple[dict[str, NDArray[Any]], float, bool, bool, dict[str, Any]]:
+        """Hold ``action`` for one control period (class docstring)."""
+        if self._done or self._traj is None or self._contact is None:
+            msg = "step() after the episode ended: call reset() first"
+            raise ActionError(msg)
+        a, clipped = self.check_action(action)
+        traj = self._traj
+        t0 = traj.horizon_ns
+        try:
+            traj.step(a[:3], a[3:])
+            t1 = traj.horizon_ns
+            event = self._contact.check_step(t0, t1)
+            terminated, truncated = event is not None, False
+            if event is None and abs(traj.mean_state().gaps[4]) > MAX_PITCH:
+                event = StepEvent("collision", t1, f"pitch beyond +-{MAX_PITCH} rad")
+                terminated = True
+            if event is None and t1 >= self.time_limit_ns:
+                truncated = True
+            if terminated or truncated:
+                out, reward = self._end(event, t1)
+            else:
+                out = self._session.advance(t1)
+                reward = reward_terms(self.closed_loop, self.dt, None, False, False)
+        except BaseException:
+            self._close_session()
+            raise
+        span = (t0, out.horizon_ns)
+        obs = self._obs.build(out.taps, span)
+        self._last_events = self._obs.raw_events(out.taps)
+        self._return += reward
+        info = self._info(out, clipped=clipped)
+        if terminated or truncated:
+            info["episode"] = dict(self._episode)
+        return obs, float(reward), terminated, truncated, info
+
+    def _end(self, event: StepEvent | None, t1: int) -> tuple[Any, float]:
+        """Finish the run at the touchdown, collision or time limit; the final reward."""
+        assert self._traj is not None
+        assert self._contact is not None
+        end = t1 if event is None else event.t_ns
+        dt = (end - (t1 - self.step_ns)) * 1e-9
+        outcome = Outcome()
+        success = collided = False
+        if event is None:
+            reason = "time_limit"
+        elif event.kind == "touchdown":
+            outcome = self._contact.outcome(end)
+            success = is_success(self.closed_loop, outcome)
+            reason = "touchdown"
+        else:
+            reason, collided = "collision", True
+        self._traj.finish(end)
+        reward = reward_terms(self.closed_loop, dt, outcome, success, collided)
+        self._episode.update(
+            success=success,
+            reason=reason,
+            detail=None if event is None else event.what,
+            steps=self._traj.steps,
+            control_rate=self.closed_loop.control_rate,
+            **outcome.as_dict(),
+        )
+        self._episode["return"] = self._return + reward
+        self._done = True
+        extra = {"episode.json": (json.dumps(self._episode, indent=2) + "\n").encode()}
+        out = self._session.finish(self._traj.duration_ns, extra)
+        self._session = None
+        return out, reward
+
+    @property
+    def episode(self) -> dict[str, Any]:
+        """The episode's summary so far (episode.json's content once it ended)."""
+        return dict(self._episode)
+
+    # ------------------------------------------------------------------ render
+    def render(self) -> NDArray[np.uint8] | None:
+        """An RGB frame (H, W, 3) uint8 of the last step's events (ON blue, OFF red, on
+        white) at the event camera's resolution; without an event camera, the last frame
+        of the first frame camera, else a 48x64 grey frame."""
+        if self.render_mode is None:
+            return None
+        ev = self._last_events
+        h, w = self._obs.ev_shape
+        if h and w:
+            img = np.full((h, w, 3), 255, dtype=np.uint8)
+            if len(ev):
+                on = ev["p"] > 0
+                img[ev["y"][on], ev["x"][on]] = (40, 80, 255)
+                img[ev["y"][~on], ev["x"][~on]] = (255, 60, 40)
+            return img
+        for name, (shape, _) in self._obs.frames.items():
+            if len(shape) >= 2:
+                frame = np.asarray(self._obs._last[name])
+                if frame.dtype != np.uint8:
+                    continue
+                return np.repeat(frame[..., None], 3, axis=2) if frame.ndim == 2 else frame
+        return np.full((48, 64, 3), 128, dtype=np.uint8)
+
+    # ------------------------------------------------------------------ close
+    def _close_session(self) -> None:
+        if self._session is not None:
+            self._session.abort()
+            self._session = None
+        self._done = True
+
+    def close(self) -> None:
+        """Stop a running episode (a recorded one that did not end leaves no OUTDIR)."""
+        self._close_session()
+        super().close()

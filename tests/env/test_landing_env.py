@@ -1,0 +1,228 @@
+"""roslan.env.LandingEnv: Gymnasium conformance, determinism, async vectorization, actions,
+bad configs, and recorded episodes read by the same readers as simulate's runs."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import gymnasium
+import numpy as np
+import pytest
+import yaml
+
+from env_helpers import tiny_config
+from reader_helpers import evlib_events, mcap_topic_counts, ros1_topic_counts
+from roslan.env import LandingEnv, make_policy
+from roslan.env.episode import fly
+from roslan.errors import ActionError, ConfigError
+
+pytest.importorskip("roslan.render.gl")
+
+
+def test_registered_ids_build_from_their_packaged_configs() -> None:
+    for env_id, scene in (("roslan/Landing-v0", "warehouse"), ("roslan/Perching-v0", "refinery")):
+        env = gymnasium.make(env_id)
+        base = env.unwrapped
+        assert isinstance(base, LandingEnv)
+        assert base.base_config.scene == scene
+        assert {"imu", "events"} <= set(base.observation_space.spaces)
+        assert base.action_space.shape == (6,)
+        env.close()
+
+
+def test_passes_the_gymnasium_env_checker() -> None:
+    from gymnasium.utils.env_checker import check_env
+
+    env = LandingEnv(tiny_config(), render_mode="rgb_array")
+    check_env(env, skip_render_check=False)
+    env.close()
+
+
+def _rollout(seed: int, steps: int = 12) -> list[dict[str, np.ndarray]]:
+    env = LandingEnv(tiny_config())
+    obs, info = env.reset(seed=seed)
+    out = [obs]
+    rng = np.random.default_rng(0)
+    for _ in range(steps):
+        action = rng.uniform(-1.0, 1.0, 6).astype(np.float32)
+        obs, _, term, trunc, info = env.step(action)
+        # the count image is the step's raw events (info) per pixel and polarity
+        assert obs["events"].sum() == len(info["events"])
+        out.append(obs)
+        if term or trunc:
+            break
+    env.close()
+    return out
+
+
+def test_same_seed_and_actions_give_identical_observations() -> None:
+    a, b = _rollout(5), _rollout(5)
+    assert len(a) == len(b)
+    for oa, ob in zip(a, b, strict=True):
+        assert oa.keys() == ob.keys()
+        for k in oa:
+            np.testing.assert_array_equal(oa[k], ob[k])
+    assert any(o["events"].sum() > 0 for o in a), "the event camera saw nothing"
+    assert all(o["events"].dtype == np.float32 for o in a)
+    c = _rollout(6)
+    assert any(
+        not np.array_equal(x["imu"], y["imu"]) for x, y in zip(a[1:], c[1:], strict=False)
+    ), "another seed gave the same IMU noise"
+
+
+def test_make_vec_async_runs_an_episode() -> None:
+    envs = gymnasium.make_vec(
+        "roslan/Landing-v0", num_envs=2, vectorization_mode="async", config=tiny_config()
+    )
+    try:
+        envs.reset(seed=[1, 2])
+        done = np.zeros(2, dtype=bool)
+        for _ in range(100):  # zero command: the start's 2 m/s descent hits the ground
+            _, _, term, trunc, _ = envs.step(np.zeros((2, 6), dtype=np.float32))
+            done |= term | trunc
+            if done.all():
+                break
+        assert done.all()
+    finally:
+        envs.close()
+
+
+def test_actions_nan_raises_out_of_range_clips() -> None:
+    env = LandingEnv(tiny_config())
+    env.reset(seed=0)
+    with pytest.raises(ActionError, match=r"action\[4\] \(q\) = nan"):
+        env.step(np.array([0, 0, 0, 0, np.nan, 0], dtype=np.float32))
+    env.reset(seed=0)
+    with pytest.raises(ActionError, match=r"shape \(3,\)"):
+        env.step(np.zeros(3))
+    env.reset(seed=0)
+    _, _, _, _, info = env.step(np.array([500.0, 0, 0, 0, 0, 0]))
+    assert info["clipped"]
+    _, _, _, _, info = env.step(np.zeros(6))
+    assert not info["clipped"]
+    env.close()
+
+
+@pytest.mark.parametrize(
+    ("over", "key"),
+    [
+        ({"closed_loop": {"control_rate": 0.0}}, "closed_loop.control_rate"),
+        ({"closed_loop": {"observation": {"events": "frames"}}}, "closed_loop.observation.events"),
+        (
+            {"closed_loop": {"dynamics": {"max_body_rate": -1}}},
+            "closed_loop.dynamics.max_body_rate",
+        ),
+    ],
+)
+def test_bad_config_names_the_key(over: dict[str, Any], key: str) -> None:
+    with pytest.raises(ConfigError, match=key.replace(".", r"\.")):
+        LandingEnv(tiny_config(**over))
+
+
+def test_unknown_policy_is_a_clear_error(tmp_path: Path) -> None:
+    with pytest.raises(ConfigError, match=r"unknown policy.*tau-state"):
+        make_policy("tau-magic")
+    with pytest.raises(ConfigError):
+        fly(tiny_config(), "tau-magic", record=tmp_path / "out")
+    assert not (tmp_path / "out").exists()
+
+
+def test_an_unfinished_recorded_episode_leaves_no_outdir(tmp_path: Path) -> None:
+    out = tmp_path / "out"
+    env = LandingEnv(tiny_config(), record=out)
+    env.reset(seed=0)
+    for _ in range(3):
+        env.step(np.zeros(6))
+    env.close()
+    assert not out.exists()
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]
+
+
+@pytest.fixture(scope="module")
+def flown(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """``roslan fly CONFIG --policy tau-state -o OUT --seed 3`` on the tiny config."""
+    from roslan.cli.app import main
+
+    folder = tmp_path_factory.mktemp("fly")
+    cfg = folder / "tiny.yaml"
+    cfg.write_text(yaml.safe_dump(tiny_config()))
+    out = folder / "out"
+    assert (
+        main(["fly", str(cfg), "--policy", "tau-state", "-o", str(out), "--seed", "3", "--quiet"])
+        == 0
+    )
+    return out
+
+
+def test_fly_writes_episode_json(flown: Path) -> None:
+    ep = json.loads((flown / "episode.json").read_text())
+    assert ep["policy"] == "tau-state"
+    assert ep["seed"] == 3
+    assert ep["reason"] == "touchdown"
+    assert ep["success"] is True
+    for key in (
+        "touchdown_time",
+        "touchdown_vertical_speed",
+        "touchdown_horizontal_speed",
+        "position_error",
+        "heading_error",
+    ):
+        assert isinstance(ep[key], float), key
+    assert ep["touchdown_vertical_speed"] <= 0.2
+    assert ep["touchdown_time"] == pytest.approx(1.0, abs=0.05)
+    run = json.loads((flown / "run.json").read_text())
+    assert run["complete"] is True
+    assert run["config"]["seed"] == 3
+
+
+def test_fly_outdir_is_read_by_rosbag_mcap_and_evlib(flown: Path, tmp_path: Path) -> None:
+    run = json.loads((flown / "run.json").read_text())
+    expected = {t: v["messages"] for t, v in run["topics"].items()}
+    rows = ros1_topic_counts(flown / "landing.bag", tmp_path)
+    assert {t: n for t, (_, n) in rows.items()} == expected
+    assert rows["/imu"][0] == "sensor_msgs/Imu"
+    assert mcap_topic_counts(flown / "landing_ros2") == expected
+    df = evlib_events(flown / "events.h5")
+    assert df.height > 0
+    assert int(df["x"].max()) < 64
+    assert int(df["y"].max()) < 48
+    for name in ("groundtruth.txt", "imu.txt", "trajectory.csv", "README.md", "overview.png"):
+        assert (flown / name).is_file(), name
+
+
+def test_fly_cli_bad_config_names_the_key_and_writes_nothing(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from roslan.cli.app import main
+
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("closed_loop:\n  control_rate: -5\n")
+    out = tmp_path / "out"
+    assert main(["fly", str(bad), "--policy", "tau-state", "-o", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert f"{bad}: closed_loop.control_rate = -5" in err
+    assert not out.exists()
+
+
+def test_fly_cli_offers_every_packaged_policy() -> None:
+    from roslan.cli.fly import POLICY_NAMES
+    from roslan.env import POLICIES
+
+    assert sorted(POLICY_NAMES) == sorted(POLICIES)
+
+
+def test_voxel_observation_holds_the_steps_events() -> None:
+    env = LandingEnv(tiny_config(closed_loop={"observation": {"events": "voxel", "voxel_bins": 3}}))
+    assert env.observation_space["events"].shape == (3, 48, 64)
+    env.reset(seed=1)
+    seen = 0
+    for _ in range(5):
+        obs, _, _, _, info = env.step(np.zeros(6))
+        ev = info["events"]
+        assert obs["events"].sum() == pytest.approx(float(np.sum(ev.p)), abs=1e-2)
+        assert obs in env.observation_space
+        seen += len(ev)
+    assert seen > 0
+    env.close()
