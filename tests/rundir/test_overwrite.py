@@ -91,6 +91,29 @@ def test_overwrite_refuses_a_file_the_run_did_not_write(
     assert "without the list of the files" in capsys.readouterr().err
 
 
+def test_figures_roslan_writes_into_a_run_are_the_runs(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``roslan plot imu OUT`` writes OUT/plots/imu.png and lists it in OUT/derived.txt, so
+    the next ``--overwrite`` (``make demo`` after the README's plots) replaces it; a file
+    of the user's beside it still stops the replacement."""
+    out = tmp_path / "out"
+    assert _simulate(tmp_path, out) == 0
+    assert main(["plot", "imu", str(out)]) == 0
+    assert main(["plot", "imu", str(out), "-o", str(tmp_path / "beside.png")]) == 0
+    assert (out / "plots" / "imu.png").is_file()
+    assert (out / "derived.txt").read_text() == "plots/imu.png\n"  # not the one beside
+    (out / "plots" / "mine.txt").write_text("mine", encoding="utf-8")
+    capsys.readouterr()
+    assert _simulate(tmp_path, out, "--overwrite") != 0
+    err = capsys.readouterr().err
+    assert "holds files its roslan run did not write: plots/mine.txt;" in err
+    (out / "plots" / "mine.txt").unlink()
+    assert _simulate(tmp_path, out, "--overwrite") == 0
+    assert not (out / "plots").exists()
+    assert not (out / "derived.txt").exists()
+
+
 def test_a_file_arriving_during_the_run_stops_the_replacement(tmp_path: Path) -> None:
     out = tmp_path / "out"
     assert _simulate(tmp_path, out) == 0

@@ -13,9 +13,17 @@ from typing import Any
 from roslan.cli.common import add_outdir_command
 from roslan.errors import OutputError
 from roslan.plots import events, imu, lidar, overview, shutter, tau_family, trajectory
+from roslan.rundir.folder import note_derived
 from roslan.rundir.readers import find_imu_files, missing_input
 
 __all__ = ["register"]
+
+
+def _written(args: argparse.Namespace, path: Path) -> None:
+    """Say where the figure went; one written inside the run becomes the run's
+    (:func:`~roslan.rundir.folder.note_derived`: ``--overwrite`` replaces it)."""
+    note_derived(Path(args.outdir), [Path(path)])
+    print(path)
 
 
 def _tau_family(args: argparse.Namespace) -> int:
@@ -55,6 +63,7 @@ def _events(args: argparse.Namespace) -> int:
         frames=args.frames,
         times=args.times,
     )
+    note_derived(Path(args.outdir), files)
     for f in files:
         print(f)
     return 0
@@ -88,7 +97,7 @@ def _register_events(plot_subparsers: Any) -> None:
 
 def _trajectory(args: argparse.Namespace) -> int:
     path = trajectory.plot_trajectory(Path(args.outdir), args.output)
-    print(path)
+    _written(args, path)
     return 0
 
 
@@ -105,11 +114,10 @@ def _register_trajectory(sub: Any) -> None:
 
 
 def _lidar(args: argparse.Namespace) -> int:
-    print(
-        lidar.plot_lidar(
-            Path(args.outdir), args.output, sensor=args.sensor, scan=args.scan, color_by=args.color
-        )
+    path = lidar.plot_lidar(
+        Path(args.outdir), args.output, sensor=args.sensor, scan=args.scan, color_by=args.color
     )
+    _written(args, path)
     return 0
 
 
@@ -153,7 +161,7 @@ def _imu(args: argparse.Namespace) -> int:
         imu_file = files.get(key) or files.get(args.imu)
         if imu_file is None:
             raise missing_input(imu.COMMAND, outdir, f"IMU file for sensor {args.imu!r}", "imu")
-    print(imu.plot_imu(outdir, args.output, imu_file))
+    _written(args, imu.plot_imu(outdir, args.output, imu_file))
     return 0
 
 
@@ -176,7 +184,7 @@ def _register_imu(sub: Any) -> None:
 
 
 def _overview(args: argparse.Namespace) -> int:
-    print(overview.write_overview(Path(args.outdir), args.output))
+    _written(args, overview.write_overview(Path(args.outdir), args.output))
     return 0
 
 
@@ -193,7 +201,7 @@ def _register_overview(sub: Any) -> None:
 
 
 def _shutter(args: argparse.Namespace) -> int:
-    print(shutter.plot_shutter(Path(args.outdir), args.output, time=args.time))
+    _written(args, shutter.plot_shutter(Path(args.outdir), args.output, time=args.time))
     return 0
 
 

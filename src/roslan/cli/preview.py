@@ -8,6 +8,7 @@ from typing import Any
 
 from roslan.cli.common import add_outdir_command
 from roslan.plots import preview
+from roslan.rundir.folder import note_derived
 
 __all__ = ["register"]
 
@@ -23,6 +24,7 @@ def _preview(args: argparse.Namespace) -> int:
         panel_width=args.panel_width,
         progress=not args.quiet,
     )
+    note_derived(Path(args.outdir), [Path(info.path)])  # inside the run: the run's
     print(f"{info.path} ({info.frames} frames, {info.size[0]}x{info.size[1]} at {info.fps:g} fps)")
     return 0
 

@@ -18,18 +18,20 @@ import contextlib
 import os
 import shutil
 import tempfile
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from pathlib import Path
 
 from roslan.errors import OutputError
-from roslan.io.files import current_umask
+from roslan.io.files import atomic_write, current_umask
 from roslan.rundir.manifest import RUN_FILE, read_manifest
 
 __all__ = [
+    "DERIVED_FILE",
     "check_outdir",
     "clean_stale",
     "finalize",
     "make_temp",
+    "note_derived",
     "outdir_lock",
     "run_files",
     "strangers",
@@ -118,6 +120,39 @@ def run_files(folder: Path) -> list[str]:
     return sorted({*_files_below(folder), RUN_FILE})
 
 
+DERIVED_FILE = "derived.txt"
+"""A finished run's list of the files roslan's own commands later wrote into it
+(``roslan plot ... OUTDIR``'s ``plots/``, a preview or recording saved inside it): one
+relative path a line. ``--overwrite`` replaces them with the run; nothing else is added."""
+
+
+def _derived(outdir: Path) -> set[str]:
+    try:
+        text = (outdir / DERIVED_FILE).read_text(encoding="utf-8")
+    except OSError:
+        return set()
+    return {line for line in text.splitlines() if line}
+
+
+def note_derived(outdir: Path, paths: Iterable[Path]) -> None:
+    """Add the ``paths`` a roslan command wrote inside the finished run ``outdir`` to its
+    :data:`DERIVED_FILE` (paths outside it, or a folder that is not a complete run, are
+    left alone), so that ``--overwrite`` knows them as the run's."""
+    if read_manifest(outdir) is None:
+        return
+    root = outdir.resolve()
+    inside = set()
+    for p in paths:
+        try:
+            inside.add(Path(p).resolve().relative_to(root).as_posix())
+        except ValueError:
+            continue  # written beside the run
+    known = _derived(outdir)
+    if inside - known:
+        with atomic_write(outdir / DERIVED_FILE, "w") as fh:
+            fh.write("".join(f"{name}\n" for name in sorted(known | inside)))
+
+
 def _listed(names: list[str], more: int) -> str:
     shown = ", ".join(names)
     return shown + (f" (and {more} more)" if more > 0 else "")
@@ -143,7 +178,8 @@ def strangers(outdir: Path) -> str | None:
             f"has a {RUN_FILE} without the list of the files its run wrote (an older "
             "roslan): its files cannot be told from others"
         )
-    extra = sorted(set(found) - {str(f) for f in listed})
+    derived = _derived(outdir) | {DERIVED_FILE} if (outdir / DERIVED_FILE).is_file() else set()
+    extra = sorted(set(found) - {str(f) for f in listed} - derived)
     if extra:
         return f"holds files its roslan run did not write: {_listed(extra[:5], len(extra) - 5)}"
     return None
