@@ -59,7 +59,13 @@ NOT_RUN: dict[str, str] = {
 # `make demo`'s run, which the guide's pages read (`out/`)
 DEMO = "roslan simulate -o out --overwrite"
 # commands whose -o folder is a run (a folder of its own, never inside another)
-_RUN_COMMANDS = ("roslan simulate", "roslan trajectory", "roslan dataset", "roslan batch")
+_RUN_COMMANDS = (
+    "roslan simulate",
+    "roslan trajectory",
+    "roslan dataset",
+    "roslan batch",
+    "roslan fly",
+)
 
 _FAST_SHIM = """\
 #!{python}
@@ -81,11 +87,33 @@ if os.environ.get("ROSLAN_README_FAST") and __name__ == "__main__":
         return config.model_copy(update={{"trajectory": trajectory}}), source
 
     _cli.load_config = _short
+{env_patch}
 if __name__ == "__main__":  # worker processes re-import this file
     from roslan.cli import main
 
     sys.exit(main())
 """
+
+
+# the closed-loop environment (`roslan fly`, `roslan/Landing-v0` in Python blocks): the same
+# shortening, after the config has been read and validated as written
+_FAST_ENV = """\
+if os.environ.get("ROSLAN_README_FAST"):
+    import roslan.env.landing as _landing
+    from roslan.trajectory.config import Initial
+
+    _load_env = _landing.load_env_config
+
+    def _short_env(config):
+        cfg, source = _load_env(config)
+        initial = Initial(position=(-1.0, 0.3, 0.5), rpy=(0.05, 0.1, 0.2), descent_rate=1.0)
+        update = {"initial": initial, "approach": None, "hold": 0.0}
+        trajectory = cfg.trajectory.model_copy(update=update)
+        return cfg.model_copy(update={"trajectory": trajectory}), source
+
+    _landing.load_env_config = _short_env
+"""
+_PY_PRELUDE = "import os\n" + _FAST_ENV
 
 
 def guide_pages() -> list[Path]:
@@ -219,7 +247,8 @@ def _roslan_command(tmp_path: Path) -> dict[str, str]:
     bin_dir = tmp_path / ".bin"
     bin_dir.mkdir()
     shim = bin_dir / "roslan"
-    shim.write_text(_FAST_SHIM.format(python=sys.executable, src=str(SRC)), encoding="utf-8")
+    text = _FAST_SHIM.format(python=sys.executable, src=str(SRC), env_patch=_FAST_ENV)
+    shim.write_text(text, encoding="utf-8")
     shim.chmod(0o755)
     env = dict(os.environ)
     env["PATH"] = f"{bin_dir}{os.pathsep}{env.get('PATH', '')}"
@@ -262,7 +291,7 @@ def _run_documents(docs: list[Path], tmp_path: Path) -> tuple[Path, dict[str, st
                         ran += 1
             elif lang == "python":
                 proc = subprocess.run(
-                    [sys.executable, "-c", textwrap.dedent(text)], cwd=work, env=env,
+                    [sys.executable, "-c", _PY_PRELUDE + textwrap.dedent(text)], cwd=work, env=env,
                     capture_output=True, text=True, timeout=300, check=False,
                 )  # fmt: skip
                 assert proc.returncode == 0, (
