@@ -1,5 +1,5 @@
-"""Rotations and frame conventions (docs/design.md §2), for every layer (also as
-:mod:`roslan.trajectory.frames`).
+"""Rotations and frame conventions (docs/design.md §2), for every layer: below the config
+models that use them (``Pose.matrix``) and the trajectories.
 
 Conventions used everywhere in roslan:
 

@@ -170,7 +170,7 @@ def base_link_trajectory(
     goal = getattr(trajectory, "goal", None)
     if not isinstance(goal, Pose) or getattr(trajectory, "file", None) is not None:
         return trajectory
-    from roslan.trajectory.frames import rpy_to_matrix
+    from roslan.frames import rpy_to_matrix
 
     c = contact_point(vehicle, resolve_contact(vehicle, scene, goal))
     R = rpy_to_matrix(np.asarray(goal.rpy, dtype=np.float64))

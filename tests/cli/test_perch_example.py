@@ -16,12 +16,12 @@ import yaml
 
 from roslan.cli import main
 from roslan.config.sim import SimConfig
+from roslan.frames import quat_xyzw_to_matrix
 from roslan.pipeline import check_run
 from roslan.rundir.readers import load_groundtruth
 from roslan.scene import load_scene
 from roslan.scene.goal import GoalNote
 from roslan.trajectory.config import Initial
-from roslan.trajectory.frames import quat_xyzw_to_matrix
 
 README = Path(__file__).resolve().parents[2] / "README.md"
 

@@ -21,12 +21,12 @@ from pipeline_helpers import SHORT_TRAJECTORY, short_config, tree_bytes
 from roslan.cli import main
 from roslan.config.sim import SimConfig
 from roslan.errors import ConfigError, OutputError, SensorError
+from roslan.frames import quat_xyzw_to_matrix
 from roslan.pipeline import run_simulation
 from roslan.pipeline.context import Context, stream_key
 from roslan.sensors import registry
 from roslan.sensors.base import Message
 from roslan.sensors.imu import Imu, ImuConfig
-from roslan.trajectory.frames import quat_xyzw_to_matrix
 
 
 @pytest.fixture

@@ -17,9 +17,9 @@ import yaml
 from roslan.cli import main
 from roslan.config.base import Pose
 from roslan.config.sim import SimConfig
+from roslan.frames import quat_xyzw_to_matrix
 from roslan.scene import check_clearance, load_scene
 from roslan.trajectory import TauTrajectory, TrajectoryConfig
-from roslan.trajectory.frames import quat_xyzw_to_matrix
 from roslan.vehicle import VehicleConfig, base_link_trajectory
 
 HOLD = 0.3537  # not a multiple of any sensor period: the end falls between samples

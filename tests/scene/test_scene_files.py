@@ -13,8 +13,8 @@ from PIL import Image
 
 from roslan.cli import main
 from roslan.errors import OutputError, SceneError
+from roslan.frames import rpy_to_matrix
 from roslan.scene import add_perch, export_scene, load_scene
-from roslan.trajectory.frames import rpy_to_matrix
 
 
 def _write(path: Path, doc: dict) -> Path:

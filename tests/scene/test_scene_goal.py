@@ -17,11 +17,11 @@ import yaml
 from roslan.cli import main
 from roslan.config.base import Pose
 from roslan.errors import Note
+from roslan.frames import quat_xyzw_to_matrix
 from roslan.rundir.readers import load_groundtruth
 from roslan.scene import load_scene
 from roslan.scene.goal import GoalNote, goal_from_scene, scene_goal
 from roslan.trajectory import TrajectoryConfig
-from roslan.trajectory.frames import quat_xyzw_to_matrix
 
 README = Path(__file__).resolve().parents[2] / "README.md"
 DOCS = Path(__file__).resolve().parents[2] / "docs"

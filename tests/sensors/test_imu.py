@@ -13,12 +13,12 @@ import yaml
 from pipeline_helpers import SHORT_TRAJECTORY
 from roslan.config.base import validate_model
 from roslan.errors import ConfigError
+from roslan.frames import rotation_log, rpy_to_matrix
 from roslan.io.messages import Flavor, MessageStore
 from roslan.pipeline.context import Context
 from roslan.sensors.base import sample_times_ns
 from roslan.sensors.imu import Imu, ImuConfig
 from roslan.trajectory import TauTrajectory, Trajectory, TrajectoryConfig
-from roslan.trajectory.frames import rotation_log, rpy_to_matrix
 
 QUIET = {
     "accelerometer_noise_density": 0.0,

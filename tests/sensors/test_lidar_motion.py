@@ -147,8 +147,8 @@ def test_rotation_helpers_match_scipy(
 ) -> None:
     from scipy.spatial.transform import Rotation
 
+    from roslan.frames import rotation_log as rotvec_log
     from roslan.sensors.beams.rays import _rotate
-    from roslan.trajectory.frames import rotation_log as rotvec_log
 
     r = np.array([rv]) * scale
     vec = np.array([v])

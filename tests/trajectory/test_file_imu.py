@@ -11,11 +11,11 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation, RotationSpline
 
+from roslan.frames import rotation_log
 from roslan.pipeline.context import Context
 from roslan.sensors.imu import Imu, ImuConfig
 from roslan.trajectory import TauTrajectory, Trajectory, TrajectoryConfig
 from roslan.trajectory.export import write_trajectory_files
-from roslan.trajectory.frames import rotation_log
 from roslan.trajectory.spline import FileTrajectory
 
 QUIET = {

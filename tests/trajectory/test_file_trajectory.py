@@ -249,8 +249,8 @@ def test_trajectory_csv_flies_back_in_its_goal_frame(tmp_path: Path) -> None:
     summary.json records, the world path comes back within 1 mm and 1 mrad."""
     import json
 
+    from roslan.frames import rotation_log
     from roslan.trajectory.export import write_trajectory_files
-    from roslan.trajectory.frames import rotation_log
 
     goal = {"position": [1.5, -2.0, 0.4], "rpy": [0.0, 0.05, 0.7]}
     tau = TauTrajectory(
@@ -276,7 +276,7 @@ def test_trajectory_csv_flies_back_in_its_goal_frame(tmp_path: Path) -> None:
 def test_goal_places_a_tum_file_in_the_world(
     tau_and_file: tuple[Trajectory, FileTrajectory], tmp_path: Path
 ) -> None:
-    from roslan.trajectory.frames import rpy_to_matrix
+    from roslan.frames import rpy_to_matrix
 
     _, ft = tau_and_file
     goal = {"position": [3.0, 0.0, 1.0], "rpy": [0.0, 0.0, np.pi / 2]}

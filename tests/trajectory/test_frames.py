@@ -11,8 +11,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
-from roslan.trajectory import TauTrajectory, Trajectory, TrajectoryConfig, TrajectoryWarning
-from roslan.trajectory.frames import (
+from roslan.frames import (
     OPTICAL_FROM_BODY,
     euler_rates_to_body_acceleration,
     euler_rates_to_body_rates,
@@ -25,6 +24,7 @@ from roslan.trajectory.frames import (
     rpy_to_matrix,
     rpy_to_quat_xyzw,
 )
+from roslan.trajectory import TauTrajectory, Trajectory, TrajectoryConfig, TrajectoryWarning
 
 
 def _rx(a: float) -> np.ndarray:

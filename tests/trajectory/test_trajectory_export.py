@@ -13,12 +13,12 @@ import pytest
 import roslan.cli.app
 import roslan.cli.plot
 from roslan.errors import OutputError
+from roslan.frames import quat_xyzw_to_matrix
 from roslan.io.files import atomic_write
 from roslan.io.text import format_seconds, write_columns
 from roslan.plots.landing import write_trajectory_plot
 from roslan.trajectory import TauTrajectory, Trajectory, TrajectoryConfig
 from roslan.trajectory.export import write_trajectory_files
-from roslan.trajectory.frames import quat_xyzw_to_matrix
 from roslan.vehicle import VehicleConfig, base_link_trajectory
 
 HEADER = "t,x,y,z,roll,pitch,yaw,vx,vy,vz,vroll,vpitch,vyaw,ax,ay,az,aroll,apitch,ayaw"

@@ -14,6 +14,7 @@ import pytest
 from pipeline_helpers import SHORT_TRAJECTORY
 from roslan.config.base import validate_model
 from roslan.errors import ConfigError
+from roslan.frames import rotation_log, rpy_to_matrix
 from roslan.pipeline.context import Context
 from roslan.sensors.imu import Imu, ImuConfig, imu_measurements
 from roslan.trajectory import (
@@ -22,7 +23,6 @@ from roslan.trajectory import (
     VibratingTrajectory,
     make_trajectory,
 )
-from roslan.trajectory.frames import rotation_log, rpy_to_matrix
 
 VIBRATION: dict[str, Any] = {
     "harmonics": [{"frequency": 12.0, "accel": [0.5, 1.0, 2.0], "gyro": [0.3, 0.2, 0.1]}],

@@ -28,9 +28,9 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from roslan.config.closed_loop import Dynamics
+from roslan.frames import rpy_to_matrix, rpy_to_quat_xyzw
 from roslan.trajectory.base import GAPS, HorizonError, State, Trajectory
 from roslan.trajectory.config import TrajectoryConfig
-from roslan.trajectory.frames import rpy_to_matrix, rpy_to_quat_xyzw
 from roslan.trajectory.generator import TauTrajectory, add_flapping, fill_pose, table_times
 
 __all__ = [

@@ -41,7 +41,7 @@ from numpy.typing import NDArray
 from roslan.env.dynamics import euler_rates_to_body_rates
 from roslan.errors import ConfigError
 from roslan.events.divergence import DivergenceEstimate, DivergenceEstimator, DivergenceParams
-from roslan.trajectory.frames import matrix_to_rpy, rpy_to_matrix
+from roslan.frames import matrix_to_rpy, rpy_to_matrix
 
 if TYPE_CHECKING:
     from roslan.env.policies import PolicyContext

@@ -106,7 +106,7 @@ def _truth_from_poses(t: F64, p: F64, q: F64, t_query: F64) -> tuple[F64, F64]:
     """Specific force and body rate (base_link) from TUM poses, at ``t_query``."""
     from scipy.interpolate import CubicSpline
 
-    from roslan.trajectory.frames import quat_xyzw_to_matrix, rotation_log
+    from roslan.frames import quat_xyzw_to_matrix, rotation_log
 
     if t.shape[0] < 4:
         msg = "groundtruth.txt: at least 4 poses are needed to differentiate the truth"

@@ -13,8 +13,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from roslan.errors import OutputError, RenderError
+from roslan.frames import rpy_to_matrix
 from roslan.scene.model import Scene
-from roslan.trajectory.frames import rpy_to_matrix
 
 __all__ = ["look_at", "render_views", "scene_info", "write_preview"]
 

@@ -130,7 +130,7 @@ def load_samples(outdir: Path, command: str = COMMAND, n: int = 1500) -> Traject
 
 def rpy_matrices(rpy: F64) -> F64:
     """(N, 3) roll/pitch/yaw -> (N, 3, 3) R = Rz Ry Rx (frame F from body)."""
-    from roslan.trajectory.frames import rpy_to_matrix
+    from roslan.frames import rpy_to_matrix
 
     return np.asarray(rpy_to_matrix(rpy), dtype=np.float64)
 

@@ -9,9 +9,9 @@ from typing import Any
 import numpy as np
 import yaml
 
+from roslan.frames import matrix_to_quat_xyzw, matrix_to_rpy
 from roslan.sensors.base import Sensor, StaticTransform
 from roslan.sensors.ground_truth import BASE_FRAME, WORLD_FRAME
-from roslan.trajectory.frames import matrix_to_quat_xyzw, matrix_to_rpy
 
 __all__ = ["EXTRINSICS_FILE", "extrinsics", "static_transforms", "write_extrinsics"]
 

@@ -23,8 +23,8 @@ import yaml
 from numpy.typing import NDArray
 
 from roslan.errors import OutputError
+from roslan.frames import matrix_to_quat_xyzw, matrix_to_rpy
 from roslan.scene.model import Scene, SceneObject
-from roslan.trajectory.frames import matrix_to_quat_xyzw, matrix_to_rpy
 
 __all__ = ["export_scene", "local_geometry"]
 

@@ -15,8 +15,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from roslan.frames import rpy_to_matrix
 from roslan.scene.model import Material, SceneObject
-from roslan.trajectory.frames import rpy_to_matrix
 
 __all__ = [
     "LocalMesh",

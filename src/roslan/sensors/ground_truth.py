@@ -38,6 +38,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from roslan.frames import matrix_to_quat_xyzw
 from roslan.io.messages import MessageStore
 from roslan.io.packing import FixedLayout, Leaf, PackedBatch
 from roslan.scene.markers import (
@@ -55,7 +56,6 @@ from roslan.trajectory.base import (
     ground_truth_times_ns,
     sample_times_ns,
 )
-from roslan.trajectory.frames import matrix_to_quat_xyzw
 
 __all__ = [
     "BASE_FRAME",

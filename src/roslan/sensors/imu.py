@@ -30,6 +30,7 @@ from numpy.typing import NDArray
 from pydantic import Field
 
 from roslan.config.base import FiniteFloat, Vec3
+from roslan.frames import matrix_to_quat_xyzw
 from roslan.io.messages import MessageStore
 from roslan.io.packing import FixedLayout, Leaf, PackedBatch
 from roslan.io.text import write_columns
@@ -43,7 +44,6 @@ from roslan.sensors.base import (
     paced,
     sample_times_ns,
 )
-from roslan.trajectory.frames import matrix_to_quat_xyzw
 
 __all__ = ["GRAVITY", "Imu", "ImuConfig", "imu_measurements"]
 

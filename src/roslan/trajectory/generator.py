@@ -9,9 +9,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from roslan.frames import euler_zyx_kinematics, rpy_to_matrix, rpy_to_quat_xyzw
 from roslan.trajectory.base import GAPS, State, Trajectory, check_duration
 from roslan.trajectory.config import Flapping, TrajectoryConfig
-from roslan.trajectory.frames import euler_zyx_kinematics, rpy_to_matrix, rpy_to_quat_xyzw
 from roslan.trajectory.instant import InstantEvaluator
 from roslan.trajectory.tau import Terminal, classify, exponent, powers
 

@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING, Protocol
 import numpy as np
 from numpy.typing import NDArray
 
-from roslan.trajectory.frames import quaternion_matrix_entries, reference_yaw, zyx_quaternion
+from roslan.frames import quaternion_matrix_entries, reference_yaw, zyx_quaternion
 from roslan.trajectory.tau import _EPS, S_FLOOR
 
 if TYPE_CHECKING:
@@ -136,7 +136,7 @@ class InstantEvaluator:
         position = np.dot(np.array([g[:3]]), self.RT)[0]
         position += self.p_goal
         velocity = np.dot(np.array([r[:3]]), self.RT)[0]
-        # roslan.trajectory.frames.euler_zyx_kinematics, one instant
+        # roslan.frames.euler_zyx_kinematics, one instant
         half = [0.5 * g[3], 0.5 * g[4], 0.5 * g[5]]
         if self.yaw_offset != 0.0:
             half[2] += 0.5 * self.yaw_offset

@@ -23,9 +23,9 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from roslan.errors import TrajectoryError
+from roslan.frames import matrix_to_rpy, rpy_to_matrix
 from roslan.trajectory.base import State, Trajectory, check_duration
 from roslan.trajectory.config import TrajectoryConfig
-from roslan.trajectory.frames import matrix_to_rpy, rpy_to_matrix
 from roslan.trajectory.gaps import bridge_gaps
 from roslan.trajectory.generator import TauTrajectory
 from roslan.trajectory.vibration import VibratingTrajectory
@@ -53,8 +53,8 @@ def read_pose_file(path: Path, max_gap: float) -> tuple[F64, F64, F64]:
     trajectory.csv (header ``t,x,y,z,roll,pitch,yaw,...``, 19 columns; poses as ZYX
     roll, pitch, yaw). Positions and orientations are those of the file's frame.
     """
+    from roslan.frames import rpy_to_quat_xyzw
     from roslan.io.safe_read import read_bytes
-    from roslan.trajectory.frames import rpy_to_quat_xyzw
 
     raw = read_bytes(path, MAX_FILE_BYTES, TrajectoryError)
     rows: list[list[float]] = []

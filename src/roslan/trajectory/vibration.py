@@ -27,14 +27,14 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from roslan.trajectory.base import State, Trajectory
-from roslan.trajectory.config import TrajectoryConfig
-from roslan.trajectory.frames import (
+from roslan.frames import (
     euler_rates_to_body_acceleration,
     matrix_to_quat_xyzw,
     matrix_to_rpy,
     rpy_to_matrix,
 )
+from roslan.trajectory.base import State, Trajectory
+from roslan.trajectory.config import TrajectoryConfig
 from roslan.trajectory.vibration_config import VibrationConfig
 
 __all__ = ["VibratingTrajectory", "vibration_components"]

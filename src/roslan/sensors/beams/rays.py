@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING, Any, Literal
 import numpy as np
 from numpy.typing import NDArray
 
-from roslan.trajectory.frames import rotation_log
+from roslan.frames import rotation_log
 
 if TYPE_CHECKING:
     from roslan.trajectory.base import Trajectory

@@ -25,7 +25,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from roslan.errors import SensorError
-from roslan.trajectory.frames import OPTICAL_FROM_BODY
+from roslan.frames import OPTICAL_FROM_BODY
 
 if TYPE_CHECKING:
     from roslan.io.messages import MessageStore
