@@ -237,6 +237,63 @@ def test_view_save_writes_a_verified_recording(run: Path, tmp_path: Path) -> Non
     assert any(e.endswith("/range") for e in entities)
 
 
+def _rerun_cli() -> str:
+    cli = Path(sys.executable).parent / "rerun"
+    exe = str(cli) if cli.is_file() else shutil.which("rerun")
+    assert exe is not None, "the rerun CLI of rerun-sdk is not installed"
+    return exe
+
+
+def test_view_save_twice_gives_the_same_recording(run: Path, tmp_path: Path) -> None:
+    """Same OUTDIR, same recording: the same bytes for every chunk (rows, row ids, chunk
+    ids, order), judged on the bytes, by reading both files back and by rerun's own
+    ``rrd compare``. The two saves run in one process, the second after the first."""
+    pytest.importorskip("rerun")
+    from rerun.chunk import RrdReader
+
+    from roslan.cli import main
+
+    a, b = tmp_path / "a.rrd", tmp_path / "b.rrd"
+    assert main(["view", str(run), "--save", str(a)]) == 0
+    assert main(["view", str(run), "--save", str(b)]) == 0
+    assert not list(tmp_path.glob("*.raw"))
+    # byte for byte up to the end of the last chunk, but for the row id of the store-info
+    # message (indices 31..48: a TUID rerun-sdk stamps with the wall clock); the footer
+    # after it holds rerun's manifest, whose Arrow field metadata is in a hash map's order
+    index = RrdReader(str(a)).store()._chunk_index().to_arrow()
+    end = max(
+        o + n
+        for o, n in zip(
+            index.column("chunk_byte_offset").to_pylist(),
+            index.column("chunk_byte_size").to_pylist(),
+            strict=True,
+        )
+    )
+    ba, bb = a.read_bytes(), b.read_bytes()
+    assert 1000 < end < len(ba)
+    assert ba[:31] == bb[:31]
+    assert ba[48:end] == bb[48:end]
+    ca = [c.to_record_batch() for c in RrdReader(str(a)).stream().to_chunks()]
+    cb = [c.to_record_batch() for c in RrdReader(str(b)).stream().to_chunks()]
+    assert len(ca) == len(cb) > 10
+    for x, y in zip(ca, cb, strict=True):
+        assert x.schema.metadata == y.schema.metadata  # the chunk id and entity
+        assert x.equals(y)  # the row ids included
+    start = json.loads((run / "run.json").read_text())["start_time_ns"]
+    ids = np.concatenate(
+        [np.frombuffer(x.column("rerun.controls.RowId").buffers()[1], ">u8") for x in ca]
+    ).reshape(-1, 2)
+    assert (ids[:, 0] == start).all()  # stamped with the run's start, not the wall clock
+    assert sorted(ids[:, 1].tolist()) == list(range(1, len(ids) + 1))
+    proc = subprocess.run(
+        [_rerun_cli(), "rrd", "compare", str(a), str(b)],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+
+
 def test_view_without_display_or_extra_is_clear(
     run: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -19,6 +19,13 @@ Inputs: the ROS 2 bag (else the ROS 1 bag) for poses, transforms, images, scans 
 series, the event files (``events.h5``/``events.txt``) for the events (decoding every
 ``dvs_msgs/Event`` through the bag's generic deserializer would be far slower), and
 ``run.json`` for which sensor published which topic.
+
+Saved recordings are reproducible: the same OUTDIR gives the same chunks, row ids and
+chunk ids, in the same order, so ``rerun rrd compare`` finds two saves equal and the
+two files have the same size. What rerun-sdk 0.41 still stamps itself is not: the row id
+of the file's store-info message (a fresh wall-clock TUID) and the order of the Arrow
+field metadata in the file's footer manifest (a hash map's order), so the bytes of
+those two parts differ between saves.
 """
 
 from __future__ import annotations
@@ -287,6 +294,62 @@ def _log_events(log: _Logger, outdir: Path, name: str, entity: str, root: str | 
     return True
 
 
+_NO_TICK_S = 10.0**9  # the batcher's clock never flushes: chunking follows the data
+_ROW_ID = "rerun.controls.RowId"
+
+
+def _tuids(col: Any) -> NDArray[np.uint64]:
+    """(n, 2) big-endian (time_ns, inc) of a FixedSizeBinary(16) TUID column."""
+    buf = col.buffers()[1]
+    raw = np.frombuffer(buf, dtype=">u8", count=2 * len(col), offset=col.offset * 16)
+    return raw.reshape(-1, 2).astype(np.uint64)
+
+
+def _canonical_rrd(raw: Path, out: Path, recording_id: str, stamp_ns: int) -> None:
+    """Rewrite the recording ``raw`` into ``out`` with ids that depend on the data alone.
+
+    Rerun stamps every row and chunk with a TUID (wall-clock nanoseconds and a random
+    increment). Here each row gets (``stamp_ns``, its rank in the original log order)
+    and each chunk (``stamp_ns``, 2**63 + its rank), chunks in the order of their first
+    row: the relative order of rows, which decides what a latest-at query shows, is
+    kept. Rerun's own :meth:`rerun.chunk.Chunk.from_record_batch` carries the given ids
+    into the file unchanged; nothing is edited below the SDK.
+    """
+    import pyarrow as pa
+    from rerun.chunk import Chunk, LazyChunkStream, RrdReader
+
+    batches = [c.to_record_batch() for c in RrdReader(str(raw)).stream().to_chunks()]
+    ids = [_tuids(b.column(b.schema.get_field_index(_ROW_ID))) for b in batches]
+    every = np.concatenate(ids) if ids else np.zeros((0, 2), np.uint64)
+    order = np.lexsort((every[:, 1], every[:, 0]))
+    rank = np.empty(len(order), np.uint64)
+    rank[order] = np.arange(1, len(order) + 1, dtype=np.uint64)
+    ranks = np.split(rank, np.cumsum([len(i) for i in ids])[:-1]) if ids else []
+    first = [int(r.min()) if len(r) else 2**62 for r in ranks]
+    chunks = []
+    for n, k in enumerate(sorted(range(len(batches)), key=first.__getitem__)):
+        b = batches[k]
+        new = np.empty((b.num_rows, 2), dtype=">u8")
+        new[:, 0] = stamp_ns
+        new[:, 1] = ranks[k]
+        at = b.schema.get_field_index(_ROW_ID)
+        col = pa.FixedSizeBinaryArray.from_buffers(
+            pa.binary(16), b.num_rows, [None, pa.py_buffer(new.tobytes())]
+        )
+        b = b.set_column(at, b.schema.field(at), col)
+        meta = dict(b.schema.metadata or {})
+        chunk_id = np.array([stamp_ns, 2**63 + n], dtype=">u8").tobytes().hex().upper()
+        meta[b"rerun:id"] = f"chunk_{chunk_id}".encode()
+        made = Chunk.from_record_batch(b.replace_schema_metadata(meta))
+        if len(made) != 1 or made[0].id.lower() != f"chunk_{chunk_id}".lower():
+            msg = f"roslan view: rerun did not keep the canonical ids of chunk {n}"
+            raise ViewError(msg)
+        chunks.extend(made)
+    LazyChunkStream.from_iter(chunks).write_rrd(
+        str(out), application_id="roslan", recording_id=recording_id
+    )
+
+
 def _import_rerun() -> Any:
     try:
         import rerun as rr
@@ -304,12 +367,6 @@ def build_recording(
 ) -> dict[str, str]:
     """Log the run in ``outdir`` to Rerun: into ``save`` (an .rrd file) or, with ``spawn``,
     a viewer. Returns the entity path of every sensor (sensor name -> entity)."""
-    from rosbags.highlevel import AnyReader
-
-    from roslan.rundir.calibration import root_camera_name
-    from roslan.scene.loader import load_scene
-    from roslan.scene.markers import scene_mesh
-
     if not (outdir / "run.json").is_file():
         msg = f"roslan view: {outdir} is not a complete roslan run folder (no run.json)"
         raise ViewError(msg)
@@ -318,24 +375,54 @@ def build_recording(
         raise ViewError(msg)
     rr = _import_rerun()
     run = json.loads((outdir / "run.json").read_text())
+    paths = _bag_paths(outdir)
+    recording_id = f"roslan-{outdir.resolve().name}"
+    # No wall-clock log_time timeline and no properties (their start time). The batcher
+    # never flushes on its clock, only on size, so which rows share a chunk depends on the
+    # logged data alone; the row and chunk ids are made canonical after (_canonical_rrd).
+    rec = rr.RecordingStream(
+        "roslan",
+        recording_id=recording_id,
+        send_properties=False,
+        batcher_config=None if save is None else rr.ChunkBatcherConfig(flush_tick=_NO_TICK_S),
+    )
+    rec.set_log_time_enabled(False)
+    rec.set_log_tick_enabled(False)
+    raw = None if save is None else save.with_name(save.name + ".raw")
+    if raw is not None:
+        rec.save(str(raw))
+    elif spawn:
+        rec.spawn()
+    try:
+        entities = _log_run(rr, rec, outdir, run, paths, event_window_ms)
+        if raw is not None and save is not None:
+            rec.flush()
+            rec.disconnect()
+            _canonical_rrd(raw, save, recording_id, int(run["start_time_ns"]))
+    finally:
+        if raw is not None:
+            raw.unlink(missing_ok=True)
+    return entities
+
+
+def _log_run(
+    rr: Any,
+    rec: Any,
+    outdir: Path,
+    run: dict[str, Any],
+    paths: list[Path],
+    event_window_ms: float,
+) -> dict[str, str]:
+    from rosbags.highlevel import AnyReader
+
+    from roslan.rundir.calibration import root_camera_name
+    from roslan.scene.loader import load_scene
+    from roslan.scene.markers import scene_mesh
+
     topics: dict[str, dict[str, Any]] = run["topics"]
     sensors: list[dict[str, Any]] = [
         s for s in (run.get("config") or {}).get("sensors", []) if isinstance(s, dict)
     ]
-    paths = _bag_paths(outdir)
-    # no wall-clock log_time timeline and no properties (their start time): the data of
-    # a recording depends on OUTDIR alone (rerun's row and chunk ids remain time-based)
-    rec = rr.RecordingStream(
-        "roslan",
-        recording_id=f"roslan-{outdir.resolve().name}",
-        send_properties=False,
-    )
-    rec.set_log_time_enabled(False)
-    rec.set_log_tick_enabled(False)
-    if save is not None:
-        rec.save(str(save))
-    elif spawn:
-        rec.spawn()
     entities: dict[str, str] = {}
     with rec:
         log = _Logger(rr, int(run["start_time_ns"]), event_window_ms)
