@@ -32,11 +32,12 @@ __all__ = [
 ]
 
 # ---- measured on the default job (warehouse, DAVIS346 + 640x480 camera + HDL-32E)
-EVENTS_PER_PIXEL_S = {"warehouse": 21.5, "refinery": 3.5, "empty": 20.0, None: 2.0}
+EVENTS_PER_PIXEL_S = {"warehouse": 22.0, "refinery": 3.5, "empty": 20.0, None: 2.0}
 """Events per pixel per second of trajectory (DAVIS346, realistic preset; the paper
 dataset: warehouse 10-13 M, refinery 1.5-2.5 M events per 7 s landing; the default job:
 15.7 on 2026-11-25, 21.5 on 2026-11-26 with its flapping and the in-shader texture
-filtering, 9.86 M events); scene files:
+filtering, 9.86 M events; 22.0 on 2026-11-28 with the davis346 noise fitted to a real
+recording, 10.10 M events); scene files:
 :data:`EVENTS_DEFAULT` (textured like the warehouse)."""
 EVENTS_DEFAULT = 20.0
 LIDAR_HIT_FRACTION = {"refinery": 0.8, "empty": 0.7, None: 0.0}
