@@ -226,3 +226,41 @@ def test_voxel_observation_holds_the_steps_events() -> None:
         seen += len(ev)
     assert seen > 0
     env.close()
+
+
+def test_range_and_laser_observations_are_the_steps_latest_readings() -> None:
+    """A downward sonar at the control rate is read in the step that reaches each reading
+    (no batch lag), near the true height; a laser's observation is its last scan, REP 117's
+    +-inf held at the range bounds."""
+    cfg = tiny_config()
+    cfg["sensors"] += [
+        {"type": "sonar", "name": "sonar", "rate": 50.0, "axis": [0, 0, -1]},
+        {"type": "laser", "name": "scan", "rate": 10.0, "range_max": 8.0},
+    ]
+    env = LandingEnv(cfg)
+    assert env.observation_space["sonar"].shape == (1,)
+    assert env.observation_space["scan"].shape == (1081,)
+    obs, _ = env.reset(seed=1)
+    assert obs["sonar"][0] > 0.5  # the reading at t = 0
+    assert not obs["scan"].any()  # no scan has ended yet: zeros
+    scans = 0
+    for _ in range(12):
+        obs, _, term, trunc, info = env.step(np.zeros(6, np.float32))
+        end_ns = round(info["t"] * 1e9)
+        (tap,) = info["taps"]["sonar"]
+        assert tap["t"][-1] == end_ns  # this step's own reading, not one from a batch ago
+        assert obs["sonar"][0] == np.float32(tap["range"][-1])
+        # the goal lies on the empty scene's ground: the reading is the height gap, up to
+        # the sonar's mount and noise
+        assert abs(obs["sonar"][0] - info["state"]["gaps"][2]) < 0.15
+        for q in info["taps"].get("scan", []):
+            r = np.asarray(q["ranges"], np.float64)
+            want = np.where(r < 0.1, 0.1, np.where(np.isfinite(r), r, 8.0))
+            np.testing.assert_array_equal(obs["scan"], want.astype(np.float32))
+            assert np.isposinf(r).any()  # the sky: no echo within 8 m, shown as 8 m
+            scans += 1
+        assert env.observation_space.contains(obs)
+        if term or trunc:
+            break
+    env.close()
+    assert scans >= 1

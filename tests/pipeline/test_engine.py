@@ -141,6 +141,37 @@ def test_stateful_sampling_is_causal_too(
     assert _wire(stepped) == _wire(one.messages)
 
 
+@pytest.mark.parametrize("type_name", ["sonar", "altimeter"])
+def test_range_readings_come_in_the_step_that_reaches_them(type_name: str, tmp_path: Path) -> None:
+    """A range sensor's noise and dropout are drawn per one-second batch, yet every reading
+    is sent in the step whose end reaches its instant (no wait for the batch to fill), and
+    with dropout on the readings are still the one-shot run's, byte for byte."""
+    traj = _traj()
+    end = traj.duration_ns
+    rate = 200.0  # 200 readings a batch: the whole landing is inside the first one
+    extra = {"dropout": 0.3, "noise_sigma": 0.05, "rate": rate}
+    topic = f"/s_{type_name}"
+    one = _engine(type_name, tmp_path / "one", traj, Clock.fixed(end), **extra).finish(end)
+    guard = HorizonGuard(traj)
+    eng = _engine(type_name, tmp_path / "step", guard, Clock(0), **extra)
+    instants = sample_times_ns(rate, end)
+    assert instants.size < rate
+    got: list[Any] = []
+    h = 0
+    while h + STEP_NS < end:
+        h += STEP_NS
+        guard.set_horizon(h)
+        got += [m for m in eng.advance(h).messages if m.topic == topic]
+        assert len(got) == np.count_nonzero(instants <= h), h
+    guard.finish()
+    got += [m for m in eng.finish(end).messages if m.topic == topic]
+    whole = [m for m in one.messages if m.topic == topic]
+    assert len(got) == len(whole) == instants.size
+    assert _wire(got) == _wire(whole)
+    values = [m.build(STORES[Flavor.ROS2]).range for m in whole]
+    assert 0 < sum(np.isinf(values)) < len(values)  # dropout did drop readings
+
+
 def test_aligned_event_camera_samples_every_step_end(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:

@@ -10,8 +10,10 @@ Keys (docs/guide/closed-loop.md "Observation"):
   and polarity (0: OFF, 1: ON) over the step; ``voxel``: ``(B, H, W)`` float32, each
   event's polarity spread linearly over ``B`` time bins spanning the step.
 * ``<name>`` of every frame camera (the last frame: ``(H, W)`` or ``(H, W, 3)`` uint8 as
-  published), depth camera (``(H, W)`` float32 metres) and range sensor (``sonar``,
-  ``altimeter``: ``(1,)`` float32 metres, the last reading); zeros until the first one.
+  published), depth camera (``(H, W)`` float32 metres), range sensor (``sonar``,
+  ``altimeter``: ``(1,)`` float32 metres, the last reading) and 2-D laser (``(n_beams,)``
+  float32 metres, the last scan); a reading closer than ``min_range`` (REP 117's -inf)
+  is ``min_range``, no echo (+inf) is ``max_range``; zeros until the first one.
 * ``time``: ``(1,)`` float32, the step's end (s of trajectory time).
 """
 
@@ -162,6 +164,8 @@ class ObservationBuilder:
             else:
                 box["events"] = spaces.Box(-np.inf, np.inf, (self.bins, *self.ev_shape), np.float32)
         self.frames: dict[str, tuple[tuple[int, ...], Any]] = {}
+        self.ranges: dict[str, tuple[str, float, float]] = {}
+        """Range sensors: name -> (tap key, min_range, max_range)."""
         for s in sensors:
             if s.type in ("camera", "depth_camera"):
                 m = s.calibration_cameras()[0].model  # type: ignore[attr-defined]
@@ -174,8 +178,14 @@ class ObservationBuilder:
                     self.frames[s.name] = (shape, np.uint8)
                     box[s.name] = spaces.Box(0, 255, shape, np.uint8)
             elif s.type in RANGE_TYPES:
-                self.frames[s.name] = ((1,), np.float32)
-                box[s.name] = spaces.Box(0.0, np.inf, (1,), np.float32)
+                c: Any = s
+                if s.type == "laser":  # a scan: (n_beams,)
+                    n, lo, hi, key = int(c.n_beams), c.range_min, c.range_max, "ranges"
+                else:
+                    n, lo, hi, key = 1, c.min_range, c.max_range, "range"
+                self.frames[s.name] = ((n,), np.float32)
+                self.ranges[s.name] = (key, float(lo), float(hi))
+                box[s.name] = spaces.Box(0.0, hi, (n,), np.float32)
         box["time"] = spaces.Box(0.0, np.inf, (1,), np.float32)
         self.space = spaces.Dict(box)
         self._last: dict[str, NDArray[Any]] = {}
@@ -226,12 +236,15 @@ class ObservationBuilder:
                 )
         for name, (shape, dtype) in self.frames.items():
             tp = taps.get(name, [])
-            key = "range" if shape == (1,) else "image"
+            key, lo, hi = self.ranges.get(name, ("image", 0.0, 0.0))
             last = [q for q in tp if key in q]
             if last:
                 value = np.asarray(last[-1][key])
-                if shape == (1,):
-                    value = np.nan_to_num(value.reshape(-1)[-1:], nan=0.0, posinf=0.0)
+                if name in self.ranges:
+                    # REP 117's -inf (closer than min_range) and +inf (no echo) as the
+                    # bounds; the last reading of a range sensor, the last scan of a laser
+                    r = np.asarray(value, np.float64).reshape(-1)[-shape[0] :]
+                    value = np.where(r < lo, lo, np.where(np.isfinite(r), r, hi))
                 self._last[name] = np.asarray(value, dtype=dtype).reshape(shape)
             out[name] = self._last[name].copy()
         out["time"] = np.array([span[1] * 1e-9], dtype=np.float32)

@@ -173,7 +173,23 @@ class RangeSensor:
     def read(
         self, trajectory: Any, caster: BeamCaster, t_ns: NDArray[np.int64], rng: np.random.Generator
     ) -> NDArray[np.float64]:
-        """(N,) readings at trajectory instants ``t_ns`` (REP 117 +-inf conventions)."""
+        """(N,) readings at trajectory instants ``t_ns`` (REP 117 +-inf conventions), with
+        ``N`` noise and dropout draws from ``rng``."""
+        n_t = t_ns.shape[0]
+        noise: NDArray[np.float64] = np.asarray(rng.standard_normal(n_t))
+        keep: NDArray[np.bool_] = np.asarray(rng.random(n_t) >= self.config.dropout)
+        return self.readings(trajectory, caster, t_ns, noise, keep)
+
+    def readings(
+        self,
+        trajectory: Any,
+        caster: BeamCaster,
+        t_ns: NDArray[np.int64],
+        noise: NDArray[np.float64],
+        keep: NDArray[np.bool_],
+    ) -> NDArray[np.float64]:
+        """(N,) readings at ``t_ns`` given each reading's standard-normal ``noise`` draw and
+        whether it survives dropout (``keep``)."""
         c = self.config
         n_t = t_ns.shape[0]
         if n_t == 0:
@@ -187,8 +203,6 @@ class RangeSensor:
         )
         hits = caster.cast(origins.reshape(-1, 3), dirs.reshape(-1, 3), c.max_range)
         true: NDArray[np.float64] = hits.distance.astype(np.float64).reshape(n_t, n_r).min(axis=1)
-        noise: NDArray[np.float64] = np.asarray(rng.standard_normal(n_t))
-        keep = rng.random(n_t) >= c.dropout
         out = np.full(n_t, np.inf)
         hit = np.isfinite(true) & keep
         close = hit & (true < c.min_range)
@@ -204,27 +218,26 @@ class RangeSensor:
         caster = ctx.raycaster()
         rng = ctx.rng(c.name)
         self._fh = ctx.path(f"range_{c.name}.txt").open("w", encoding="utf-8", newline="\n")
-        chunk = max(1, round(c.rate))  # one second of readings per batch of rays
-        # a batch's noise draws depend on its size: in closed loop a batch is read once
-        # whole (or cut by the end), so that every reading is a one-shot run's
-        pending: list[NDArray[np.int64]] = []
+        chunk = max(1, round(c.rate))  # one second of readings per batch of draws
+        # A batch's noise and dropout draws are made whole when its first reading comes, so
+        # a reading's draws do not depend on where the horizon or the run's end cuts its
+        # batch: every reading is sent as soon as the horizon reaches it (closed loop) and is
+        # the one-shot run's.
+        noise: NDArray[np.float64] = np.zeros(0)
+        keep: NDArray[np.bool_] = np.zeros(0, bool)
         i0 = 0
         last = [-1]
-
-        def floor() -> int:
-            return int(pending[0][0]) if pending else last[0] + 1
-
-        for item in paced(grid, chunk, floor):
+        for item in paced(grid, chunk, lambda: last[0] + 1):
             if isinstance(item, Message):
                 yield item  # wait for the horizon
                 continue
-            j0, piece = item
-            pending.append(piece)
-            if (j0 + piece.size) % chunk and not grid.closed:
-                continue  # the batch is not complete yet
-            t = np.concatenate(pending) if len(pending) > 1 else pending[0]
-            pending = []
-            r = self.read(ctx.trajectory, caster, t, rng)
+            j0, t = item
+            at = j0 % chunk
+            if at == 0:
+                noise = np.asarray(rng.standard_normal(chunk))
+                keep = np.asarray(rng.random(chunk) >= c.dropout)
+            span = slice(at, at + t.size)
+            r = self.readings(ctx.trajectory, caster, t, noise[span], keep[span])
             write_columns(self._fh, t, r, fmt="%.6f", allow_nonfinite=True)
             ctx.clock.tap(c.name, t=t, range=r)
             last[0] = int(t[-1])
