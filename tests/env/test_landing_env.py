@@ -4,6 +4,7 @@ bad configs, and recorded episodes read by the same readers as simulate's runs."
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 from typing import Any
 
@@ -114,10 +115,14 @@ def test_actions_nan_raises_out_of_range_clips() -> None:
             {"closed_loop": {"dynamics": {"max_body_rate": -1}}},
             "closed_loop.dynamics.max_body_rate",
         ),
+        (
+            {"closed_loop": {"start_spread": {"rpy": [0.1, -0.1, 0.0]}}},
+            "closed_loop.start_spread.rpy[1] = -0.1",
+        ),
     ],
 )
 def test_bad_config_names_the_key(over: dict[str, Any], key: str) -> None:
-    with pytest.raises(ConfigError, match=key.replace(".", r"\.")):
+    with pytest.raises(ConfigError, match=re.escape(key)):
         LandingEnv(tiny_config(**over))
 
 
@@ -264,3 +269,52 @@ def test_range_and_laser_observations_are_the_steps_latest_readings() -> None:
             break
     env.close()
     assert scans >= 1
+
+
+def test_start_spread_draws_each_episodes_start_from_its_seed() -> None:
+    """closed_loop.start_spread moves each episode's start within the spread, the same for
+    the same seed and different across seeds; the episode's config carries the start it
+    flew, and tau-state lands from every drawn start."""
+    spread = {"position": [0.3, 0.2, 0.1], "rpy": [0.05, 0.05, 0.2], "descent_rate": 0.3}
+    base = tiny_config()
+    nominal = base["trajectory"]["initial"]
+    env = LandingEnv(tiny_config(closed_loop={"start_spread": spread}))
+    starts = []
+    for seed in (1, 2, 3, 1):
+        _obs, info = env.reset(seed=seed)
+        ini = env.config.trajectory.initial
+        assert ini.position is not None
+        assert ini.descent_rate is not None
+        start = np.array([*ini.position, *ini.rpy, ini.descent_rate])
+        want = np.array([*nominal["position"], *nominal["rpy"], nominal["descent_rate"]])
+        width = np.array([*spread["position"], *spread["rpy"], spread["descent_rate"]])
+        assert np.all(np.abs(start - want) <= width + 1e-12)
+        # the environment flies from it: the state at t = 0 is the drawn start
+        np.testing.assert_allclose(info["state"]["gaps"][:3], start[:3], atol=0.2)
+        starts.append(start)
+    env.close()
+    assert np.array_equal(starts[0], starts[3])
+    assert not np.array_equal(starts[0], starts[1])
+    assert not np.array_equal(starts[1], starts[2])
+    for seed in (4, 5):
+        ep = fly(tiny_config(closed_loop={"start_spread": spread}), "tau-state", seed=seed)
+        assert ep["success"], ep
+
+
+def test_a_start_spread_past_the_goal_is_a_clear_error() -> None:
+    """A spread larger than the start's height draws starts below the goal: the reset of
+    such a seed names the key, the seed, the start and the rule it breaks."""
+    env = LandingEnv(tiny_config(closed_loop={"start_spread": {"position": [0, 0, 5.0]}}))
+    failed = []
+    for seed in range(12):  # z0 = 1 m +- 5 m: most draws lie below the goal
+        try:
+            env.reset(seed=seed)
+        except ConfigError as exc:
+            text = str(exc)
+            assert text.startswith(f"closed_loop.start_spread: the start drawn for seed {seed}")
+            assert "trajectory.initial.position" in text
+            assert "must be > 0" in text
+            assert "np.float64" not in text
+            failed.append(seed)
+    env.close()
+    assert 0 < len(failed) < 12

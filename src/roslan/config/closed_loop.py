@@ -14,7 +14,14 @@ from pydantic import Field
 from roslan.config.base import FiniteFloat, StrictModel
 from roslan.limits import MAX_DURATION_S
 
-__all__ = ["ClosedLoopConfig", "Dynamics", "ObservationConfig", "RewardConfig", "SuccessConfig"]
+__all__ = [
+    "ClosedLoopConfig",
+    "Dynamics",
+    "ObservationConfig",
+    "RewardConfig",
+    "StartSpread",
+    "SuccessConfig",
+]
 
 NonNegative = Annotated[FiniteFloat, Field(ge=0.0)]
 Lag = Annotated[FiniteFloat, Field(ge=0.0, le=10.0)]
@@ -73,6 +80,26 @@ class SuccessConfig(StrictModel):
     """Contact point to goal, m."""
 
 
+Spread3 = tuple[NonNegative, NonNegative, NonNegative]
+
+
+class StartSpread(StrictModel):
+    """``closed_loop.start_spread``: each episode starts at the trajectory's start plus
+    offsets drawn uniformly within +-these (from the episode's seed); all zero (the
+    default): every episode starts at the trajectory's start."""
+
+    position: Spread3 = (0.0, 0.0, 0.0)
+    """x, y, z of the start in the goal frame F, +-m."""
+    rpy: Spread3 = (0.0, 0.0, 0.0)
+    """Roll, pitch, yaw gaps at the start, +-rad."""
+    descent_rate: NonNegative = 0.0
+    """Descent rate at the start, +-m/s."""
+
+    def is_zero(self) -> bool:
+        """No spread: every episode starts at the trajectory's start."""
+        return not (any(self.position) or any(self.rpy) or self.descent_rate)
+
+
 class ClosedLoopConfig(StrictModel):
     """``closed_loop:`` block (every key optional)."""
 
@@ -85,3 +112,4 @@ class ClosedLoopConfig(StrictModel):
     observation: ObservationConfig = ObservationConfig()
     reward: RewardConfig = RewardConfig()
     success: SuccessConfig = SuccessConfig()
+    start_spread: StartSpread = StartSpread()

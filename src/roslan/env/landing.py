@@ -55,6 +55,13 @@ def load_env_config(
     return load_yaml_model(SimConfig, path), path
 
 
+_START_STREAM = 0x57A27  # the start spread's generator: [seed, this]
+
+
+def _fmt(v: NDArray[np.float64]) -> str:
+    return "[" + ", ".join(f"{float(x):.4g}" for x in v) + "]"
+
+
 class LandingEnv(gym.Env[dict[str, NDArray[Any]], F32]):
     """A closed-loop landing (module docstring).
 
@@ -152,7 +159,7 @@ class LandingEnv(gym.Env[dict[str, NDArray[Any]], F32]):
         del options
         self._close_session()
         ep_seed = int(seed) if seed is not None else int(self.np_random.integers(0, 2**31 - 1))
-        cfg = self.base_config.model_copy(update={"seed": ep_seed})
+        cfg = self._start(self.base_config.model_copy(update={"seed": ep_seed}), ep_seed)
         from roslan.vehicle import base_link_trajectory
 
         scene = self._scene(ep_seed)  # as `simulate` loads it with the run's seed
@@ -188,6 +195,41 @@ class LandingEnv(gym.Env[dict[str, NDArray[Any]], F32]):
         obs = self._obs.build(out.taps, (0, 0))
         self._last_events = self._obs.raw_events(out.taps)
         return obs, self._info(out, clipped=False)
+
+    def _start(self, cfg: SimConfig, seed: int) -> SimConfig:
+        """The episode's config: the start moved by ``closed_loop.start_spread``, drawn
+        from the episode's seed (its own stream: the sensors' noise is unchanged)."""
+        spread = self.closed_loop.start_spread
+        if spread.is_zero():
+            return cfg
+        from pydantic import ValidationError
+
+        from roslan.trajectory import TauTrajectory, TrajectoryConfig
+
+        nominal = TauTrajectory(cfg.trajectory, warn=False)
+        u = np.random.default_rng([seed, _START_STREAM]).uniform(-1.0, 1.0, 7)
+        gaps = nominal.initial_gaps + u[:6] * np.array([*spread.position, *spread.rpy])
+        rate = nominal.descent_rate + u[6] * spread.descent_rate
+        data = cfg.trajectory.model_dump()
+        data["approach"] = None
+        data["initial"] = {
+            "position": [float(v) for v in gaps[:3]],
+            "rpy": [float(v) for v in gaps[3:]],
+            "descent_rate": float(rate),
+        }
+        try:
+            traj = TrajectoryConfig.model_validate(data)
+        except ValidationError as exc:
+            err = exc.errors()[0]
+            where = ".".join(str(p) for p in err["loc"])
+            msg = (
+                f"closed_loop.start_spread: the start drawn for seed {seed} (position "
+                f"{_fmt(gaps[:3])} m, rpy {_fmt(gaps[3:])} rad, descent_rate {rate:.4g} m/s) "
+                "is not a valid start: "
+                f"trajectory.{where}: {err['msg']}; make the spread smaller than the start"
+            )
+            raise ConfigError(msg) from None
+        return cfg.model_copy(update={"trajectory": traj})
 
     def _info(self, out: Any, *, clipped: bool) -> dict[str, Any]:
         assert self._traj is not None
