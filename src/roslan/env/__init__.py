@@ -2,7 +2,8 @@
 
 ``import roslan.env`` registers ``roslan/Landing-v0`` (the default landing in the
 warehouse, :data:`~roslan.env.landing.DEFAULT_CONFIG`) and ``roslan/Perching-v0`` (the
-refinery's perching pipe). docs/guide/closed-loop.md is the user guide.
+refinery's perching pipe). :mod:`roslan.env.wrappers` offers smaller action sets.
+docs/guide/closed-loop.md is the user guide.
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ from roslan.env.policies import (
     TauStatePolicy,
     make_policy,
 )
+from roslan.env.wrappers import ReducedAction, VerticalAction
 
 __all__ = [
     "DEFAULT_CONFIG",
@@ -30,7 +32,9 @@ __all__ = [
     "MeanState",
     "Policy",
     "PolicyContext",
+    "ReducedAction",
     "TauStatePolicy",
+    "VerticalAction",
     "load_env_config",
     "make_policy",
 ]
