@@ -23,8 +23,9 @@ Control: constant tau-dot ``k`` (``trajectory.k``) on the height gap. For ``tau 
 ``tau' = 1 - h h'' / h'^2``, so ``tau' = k`` needs ``h'' = (1 - k) h'^2 / h = (1 - k) vz /
 tau``: the braking acceleration of the constant-tau-dot guide through the current state,
 which needs only ``vz`` and ``tau``. The horizontal gaps are tau-coupled to it (``x' = x /
-(kappa_x tau)``, dead-reckoned from the launch position relative to the goal) and the
-attitude gaps are levelled to the goal's attitude. Assumptions: a flat, textured ground
+(kappa_x tau)``, dead-reckoned from the launch position relative to the goal; in the last
+``COUPLING_TAU_MIN`` seconds the coupling's tau is held there) and the attitude gaps are
+levelled to the goal's attitude. Assumptions: a flat, textured ground
 under the camera, the launch state known, an IMU without large biases.
 """
 
@@ -105,6 +106,10 @@ class TauEventsPolicy:
     """s: velocity tracking time constant of the horizontal and attitude loops."""
     MAX_SPEED = 3.0
     """m/s: bound of the horizontal speed the tau coupling asks for."""
+    COUPLING_TAU_MIN = 1.0
+    """s: the tau coupling's tau is held at ``-COUPLING_TAU_MIN`` once closer to contact:
+    the residual horizontal gap is then centred with time constant ``kappa *
+    COUPLING_TAU_MIN`` instead of a speed that grows as ``1 / tau``."""
 
     def __init__(self, params: DivergenceParams | None = None) -> None:
         self.params = params
@@ -280,7 +285,8 @@ class TauEventsPolicy:
         xy = self._xy0 + (Rgw @ st.p)[:2]
         tc = self.HORIZONTAL_TIME
         if math.isfinite(tau) and tau < -0.05:
-            v_des = np.clip(xy / (self._kappa * tau), -self.MAX_SPEED, self.MAX_SPEED)
+            tau_c = min(tau, -self.COUPLING_TAU_MIN)
+            v_des = np.clip(xy / (self._kappa * tau_c), -self.MAX_SPEED, self.MAX_SPEED)
         else:
             v_des = -xy / (2.0 * tc)
         a_goal = np.array([*((v_des - v_goal[:2]) / tc), 0.0])
