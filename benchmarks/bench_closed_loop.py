@@ -118,8 +118,8 @@ def table(results: dict[str, list[dict[str, Any]]]) -> str:
     """The markdown results table."""
     rows = [
         "| policy | landed (v_z <= 0.5 m/s, no collision) | success | touchdown v_z m/s "
-        "median [min, max] | position error m | median tau error, last 70 % |",
-        "|---|---|---|---|---|---|",
+        "median [min, max] | horizontal m/s | position error m | median tau error, last 70 % |",
+        "|---|---|---|---|---|---|---|",
     ]
     for name, eps in results.items():
         n = len(eps)
@@ -128,11 +128,17 @@ def table(results: dict[str, list[dict[str, Any]]]) -> str:
         vz = [
             e["touchdown_vertical_speed"] for e in eps if e["touchdown_vertical_speed"] is not None
         ]
+        vh = [
+            e["touchdown_horizontal_speed"]
+            for e in eps
+            if e["touchdown_horizontal_speed"] is not None
+        ]
         pos = [e["position_error"] for e in eps if e["position_error"] is not None]
         errs = [x for x in (_tau_error(e) for e in eps) if x is not None]
         err = f"{100 * np.median(errs):.1f} %" if errs else "-"
         rows.append(
-            f"| `{name}` | {landed}/{n} | {ok}/{n} | {_stats(vz)} | {_stats(pos)} | {err} |"
+            f"| `{name}` | {landed}/{n} | {ok}/{n} | {_stats(vz)} | {_stats(vh)} | {_stats(pos)} "
+            f"| {err} |"
         )
     return "\n".join(rows)
 
