@@ -25,8 +25,9 @@ tau``: the braking acceleration of the constant-tau-dot guide through the curren
 which needs only ``vz`` and ``tau``. The horizontal gaps are tau-coupled to it (``x' = x /
 (kappa_x tau)``, dead-reckoned from the launch position relative to the goal; in the last
 ``COUPLING_TAU_MIN`` seconds the coupling's tau is held there) and the attitude gaps are
-levelled to the goal's attitude. Assumptions: a flat, textured ground
-under the camera, the launch state known, an IMU without large biases.
+levelled to the goal's attitude. A distorted camera's events are moved to their pixels'
+ideal (undistorted) positions first. Assumptions: a flat, textured ground under the camera,
+the launch state known, an IMU without large biases.
 """
 
 from __future__ import annotations
@@ -133,12 +134,14 @@ class TauEventsPolicy:
             )
             raise ConfigError(msg)
         model = ev.calibration_cameras()[0].model  # type: ignore[attr-defined]
-        if model.distortion_model != "none" and np.any(np.asarray(model.D) != 0.0):
-            msg = (
-                f"sensors.{ev.name}: --policy tau-events needs an undistorted event camera "
-                f"(distortion_model = {model.distortion_model!r} with coefficients)"
-            )
-            raise ConfigError(msg)
+        self._ideal: tuple[F64, F64] | None = None
+        self._width = int(model.width)
+        if not model.is_pinhole:
+            # every pixel's ideal (undistorted) position, once: an event's is a lookup
+            w, h = int(model.width), int(model.height)
+            uu, vv = np.meshgrid(np.arange(w, dtype=np.float64), np.arange(h, dtype=np.float64))
+            xy = model.undistort_normalized(np.stack([uu.ravel(), vv.ravel()], axis=1))
+            self._ideal = (model.fx * xy[:, 0] + model.cx, model.fy * xy[:, 1] + model.cy)
         self._R_body_cam = R_body_cam = rpy_to_matrix(np.asarray(ev.pose.rpy)) @ R_LINK_OPTICAL
         self._R_body_imu = rpy_to_matrix(np.asarray(imu.pose.rpy))
         K = np.asarray(model.K, dtype=np.float64)
@@ -246,8 +249,12 @@ class TauEventsPolicy:
         gyro_t, gyro = self._integrate(np.asarray(observation["imu"], dtype=np.float64), end_ns)
         ev = info.get("events") or {}
         if end_ns > 0:
+            x, y = ev.get("x", ()), ev.get("y", ())
+            if self._ideal is not None and len(x):
+                at = np.asarray(y, dtype=np.int64) * self._width + np.asarray(x, dtype=np.int64)
+                x, y = self._ideal[0][at], self._ideal[1][at]
             e = self._est.update(
-                ev.get("x", ()), ev.get("y", ()), ev.get("t", ()),
+                x, y, ev.get("t", ()),
                 gyro_t_ns=gyro_t, gyro=gyro, end_ns=end_ns,
                 normal=(self._imu.R_wb @ self._R_body_cam).T @ np.array([0.0, 0.0, -1.0]),
             )  # fmt: skip

@@ -31,7 +31,8 @@ rate: ``window_gain * |tau|`` (clipped), so that the ground expands by about the
 pixels in every window, and at most ``max_events`` events (an even stride over the window)
 enter the objective: the cost of one estimate is bounded whatever the event rate.
 
-Assumptions: a pinhole camera (no distortion), a textured ground plane filling most of
+Assumptions: pinhole pixel coordinates (undistort a distorted camera's events first, as
+the ``tau-events`` policy does), a textured ground plane filling most of
 the view, a camera looking roughly along the plane's normal (the divergence of a tilted
 plane is the average over the view), a flow field that is constant over the window.
 """
