@@ -294,7 +294,7 @@ def _log_events(log: _Logger, outdir: Path, name: str, entity: str, root: str | 
     return True
 
 
-_NO_TICK_S = 10.0**9  # the batcher's clock never flushes: chunking follows the data
+_NO_TICK_S = 10.0**9  # the batcher's clock never flushes
 _ROW_ID = "rerun.controls.RowId"
 
 
@@ -310,25 +310,37 @@ def _canonical_rrd(raw: Path, out: Path, recording_id: str, stamp_ns: int) -> No
 
     Rerun stamps every row and chunk with a TUID (wall-clock nanoseconds and a random
     increment). Here each row gets (``stamp_ns``, its rank in the original log order)
-    and each chunk (``stamp_ns``, 2**63 + its rank), chunks in the order of their first
-    row: the relative order of rows, which decides what a latest-at query shows, is
-    kept. Rerun's own :meth:`rerun.chunk.Chunk.from_record_batch` carries the given ids
-    into the file unchanged; nothing is edited below the SDK.
+    and each chunk (``stamp_ns``, 2**63 + its position), chunks in the order of their last
+    row: the relative order of rows, which decides what a latest-at query shows, is kept.
+    Rerun's own :meth:`rerun.chunk.Chunk.from_record_batch` carries the given ids into
+    the file unchanged; nothing is edited below the SDK.
+
+    Two passes over ``raw``, streamed: the first reads the row ids only, the second
+    rewrites each chunk. ``raw``'s chunks were sent as they were logged, so they come
+    in order (a chunk out of order waits for its turn): memory does not grow with the
+    recording.
     """
     import pyarrow as pa
     from rerun.chunk import Chunk, LazyChunkStream, RrdReader
 
-    batches = [c.to_record_batch() for c in RrdReader(str(raw)).stream().to_chunks()]
-    ids = [_tuids(b.column(b.schema.get_field_index(_ROW_ID))) for b in batches]
+    def stream() -> Any:
+        return RrdReader(str(raw)).stream()
+
+    ids = []
+    for c in stream():
+        b = c.to_record_batch()
+        ids.append(_tuids(b.column(b.schema.get_field_index(_ROW_ID))))
     every = np.concatenate(ids) if ids else np.zeros((0, 2), np.uint64)
     order = np.lexsort((every[:, 1], every[:, 0]))
     rank = np.empty(len(order), np.uint64)
     rank[order] = np.arange(1, len(order) + 1, dtype=np.uint64)
     ranks = np.split(rank, np.cumsum([len(i) for i in ids])[:-1]) if ids else []
-    first = [int(r.min()) if len(r) else 2**62 for r in ranks]
-    chunks = []
-    for n, k in enumerate(sorted(range(len(batches)), key=first.__getitem__)):
-        b = batches[k]
+    last = [int(r.max()) if len(r) else 0 for r in ranks]
+    position = {k: n for n, k in enumerate(sorted(range(len(ids)), key=last.__getitem__))}
+    del ids, every, order, rank
+
+    def rewrite(b: Any, k: int) -> Any:
+        n = position[k]
         new = np.empty((b.num_rows, 2), dtype=">u8")
         new[:, 0] = stamp_ns
         new[:, 1] = ranks[k]
@@ -344,8 +356,21 @@ def _canonical_rrd(raw: Path, out: Path, recording_id: str, stamp_ns: int) -> No
         if len(made) != 1 or made[0].id.lower() != f"chunk_{chunk_id}".lower():
             msg = f"roslan view: rerun did not keep the canonical ids of chunk {n}"
             raise ViewError(msg)
-        chunks.extend(made)
-    LazyChunkStream.from_iter(chunks).write_rrd(
+        return made[0]
+
+    def in_order() -> Any:
+        waiting: dict[int, Any] = {}
+        due = 0
+        for k, c in enumerate(stream()):
+            waiting[position[k]] = rewrite(c.to_record_batch(), k)
+            while due in waiting:
+                yield waiting.pop(due)
+                due += 1
+        if waiting:
+            msg = f"roslan view: {raw} changed while it was rewritten"
+            raise ViewError(msg)
+
+    LazyChunkStream.from_iter(in_order()).write_rrd(
         str(out), application_id="roslan", recording_id=recording_id
     )
 
@@ -378,13 +403,17 @@ def build_recording(
     paths = _bag_paths(outdir)
     recording_id = f"roslan-{outdir.resolve().name}"
     # No wall-clock log_time timeline and no properties (their start time). The batcher
-    # never flushes on its clock, only on size, so which rows share a chunk depends on the
-    # logged data alone; the row and chunk ids are made canonical after (_canonical_rrd).
+    # never flushes on its clock and sends each logged row as it comes (one byte is
+    # enough), so the chunks and their order follow the logging alone, and none is left
+    # for its final flush (a hash map's order); the ids are made canonical after
+    # (_canonical_rrd). Rerun compacts the small chunks when it loads the file.
     rec = rr.RecordingStream(
         "roslan",
         recording_id=recording_id,
         send_properties=False,
-        batcher_config=None if save is None else rr.ChunkBatcherConfig(flush_tick=_NO_TICK_S),
+        batcher_config=None
+        if save is None
+        else rr.ChunkBatcherConfig(flush_tick=_NO_TICK_S, flush_num_bytes=1),
     )
     rec.set_log_time_enabled(False)
     rec.set_log_tick_enabled(False)
