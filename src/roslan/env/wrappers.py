@@ -37,7 +37,8 @@ Rest = Literal["zero", "tau-state"]
 
 
 class ReducedAction(gym.Wrapper[Any, Any, Any, Any]):
-    """Fly the action components ``keep`` (names of :data:`ACTION_NAMES`, in that order);
+    """Fly the action components ``keep`` (names out of :data:`ACTION_NAMES`; the reduced
+    action holds them in :data:`ACTION_NAMES`' order, whatever the order of ``keep``);
     the others come from ``rest`` (module docstring).
 
     The action space is the wrapped one's ``Box`` restricted to ``keep``. A wrong shape
