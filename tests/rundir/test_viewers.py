@@ -6,8 +6,10 @@ from __future__ import annotations
 
 import json
 import shutil
+import struct
 import subprocess
 import sys
+import warnings
 from pathlib import Path
 from typing import Any
 
@@ -245,53 +247,34 @@ def _rerun_cli() -> str:
 
 
 def test_view_save_twice_gives_the_same_recording(run: Path, tmp_path: Path) -> None:
-    """Same OUTDIR, same recording: the same bytes for every chunk (rows, row ids, chunk
-    ids, order), judged on the bytes, by reading both files back and by rerun's own
-    ``rrd compare``. The two saves run in one process, the second after the first."""
+    """Same OUTDIR, same recording: the same file, byte for byte, with every row id
+    stamped from the run (its start time and the row's rank), not the wall clock. The two
+    saves run in one process, the second after the first; no warning says the file could
+    not be made canonical."""
     pytest.importorskip("rerun")
     from rerun.chunk import RrdReader
 
     from roslan.cli import main
 
     a, b = tmp_path / "a.rrd", tmp_path / "b.rrd"
-    assert main(["view", str(run), "--save", str(a)]) == 0
-    assert main(["view", str(run), "--save", str(b)]) == 0
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert main(["view", str(run), "--save", str(a)]) == 0
+        assert main(["view", str(run), "--save", str(b)]) == 0
     assert not list(tmp_path.glob("*.raw"))
-    # byte for byte up to the end of the last chunk, but for the row id of the store-info
-    # message (indices 31..48: a TUID rerun-sdk stamps with the wall clock); the footer
-    # after it holds rerun's manifest, whose Arrow field metadata is in a hash map's order
-    index = RrdReader(str(a)).store()._chunk_index().to_arrow()
-    end = max(
-        o + n
-        for o, n in zip(
-            index.column("chunk_byte_offset").to_pylist(),
-            index.column("chunk_byte_size").to_pylist(),
-            strict=True,
-        )
-    )
     ba, bb = a.read_bytes(), b.read_bytes()
-    assert 1000 < end < len(ba)
-    assert ba[:31] == bb[:31]
-    assert ba[48:end] == bb[48:end]
-    ca = [c.to_record_batch() for c in RrdReader(str(a)).stream().to_chunks()]
-    cb = [c.to_record_batch() for c in RrdReader(str(b)).stream().to_chunks()]
-    assert len(ca) == len(cb) > 10
-    for x, y in zip(ca, cb, strict=True):
-        assert x.schema.metadata == y.schema.metadata  # the chunk id and entity
-        assert x.equals(y)  # the row ids included
+    assert len(ba) > 10_000
+    assert ba == bb
+    chunks = [c.to_record_batch() for c in RrdReader(str(a)).stream().to_chunks()]
+    assert len(chunks) > 10
     start = json.loads((run / "run.json").read_text())["start_time_ns"]
     ids = np.concatenate(
-        [np.frombuffer(x.column("rerun.controls.RowId").buffers()[1], ">u8") for x in ca]
+        [np.frombuffer(x.column("rerun.controls.RowId").buffers()[1], ">u8") for x in chunks]
     ).reshape(-1, 2)
     assert (ids[:, 0] == start).all()  # stamped with the run's start, not the wall clock
     assert sorted(ids[:, 1].tolist()) == list(range(1, len(ids) + 1))
-    proc = subprocess.run(
-        [_rerun_cli(), "rrd", "compare", str(a), str(b)],
-        capture_output=True,
-        text=True,
-        timeout=120,
-    )
-    assert proc.returncode == 0, proc.stdout + proc.stderr
+    # the store-info message's row id: (start, 0), after 12 + 16 + 2 bytes of headers
+    assert struct.unpack_from("<BQBQ", ba, 30) == (0x09, start, 0x11, 0)
 
 
 def test_view_without_display_or_extra_is_clear(

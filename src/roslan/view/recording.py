@@ -20,17 +20,16 @@ series, the event files (``events.h5``/``events.txt``) for the events (decoding 
 ``dvs_msgs/Event`` through the bag's generic deserializer would be far slower), and
 ``run.json`` for which sensor published which topic.
 
-Saved recordings are reproducible: the same OUTDIR gives the same chunks, row ids and
-chunk ids, in the same order, so ``rerun rrd compare`` finds two saves equal and the
-two files have the same size. What rerun-sdk 0.41 still stamps itself is not: the row id
-of the file's store-info message (a fresh wall-clock TUID) and the order of the Arrow
-field metadata in the file's footer manifest (a hash map's order), so the bytes of
-those two parts differ between saves.
+Saved recordings are reproducible: the same OUTDIR gives the same file, byte for byte.
+Every chunk, row id and chunk id depends on the run alone, and the two parts rerun-sdk
+stamps itself (the store-info message's row id, the order of the footer manifest's
+schema) are made canonical after the file is written.
 """
 
 from __future__ import annotations
 
 import json
+import warnings
 from collections import defaultdict
 from collections.abc import Callable
 from pathlib import Path
@@ -40,6 +39,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from roslan.errors import RoslanError
+from roslan.view.rrd_file import canonicalize_envelope
 
 __all__ = ["TIMELINE", "ViewError", "build_recording"]
 
@@ -427,7 +427,14 @@ def build_recording(
         if raw is not None and save is not None:
             rec.flush()
             rec.disconnect()
-            _canonical_rrd(raw, save, recording_id, int(run["start_time_ns"]))
+            stamp_ns = int(run["start_time_ns"])
+            _canonical_rrd(raw, save, recording_id, stamp_ns)
+            why = canonicalize_envelope(save, stamp_ns)
+            if why is not None:
+                warnings.warn(
+                    f"roslan view: the recording is valid but not byte-reproducible: {why}",
+                    stacklevel=2,
+                )
     finally:
         if raw is not None:
             raw.unlink(missing_ok=True)
