@@ -11,6 +11,7 @@ import subprocess
 import sys
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import pyarrow as pa
 import pytest
@@ -149,3 +150,24 @@ def test_an_unknown_layout_is_left_as_written(
     assert why is not None
     assert "layout" in why
     assert path.read_bytes() == bad
+
+
+def test_without_xxhash_the_file_is_left_as_written(
+    saved: tuple[Path, bytes], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import builtins
+
+    path, before = saved
+    real_import = builtins.__import__
+
+    def no_xxhash(name: str, *args: Any, **kwargs: Any) -> Any:
+        if name == "xxhash":
+            raise ImportError(name)
+        return real_import(name, *args, **kwargs)
+
+    monkeypatch.setattr(builtins, "__import__", no_xxhash)
+    why = canonicalize_envelope(path, STAMP)
+    assert why is not None
+    assert "xxhash" in why
+    assert "roslan[view]" in why
+    assert path.read_bytes() == before

@@ -381,7 +381,7 @@ def _import_rerun() -> Any:
     except ImportError:
         msg = (
             "roslan view needs the optional Rerun SDK: pip install 'roslan[view]' "
-            "(or pip install rerun-sdk)"
+            "(or pip install rerun-sdk xxhash)"
         )
         raise ViewError(msg) from None
     return rr

@@ -13,8 +13,9 @@ after that and differ between two saves of the same recording:
 time, 0) and the schema's fields are sorted (control, index, data columns, each by
 name; every field's metadata by key). Nothing else changes (the manifest's SHA-256 of
 the schema does not depend on the fields' order: rerun writes the same one for any
-order); the footer's Arrow schema is re-encoded by pyarrow, and its length, the ``End``
-message header and the stream footer (offset, size, xxHash32 checksum) follow. The layout is that of RRD format 0.41 (a
+order); the footer's Arrow schema is re-encoded by pyarrow (so the bytes are those of
+the installed pyarrow), and its length, the ``End`` message header and the stream footer
+(offset, size, xxHash32 checksum) follow. The layout is that of RRD format 0.41 (a
 12-byte stream header ``RRF2``; length-prefixed protobuf messages; a 32-byte stream
 footer ending in ``RRF2FOOT``); a file of another layout is left as written, valid but
 not byte-reproducible, and the function says why.
