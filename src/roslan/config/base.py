@@ -42,6 +42,7 @@ __all__ = [
     "UnitWarning",
     "Vec3",
     "allowed_keys",
+    "did_you_mean",
     "format_validation_error",
     "load_yaml",
     "load_yaml_model",
@@ -157,7 +158,7 @@ def _loc(loc: tuple[int | str, ...]) -> str:
     return out or "<root>"
 
 
-def _closest(word: Any, allowed: list[str]) -> str:
+def did_you_mean(word: Any, allowed: list[str]) -> str:
     """``; did you mean 'x'?`` for the allowed word closest to ``word`` (difflib), or ''."""
     if not isinstance(word, str) or not allowed:
         return ""
@@ -249,10 +250,10 @@ def _clean_message(err: Mapping[str, Any], allowed: list[str] | None = None) -> 
     if err.get("type") == "extra_forbidden":
         loc = err.get("loc") or ()
         key = loc[-1] if loc else None
-        msg = "unknown key" + (_closest(key, allowed or []) or " (not allowed here)")
+        msg = "unknown key" + (did_you_mean(key, allowed or []) or " (not allowed here)")
     elif err.get("type") in ("literal_error", "enum"):
         expected = str((err.get("ctx") or {}).get("expected", ""))
-        msg += _closest(err.get("input"), _QUOTED.findall(expected))
+        msg += did_you_mean(err.get("input"), _QUOTED.findall(expected))
     return msg
 
 
