@@ -180,6 +180,10 @@ def test_fly_writes_episode_json(flown: Path) -> None:
     run = json.loads((flown / "run.json").read_text())
     assert run["complete"] is True
     assert run["config"]["seed"] == 3
+    assert "episode.json" in run["files"]  # what --overwrite may replace
+    readme = (flown / "README.md").read_text()
+    row = next(ln for ln in readme.splitlines() if ln.startswith("| `episode.json` |"))
+    assert "policy, seed, success, reason" in row
 
 
 def test_fly_outdir_is_read_by_rosbag_mcap_and_evlib(flown: Path, tmp_path: Path) -> None:
