@@ -47,9 +47,9 @@ NOT_RUN: dict[str, str] = {
     r"\.venv/bin/roslan .*": "the clone's .venv (here `roslan` on PATH runs every example)",
     r"source \.venv/bin/activate": "the clone's .venv (a shell builtin of bash, not sh)",
     r"rosbag info .*": "needs a ROS 1 installation (tests/io/test_bags.py reads the bags instead)",
-    r"roslan dataset -o paper_ds": "12 full landings take minutes (its --dry-run runs here)",
-    r"roslan batch sweep\.yaml -o sweep_out --workers .*": "64 landings (the --dry-run runs here)",
-    r"roslan batch sweep\.yaml -o sweep_out --scheduler .*": "needs a running Dask scheduler",
+    r"roslan dataset -o out_paper_ds": "12 full landings take minutes (its --dry-run runs here)",
+    r"roslan batch sweep\.yaml -o out_sweep --workers .*": "64 landings (the --dry-run runs here)",
+    r"roslan batch sweep\.yaml -o out_sweep --scheduler .*": "needs a running Dask scheduler",
     r"roslan fit-noise out/events\.h5 --quiet-span .*": (
         "the suite's `make demo` is shortened to 1 s without its hold, so it has no quiet span "
         "(tests/cli/test_fit_noise_cli.py fits roslan's own events.h5 and events.txt)"
@@ -222,6 +222,28 @@ def test_no_example_writes_inside_another_run() -> None:
     assert not _inside(PurePosixPath("out_ranges"), PurePosixPath("out"))
 
 
+def test_every_example_output_is_ignored_by_git() -> None:
+    """A clone's ``git status`` stays clean after the examples: every ``-o``/``--save``
+    target of the README and the guide starts with ``out`` and git ignores it (asked of
+    git itself, with the repository's .gitignore)."""
+    import shutil
+
+    targets = sorted({str(o) for c in _all_commands() for o in _outputs(c)})
+    assert len(targets) >= 30
+    assert [t for t in targets if not t.startswith("out")] == []
+    if shutil.which("git") is None or not (ROOT / ".git").exists():
+        pytest.skip("not a git checkout")
+    paths = [t.rstrip("/") for t in targets] + [t.rstrip("/") + "/run.json" for t in targets]
+    proc = subprocess.run(
+        ["git", "check-ignore", "--no-index", "--verbose", "--non-matching", *paths],
+        cwd=ROOT, capture_output=True, text=True, check=False,
+    )  # fmt: skip
+    assert proc.returncode in (0, 1), proc.stderr
+    not_ignored = [ln.split("\t")[-1] for ln in proc.stdout.splitlines() if ln.startswith("::")]
+    assert not_ignored == []
+    assert len(proc.stdout.splitlines()) == len(paths)
+
+
 def _validate_yaml(text: str, tmp_path: Path, where: str) -> None:
     data: Any = yaml.safe_load(text)
     assert isinstance(data, dict), text
@@ -308,21 +330,21 @@ def test_every_readme_example_runs_as_written(tmp_path: Path) -> None:
     # what the examples promise is there
     for path in (
         "out/plots/trajectory.png",
-        "landing/trajectory.csv",
-        "tau_family.png",
-        "job_out/run.json",
-        "perch_out/run.json",
-        "vision_out/depth_depth.txt",
-        "vision_plots",
-        "ranges_out/lidar/velodyne/timestamps.txt",
-        "lidar.png",
-        "view.png",
-        "preview.mp4",
+        "out_landing/trajectory.csv",
+        "out_tau_family.png",
+        "out_job/run.json",
+        "out_perch/run.json",
+        "out_vision/depth_depth.txt",
+        "out_vision_plots",
+        "out_ranges/lidar/velodyne/timestamps.txt",
+        "out_lidar.png",
+        "out_view.png",
+        "out_preview.mp4",
     ):
         assert (work / path).exists(), path
     # the disk switch the README shows: events.h5 without events.txt
-    assert (work / "vision_out" / "events.h5").exists()
-    assert not (work / "vision_out" / "events.txt").exists()
+    assert (work / "out_vision" / "events.h5").exists()
+    assert not (work / "out_vision" / "events.txt").exists()
 
 
 @pytest.mark.slow
@@ -331,28 +353,28 @@ def test_every_guide_example_runs_as_written(tmp_path: Path) -> None:
     work, printed, ran = _run_documents(guide_pages(), tmp_path)
     assert ran >= 25
     for path in (
-        "tau_landing/summary.json",
-        "flown/trajectory.csv",
-        "perch_guide_out/run.json",
-        "perch_trajectory.png",
-        "full_job_out/landing_ros2",
-        "imu_out/imu.txt",
-        "imu.png",
-        "warehouse_view.png",
-        "wh/scene.yaml",
-        "cam_out/run.json",
-        "events_out/events.txt",
-        "event_frames",
-        "range_suite_out/lidar/velodyne/timestamps.txt",
+        "out_tau_landing/summary.json",
+        "out_flown/trajectory.csv",
+        "out_perch_guide/run.json",
+        "out_perch_trajectory.png",
+        "out_full_job/landing_ros2",
+        "out_imu/imu.txt",
+        "out_imu.png",
+        "out_warehouse_view.png",
+        "out_wh/scene.yaml",
+        "out_cam/run.json",
+        "out_event_camera/events.txt",
+        "out_event_frames",
+        "out_range_suite/lidar/velodyne/timestamps.txt",
         "out/plots/trajectory.png",
-        "preview.mp4",
-        "landing.rrd",
-        "small",
+        "out_preview.mp4",
+        "out_landing.rrd",
+        "out_small",
     ):
         assert (work / path).exists(), path
-    assert not (work / "full_job_out" / "landing.bag").exists()  # --format ros2
+    assert not (work / "out_full_job" / "landing.bag").exists()  # --format ros2
     # the small-disk job's plan: the switches drop events.txt and the ROS 1 bag
-    plan = printed["roslan simulate small_disk.yaml -o small_disk_out --dry-run"]
+    plan = printed["roslan simulate small_disk.yaml -o out_small_disk --dry-run"]
     for shown in ("events.h5", "landing_ros2/"):
         assert shown in plan, plan
     for dropped in ("events.txt", "landing.bag"):

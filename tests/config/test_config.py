@@ -10,6 +10,7 @@ import yaml
 from roslan.config.base import load_yaml_model, validate_model
 from roslan.config.sim import SimConfig
 from roslan.errors import ConfigError
+from roslan.limits import MAX_COORD_M, MAX_DURATION_S, MAX_RATE_HZ
 from roslan.trajectory import TrajectoryConfig
 
 
@@ -224,3 +225,93 @@ def test_a_sweep_warns_a_unit_slip_once(tmp_path: Path, recwarn: pytest.Warnings
         "sweep.yaml (3 tasks): trajectory.initial.rpy = [0, 20, 0]: beyond +-2 pi; angles "
         "are in radians (if 20 means degrees, write 0.3491)"
     ]
+
+
+def _range(name: str, lo: float, lo_incl: bool, hi: float, hi_incl: bool) -> str:
+    """The range as the error states it, written here independently of the formatter."""
+
+    def num(v: float) -> str:
+        return str(int(v)) if float(v).is_integer() else f"{v:g}"
+
+    return f"{num(lo)} {'<=' if lo_incl else '<'} {name} {'<=' if hi_incl else '<'} {num(hi)}"
+
+
+@pytest.mark.parametrize(
+    ("yaml_text", "key", "allowed"),
+    [
+        # the issue's two: one side was stated, now both (k < 1 from the field itself)
+        ("trajectory: {k: -1}", "trajectory.k = -1", _range("k", 1e-3, True, 1.0, False)),
+        (
+            "sensors: [{type: imu, name: imu, rate: -200}]",
+            "sensors[0].rate = -200",
+            _range("rate", 0.0, False, MAX_RATE_HZ, True),
+        ),
+        # the upper side broken, both stated
+        (
+            "output: {ground_truth_rate: 20000}",
+            "output.ground_truth_rate = 20000",
+            _range("ground_truth_rate", 0.0, False, MAX_RATE_HZ, True),
+        ),
+        (
+            "trajectory: {hold: -1}",
+            "trajectory.hold = -1",
+            _range("hold", 0.0, True, MAX_DURATION_S, True),
+        ),
+        (
+            "trajectory: {goal: {position: [0, 0, 2.0e+6]}}",
+            "trajectory.goal.position[2] = 2000000.0",
+            _range("position[2]", -MAX_COORD_M, True, MAX_COORD_M, True),
+        ),
+        (
+            "sensors: [{type: lidar, name: l, preset: vlp16, rate: 10, dropout: 1}]",
+            "sensors[0].dropout = 1",
+            _range("dropout", 0.0, True, 1.0, False),
+        ),
+        (  # an optional field (`X | None`): its bounds sit inside the union
+            "closed_loop: {observation: {max_imu_samples: 0}}",
+            "closed_loop.observation.max_imu_samples = 0",
+            _range("max_imu_samples", 1, True, 100_000, True),
+        ),
+        (
+            "closed_loop: {control_rate: 5000}",
+            "closed_loop.control_rate = 5000",
+            _range("control_rate", 1.0, True, 1000.0, True),
+        ),
+    ],
+)
+def test_a_number_out_of_range_states_both_sides(
+    tmp_path: Path, yaml_text: str, key: str, allowed: str
+) -> None:
+    with pytest.raises(ConfigError) as exc:
+        _load(tmp_path, yaml_text)
+    (line,) = [ln for ln in str(exc.value).splitlines() if key in ln]
+    assert line.startswith(f"{tmp_path / 'sim.yaml'}: {key}: Input should be "), line
+    assert line.endswith(f"; allowed: {allowed}"), line
+
+
+def test_a_one_sided_bound_states_its_side_only(tmp_path: Path) -> None:
+    """``smoothing`` (>= 0, no upper bound) and a descent rate (> 0): pydantic's own
+    text, nothing invented for the open side."""
+    for text, key in [
+        ("trajectory: {smoothing: -1}", "trajectory.smoothing"),
+        ("trajectory: {initial: {position: [1, 2, 3], descent_rate: -1}}", "descent_rate"),
+    ]:
+        with pytest.raises(ConfigError) as exc:
+            _load(tmp_path, text)
+        msg = str(exc.value)
+        assert key in msg
+        assert "greater than" in msg
+        assert "allowed:" not in msg
+
+
+def test_a_scene_file_size_out_of_range_states_both_sides(tmp_path: Path) -> None:
+    from roslan.errors import SceneError
+    from roslan.limits import MAX_SIZE_M, MIN_SIZE_M
+    from roslan.scene import load_scene
+
+    box = {"name": "b", "primitive": {"type": "box", "size": [1.0, 0.0, 1.0]}}
+    (tmp_path / "s.yaml").write_text(yaml.safe_dump({"name": "s", "objects": [box]}))
+    with pytest.raises(SceneError) as exc:
+        load_scene(tmp_path / "s.yaml")
+    expected = _range("size[1]", MIN_SIZE_M, True, MAX_SIZE_M, True)
+    assert str(exc.value).endswith(f"; allowed: {expected}"), exc.value

@@ -180,6 +180,10 @@ def test_fly_writes_episode_json(flown: Path) -> None:
     run = json.loads((flown / "run.json").read_text())
     assert run["complete"] is True
     assert run["config"]["seed"] == 3
+    assert "episode.json" in run["files"]  # what --overwrite may replace
+    readme = (flown / "README.md").read_text()
+    row = next(ln for ln in readme.splitlines() if ln.startswith("| `episode.json` |"))
+    assert "policy, seed, success, reason" in row
 
 
 def test_fly_outdir_is_read_by_rosbag_mcap_and_evlib(flown: Path, tmp_path: Path) -> None:
@@ -318,3 +322,24 @@ def test_a_start_spread_past_the_goal_is_a_clear_error() -> None:
             failed.append(seed)
     env.close()
     assert 0 < len(failed) < 12
+
+
+GUIDE = Path(__file__).resolve().parents[2] / "docs" / "guide" / "closed-loop.md"
+README = Path(__file__).resolve().parents[2] / "README.md"
+
+
+def test_the_guide_lists_every_info_key_and_the_examples_use_no_other() -> None:
+    """The guide's ``info`` paragraph names exactly the keys a step's ``info`` has (plus
+    ``episode`` at the end), and every ``info["key"]`` the README's and the guide's
+    examples read is among them."""
+    text = GUIDE.read_text(encoding="utf-8")
+    paragraph = text.split("\n`info` holds ", 1)[1].split("\n\n", 1)[0]
+    listed = set(re.findall(r"(?:^|[,(]\s|and\s|end\s)`(\w+)`", paragraph, re.M))
+    env = LandingEnv(tiny_config())
+    _, info = env.reset(seed=0)
+    _, _, _, _, stepped = env.step(np.zeros(6, dtype=np.float32))
+    env.close()
+    assert listed == set(info) | set(stepped) | {"episode"}, sorted(listed)
+    used = set(re.findall(r'info\["(\w+)"\]', README.read_text() + text))
+    assert "R_world_goal" in used
+    assert used <= listed | {"action"}, used - listed  # `action`: the wrappers' (documented there)

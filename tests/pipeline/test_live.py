@@ -5,6 +5,7 @@ is written."""
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import pytest
@@ -57,6 +58,16 @@ def test_a_stepped_live_run_writes_simulate_s_outdir(tmp_path: Path) -> None:
     # drawn from the trajectory's type: the tau panels of a TauTrajectory, not of its guard
     sim.pop("trajectory.png"), live.pop("trajectory.png")
     assert sorted(live) == sorted(sim)
+    # README.md and run.json describe the extra file too, and nothing else differs
+    readme = live.pop("README.md").decode().splitlines()
+    episode_rows = [ln for ln in readme if ln.startswith("| `episode.json` |")]
+    assert len(episode_rows) == 1
+    assert [ln for ln in readme if ln not in episode_rows] == sim.pop(
+        "README.md"
+    ).decode().splitlines()
+    live_run, sim_run = json.loads(live.pop("run.json")), json.loads(sim.pop("run.json"))
+    assert live_run.pop("files") == sorted([*sim_run.pop("files"), "episode.json"])
+    assert live_run == sim_run
     assert [k for k in sim if sim[k] != live[k]] == []
     assert n_imu == len((tmp_path / "sim" / "imu.txt").read_text().splitlines())
 

@@ -7,6 +7,7 @@ from __future__ import annotations
 import json
 import math
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -304,6 +305,30 @@ def test_plot_lidar_scan_choice_and_errors(run_dir: Path, tmp_path: Path) -> Non
         plot_lidar(run_dir, tmp_path / "l.png", sensor="ouster")
 
 
+def test_plot_lidar_title_gives_the_scan_index_as_given(
+    run_dir: Path,
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """--scan 1 draws the file 000001.npz and its title says scan 1 (0-based, as --help
+    says); -1 is the last."""
+    import roslan.plots.lidar as lidar_plot
+
+    drawn: list[Any] = []
+    save = lidar_plot.save_figure
+    monkeypatch.setattr(
+        lidar_plot, "save_figure", lambda fig, out, **kw: drawn.append(fig) or save(fig, out, **kw)
+    )
+    for scan, shown in ((1, 1), (0, 0), (-1, 2)):
+        lidar_plot.plot_lidar(run_dir, tmp_path / "l.png", scan=scan)
+        title = drawn[-1]._suptitle.get_text()
+        assert f"scan {shown} of 0..2 ({shown:06d}.npz)" in title, title
+    with pytest.raises(SystemExit):
+        main(["plot", "lidar", "--help"])
+    assert "0-based" in " ".join(capsys.readouterr().out.split())
+
+
 def test_lidar_reader_uses_timestamps_and_drops_nan(tmp_path: Path) -> None:
     from roslan.rundir.readers import find_lidar
 
@@ -339,6 +364,29 @@ def test_plot_imu_truth_is_the_closed_form(run_dir: Path, tmp_path: Path) -> Non
     np.testing.assert_allclose(res_g.std(axis=0), 0.01, rtol=0.2)
     assert "closed form" in truth.source
     _assert_figure(_png(plot_imu(run_dir, tmp_path / "imu.png")), 1500, 800)
+
+
+def test_plot_imu_draws_the_thin_truth_over_the_wider_measurement(
+    run_dir: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Where the noise is thinner than a line (a_z, w_y of a flapping landing), the
+    measurement still shows: on every panel the truth is the thinner line, drawn on top."""
+    import roslan.plots.imu as imu_plot
+
+    drawn: list[Any] = []
+    save = imu_plot.save_figure
+    monkeypatch.setattr(
+        imu_plot, "save_figure", lambda fig, out: drawn.append(fig) or save(fig, out)
+    )
+    imu_plot.plot_imu(run_dir, tmp_path / "imu.png")
+    (fig,) = drawn
+    assert len(fig.axes) == 6
+    for ax in fig.axes:
+        by = {str(ln.get_label()).split(" (")[0]: ln for ln in ax.get_lines()}
+        measured, truth = by["measured"], by["noise-free truth"]
+        assert truth.get_linewidth() < measured.get_linewidth()
+        assert truth.get_zorder() > measured.get_zorder()
+        assert truth.get_color() == "k"
 
 
 def test_imu_truth_from_groundtruth_fallback(run_dir: Path) -> None:
@@ -565,6 +613,22 @@ def test_preview_gif_via_cli(run_dir: Path, tmp_path: Path) -> None:
     assert frames.shape[0] == math.floor(_traj().duration * 5 + 1e-9) + 1
     assert frames.shape[2] == 480
     assert frames[len(frames) // 2].std() > 20
+
+
+def test_preview_progress_without_a_terminal_is_one_line_a_count(
+    run_dir: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Without a TTY (capsys, a log, a pipe), ``roslan preview`` prints each frame count
+    on its own line: no carriage returns running the counts together."""
+    out = tmp_path / "p.mp4"
+    assert main(["preview", str(run_dir), "-o", str(out), "--fps", "40"]) == 0
+    err = capsys.readouterr().err
+    n = math.floor(_traj().duration * 40 + 1e-9) + 1
+    counts = [ln for ln in err.splitlines() if ln.startswith("frame ")]
+    expected = [f"frame {k + 1}/{n}" for k in range(n) if k % 30 == 0 or k == n - 1]
+    assert counts == expected
+    assert len(expected) > 1
+    assert "\r" not in err
 
 
 def test_preview_without_sensors_shows_placeholders(bare_dir: Path, tmp_path: Path) -> None:

@@ -97,3 +97,66 @@ def test_the_drawn_tau_panel_shows_the_theory_line(
         y = np.asarray(line.get_ydata(), dtype=float)
         y = y[np.isfinite(y)]
         assert y.size == 0 or (y.min() >= lo and y.max() <= hi), line.get_label()
+
+
+def test_coincident_groups_join_curves_one_line_apart() -> None:
+    """Curves within half a percent of the panel's height share a group; the NaN a gap's
+    tau takes at the goal (0 / 0), a few samples apart, does not split a group."""
+    t = np.linspace(0.0, 1.0, 200)
+    line = -1.0 + t
+    late = line.copy()
+    late[-3:] = np.nan
+    curves = {
+        "x": -2.0 + 2.0 * t,
+        "roll": line,
+        "pitch": late,
+        "yaw": line + 0.004,  # 0.4 % of a span of 1: on the line
+        "y": line + 0.02,  # 2 %: a line of its own
+    }
+    assert traj_plot.coincident_groups(curves, span=1.0) == [
+        ["x"],
+        ["roll", "pitch", "yaw"],
+        ["y"],
+    ]
+    mostly_nan = line.copy()
+    mostly_nan[:50] = np.nan  # finite at 3/4 of the samples only: not the same curve
+    assert traj_plot.coincident_groups({"a": line, "b": mostly_nan}, 1.0) == [["a"], ["b"]]
+
+
+def test_coinciding_tau_curves_take_turns_and_the_legend_says_so(
+    flapping_run: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Equal kappa: tau_roll, tau_pitch and tau_yaw are one line. Each is drawn in dashes
+    that take turns with the others' (every position of the line belongs to exactly one
+    of them, so all three colours show), and the legend names the equality."""
+    drawn: list[Any] = []
+    save = traj_plot.save_figure
+
+    def keep(fig: Any, out: Path) -> Path:
+        drawn.append(fig)
+        return save(fig, out)
+
+    monkeypatch.setattr(traj_plot, "save_figure", keep)
+    traj_plot.plot_trajectory(flapping_run, tmp_path / "t.png")
+    (fig,) = drawn
+    (ax,) = [a for a in fig.axes if a.get_ylabel().startswith("τ")]
+    curves = [ln for ln in ax.get_lines() if len(ln.get_ydata()) > 2]
+    ref = np.asarray(curves[3].get_ydata(), dtype=float)  # x, y, z, then roll
+    shared = [
+        ln
+        for ln in curves
+        if np.allclose(np.asarray(ln.get_ydata(), dtype=float), ref, equal_nan=True, atol=1e-9)
+    ]
+    assert [ln.get_color() for ln in shared] == [
+        traj_plot.GAP_COLORS[g] for g in ("roll", "pitch", "yaw")
+    ]
+    patterns = [ln._unscaled_dash_pattern for ln in shared]
+    period = sum(patterns[0][1])
+    s = np.linspace(0.0, 3.0 * period, 997, endpoint=False)
+    on = []
+    for offset, (dash, gap) in patterns:
+        phase = (s + offset) % (dash + gap)
+        on.append(phase < dash)
+    assert np.array_equal(np.sum(on, axis=0), np.ones(s.size))  # exactly one colour at a time
+    legend = [t.get_text() for t in ax.get_legend().get_texts()]
+    assert {"τ_roll", "τ_pitch = τ_roll", "τ_yaw = τ_roll", "τ_x", "τ_z"} <= set(legend)

@@ -67,6 +67,43 @@ def test_playback_names_the_layouts_and_foxglove_draws_its_topics(run: Path) -> 
     assert "/ground_truth/odometry" not in shown  # a type the 3D panel does not draw
 
 
+def test_playback_says_what_ros2_playback_needs(run: Path) -> None:
+    """PLAYBACK.md names the MCAP storage plugin and, for the event topics (the types in
+    run.json), a dvs_msgs package whose messages are the ones the MCAP file's schema
+    defines."""
+    from mcap.reader import make_reader
+
+    text = (run / "PLAYBACK.md").read_text(encoding="utf-8")
+    assert "ros-<distro>-rosbag2-storage-mcap" in text
+    types = {t: e["type"] for t, e in json.loads((run / "run.json").read_text())["topics"].items()}
+    events = [t for t, ty in types.items() if ty == "dvs_msgs/msg/EventArray"]
+    assert events == ["/dvs/events"]
+    assert "The event topics (`/dvs/events`) hold `dvs_msgs/msg/EventArray`" in text
+    block = re.search(
+        r"# dvs_msgs/msg/Event.msg\n(.*?)# dvs_msgs/msg/EventArray.msg\n(.*?)```", text, re.S
+    )
+    assert block is not None
+    with (run / "landing_ros2" / "landing_ros2.mcap").open("rb") as fh:
+        summary = make_reader(fh).get_summary()
+    assert summary is not None
+    schema = next(s for s in summary.schemas.values() if s.name == "dvs_msgs/msg/EventArray")
+    parts = schema.data.decode().split("=" * 80 + "\n")
+    defined = {p.split("\n", 1)[0][len("MSG: ") :]: p.split("\n", 1)[1] for p in parts[1:]}
+    assert block.group(1).strip() == defined["dvs_msgs/Event"].strip()
+    assert block.group(2).strip() == parts[0].strip().replace("dvs_msgs/Event[]", "Event[]")
+
+
+def test_trajectory_png_row_says_what_the_figure_shows(run: Path) -> None:
+    """The figure is the 3-D path and the six gaps (write_trajectory_plot), no rates or
+    accelerations."""
+    readme = (run / "README.md").read_text(encoding="utf-8")
+    row = next(ln for ln in readme.splitlines() if ln.startswith("| `trajectory.png` |"))
+    assert "3-D path in the goal frame F" in row
+    assert "six gaps (x, y, z in m; roll, pitch, yaw in rad)" in row
+    assert "acceleration" not in row
+    assert "rates" not in row
+
+
 def test_ros2_only_run_names_only_what_it_wrote(tmp_path: Path) -> None:
     from roslan.pipeline.run import run_simulation
 
@@ -74,8 +111,10 @@ def test_ros2_only_run_names_only_what_it_wrote(tmp_path: Path) -> None:
     run_simulation(short_config(), out, quiet=True, formats=["ros2"], overview=False)
     playback = (out / "PLAYBACK.md").read_text(encoding="utf-8")
     assert "landing.bag" not in playback
-    assert "rosbag" not in playback
+    assert not re.search(r"\brosbag\b", playback)  # (rosbag2 is ROS 2's)
     assert "landing.rviz" not in playback
+    assert "rosbag2-storage-mcap" in playback
+    assert "dvs_msgs" not in playback  # no event camera
     assert not (out / "landing.rviz").exists()  # an RViz 1 layout plays a ROS 1 bag
     assert "landing_ros2/landing_ros2.mcap" in playback
     assert "landing.foxglove.json" in playback

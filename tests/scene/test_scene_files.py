@@ -427,7 +427,12 @@ def test_preview_renders_the_goal_at_the_centre_of_the_approach_view(
     png = tmp_path / "prev.png"
     pv.write_preview(scene, png, dpi=40)
     with Image.open(png) as im:
-        assert im.size == (15 * 40, 7 * 40)  # top view + rendered views
+        rgb = np.asarray(im.convert("RGB"))
+    assert rgb.shape[0] == 7 * 40  # top view + rendered views, side by side
+    inked = np.flatnonzero((rgb < 245).any(axis=2).any(axis=0))
+    # the layout fits the columns to the figure: no blank strip at either side
+    assert inked.min() <= 0.02 * rgb.shape[1]
+    assert rgb.shape[1] - 1 - inked.max() <= 0.02 * rgb.shape[1]
 
     # without OpenGL: a warning and the top view alone
     def no_gl(*_a: object, **_k: object) -> None:

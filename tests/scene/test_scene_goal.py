@@ -16,7 +16,7 @@ import yaml
 
 from roslan.cli import main
 from roslan.config.base import Pose
-from roslan.errors import Note
+from roslan.errors import Note, SceneError
 from roslan.frames import quat_xyzw_to_matrix
 from roslan.rundir.readers import load_groundtruth
 from roslan.scene import load_scene
@@ -138,7 +138,53 @@ def test_scene_files_give_their_goal_or_perch(tmp_path: Path) -> None:
         assert found.kind == kind
         assert found.pose.position == pytest.approx(position)
         assert load_scene(path).goal_position == pytest.approx(position)
-    assert scene_goal("missing.yaml", base_dir=tmp_path) is None
+    with pytest.raises(SceneError, match=r"nor an existing scene file"):
+        scene_goal("missing.yaml", base_dir=tmp_path)
+
+
+def _stderr_of(argv: list[str], capsys: pytest.CaptureFixture[str]) -> list[str]:
+    rc = main(argv)
+    lines = capsys.readouterr().err.splitlines()
+    assert rc != 0, lines
+    return lines
+
+
+@pytest.mark.parametrize("command", ["simulate", "trajectory"])
+def test_a_scene_that_cannot_load_errs_before_any_goal_warning(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], command: str
+) -> None:
+    """A misspelt scene name or a scene file whose mesh is missing: the error (naming the
+    config, the closest built-in name, the missing file) is the only line; no warning
+    about a landing marker the scene was never read for."""
+    cfg = tmp_path / "job.yaml"
+    misspelt = tmp_path / "misspelt.yaml"
+    misspelt.write_text(yaml.safe_dump({"trajectory": LANDING, "scene": "warehous"}), "utf-8")
+    scene = tmp_path / "mine.yaml"
+    rack = {"name": "rack", "mesh": "models/rack.glb"}
+    scene.write_text(yaml.safe_dump({"name": "mine", "objects": [rack]}), "utf-8")
+    cfg.write_text(yaml.safe_dump({"trajectory": LANDING, "scene": "mine.yaml"}), "utf-8")
+    extra = ["--dry-run"] if command == "simulate" else ["--no-plot"]
+    for path, expected in [
+        (misspelt, "scene 'warehous': neither a built-in scene"),
+        (cfg, "objects[0] (name 'rack').mesh = 'models/rack.glb': file not found"),
+    ]:
+        lines = _stderr_of([command, str(path), "-o", str(tmp_path / "o"), *extra], capsys)
+        assert len(lines) == 1, lines
+        assert lines[0].startswith(f"error: {path}: "), lines
+        assert expected in lines[0], lines
+    lines = _stderr_of(["simulate", str(misspelt), "-o", str(tmp_path / "o")], capsys)
+    assert lines[0].endswith("did you mean 'warehouse'?"), lines
+    assert not (tmp_path / "o").exists()
+
+
+def test_a_scene_file_without_goal_still_warns_once_it_loads(tmp_path: Path) -> None:
+    """The origin warning is kept for a scene file that loads and defines no goal."""
+    ground = [{"name": "floor", "primitive": {"type": "box", "size": [20, 20, 0.1]}}]
+    (tmp_path / "bare.yaml").write_text(yaml.safe_dump({"name": "b", "objects": ground}))
+    traj = TrajectoryConfig.model_validate(LANDING)
+    with pytest.warns(UserWarning, match=r"scene 'bare.yaml' defines no landing marker"):
+        same = goal_from_scene(traj, "bare.yaml", base_dir=tmp_path)
+    assert same is traj
 
 
 def test_goal_note_is_a_note() -> None:

@@ -285,3 +285,20 @@ def test_cli_plot_tau_family(tmp_path: Path, capsys: pytest.CaptureFixture[str])
     assert "--k" in capsys.readouterr().err
     assert run_cli("plot", "tau-family", "-o", str(tmp_path / "x.png"), "--k", "nan") != 0
     assert not (tmp_path / "x.png").exists()
+
+
+def test_tau_family_axes_name_their_units(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Each panel's y axis says what it plots and in which unit (the gap's included)."""
+    from matplotlib.figure import Figure
+
+    from roslan.plots.tau_family import plot_tau_family
+
+    saved: list[Figure] = []
+    savefig = Figure.savefig
+    monkeypatch.setattr(
+        Figure, "savefig", lambda fig, *a, **k: saved.append(fig) or savefig(fig, *a, **k)
+    )
+    plot_tau_family([0.3, 0.5], tmp_path / "f.png")
+    (fig,) = saved
+    assert [ax.get_ylabel() for ax in fig.axes] == ["χ [m]", "-χ' [m/s]", "χ'' [m/s²]"]
+    assert all(ax.get_xlabel() == "t [s]" for ax in fig.axes)

@@ -141,7 +141,8 @@ def _register_lidar(sub: Any) -> None:
         type=int,
         default=None,
         metavar="INDEX",
-        help="scan index (default: the middle scan; negative counts from the end)",
+        help="scan index, 0-based as the figure's title and the files NNNNNN.npz (0 = the "
+        "first; default: the middle scan; negative counts from the end)",
     )
     p.add_argument(
         "--color",

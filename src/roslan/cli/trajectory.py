@@ -111,9 +111,13 @@ def load_scene_goal(path: Path, trajectory: TrajectoryConfig) -> TrajectoryConfi
     scene = data.get("scene") if isinstance(data, Mapping) else None
     if not isinstance(scene, str):
         return trajectory
+    from roslan.errors import SceneError
     from roslan.scene.goal import goal_from_scene
 
-    return goal_from_scene(trajectory, scene, base_dir=path.parent.resolve())
+    try:
+        return goal_from_scene(trajectory, scene, base_dir=path.parent.resolve())
+    except SceneError as err:  # the scene cannot be loaded: name the config naming it
+        raise SceneError(f"{path}: {err}") from None
 
 
 def load_vehicle_block(path: Path, trajectory: TrajectoryConfig) -> TrajectoryConfig:

@@ -42,9 +42,12 @@ __all__ = [
     "UnitWarning",
     "Vec3",
     "allowed_keys",
+    "allowed_range",
+    "did_you_mean",
     "format_validation_error",
     "load_yaml",
     "load_yaml_model",
+    "numeric_bounds",
     "short_repr",
     "validate_model",
 ]
@@ -157,7 +160,7 @@ def _loc(loc: tuple[int | str, ...]) -> str:
     return out or "<root>"
 
 
-def _closest(word: Any, allowed: list[str]) -> str:
+def did_you_mean(word: Any, allowed: list[str]) -> str:
     """``; did you mean 'x'?`` for the allowed word closest to ``word`` (difflib), or ''."""
     if not isinstance(word, str) or not allowed:
         return ""
@@ -238,10 +241,116 @@ def allowed_keys(model: type[BaseModel], data: Any, loc: tuple[int | str, ...]) 
     return list(cur.model_fields)
 
 
+def _field_at(
+    model: type[BaseModel], data: Any, loc: tuple[int | str, ...]
+) -> tuple[Any, list[Any]] | None:
+    """The annotation and field metadata at ``loc`` (a path into ``data``) of ``model``: a
+    field's, or a list or tuple element's (no metadata of its own); None if unknown."""
+    cur: type[BaseModel] | None = model
+    node: Any = data
+    annotation: Any = None
+    metadata: list[Any] = []
+    for part in loc:
+        if isinstance(part, int):
+            if annotation is None:
+                return None
+            annotation, metadata = _element(annotation), []
+            node = node[part] if isinstance(node, list | tuple) and part < len(node) else None
+            cur = _model_of(annotation, node)
+            continue
+        if cur is not None and part not in cur.model_fields:  # a tagged union's tag
+            cur = _tagged_member(annotation, part)
+            continue
+        if cur is None:
+            return None
+        field = cur.model_fields[part]
+        annotation, metadata = field.annotation, list(field.metadata)
+        node = node.get(part) if isinstance(node, Mapping) else None
+        cur = _model_of(annotation, node)
+    return (annotation, metadata) if annotation is not None else None
+
+
+def _tagged_member(annotation: Any, tag: str) -> type[BaseModel] | None:
+    """The model of the union ``annotation`` whose Literal field has the value ``tag``
+    (pydantic puts a discriminated union's tag in the error location), or None."""
+    origin = get_origin(annotation)
+    if origin is Annotated:
+        return _tagged_member(get_args(annotation)[0], tag)
+    if origin is not Union and origin is not types.UnionType:
+        return None
+    for arg in get_args(annotation):
+        member = _model_of(arg, None)
+        if member is None:
+            continue
+        for field in member.model_fields.values():
+            if get_origin(field.annotation) is Literal and tag in get_args(field.annotation):
+                return member
+    return None
+
+
+Bounds = tuple[tuple[float, bool] | None, tuple[float, bool] | None]
+"""(lower, upper) bound of a number, each (value, inclusive) or None."""
+
+
+def numeric_bounds(annotation: Any, metadata: list[Any] | tuple[Any, ...] = ()) -> Bounds:
+    """The lower and upper bounds (``Field(gt=, ge=, lt=, le=)``, annotated-types
+    constraints) of a field's ``annotation`` and ``metadata`` (Annotated, Optional
+    unwrapped; the first of each side found)."""
+    import annotated_types as at
+    from pydantic.fields import FieldInfo
+
+    items = list(metadata)
+
+    def visit(ann: Any) -> None:
+        origin = get_origin(ann)
+        if origin is Annotated:
+            base, *meta = get_args(ann)
+            items.extend(meta)
+            visit(base)
+        elif origin is Union or origin is types.UnionType:
+            for arg in get_args(ann):
+                visit(arg)
+
+    visit(annotation)
+    lower: tuple[float, bool] | None = None
+    upper: tuple[float, bool] | None = None
+    while items:
+        m = items.pop(0)
+        if isinstance(m, FieldInfo):
+            items.extend(m.metadata)
+        for attr, incl, is_lower in (("gt", False, True), ("ge", True, True),
+                                     ("lt", False, False), ("le", True, False)):  # fmt: skip
+            bound = getattr(m, attr, None) if isinstance(m, at.BaseMetadata) else None
+            if isinstance(bound, int | float) and not isinstance(bound, bool):
+                if is_lower and lower is None:
+                    lower = (float(bound), incl)
+                elif not is_lower and upper is None:
+                    upper = (float(bound), incl)
+    return lower, upper
+
+
+def _num(v: float) -> str:
+    return str(int(v)) if v.is_integer() and abs(v) < 1e15 else f"{v:g}"
+
+
+def allowed_range(name: str, bounds: Bounds) -> str | None:
+    """``0 < rate <= 10000`` for a number bounded on both sides, else None."""
+    lower, upper = bounds
+    if lower is None or upper is None:
+        return None
+    lo = f"{_num(lower[0])} {'<=' if lower[1] else '<'}"
+    hi = f"{'<=' if upper[1] else '<'} {_num(upper[0])}"
+    return f"{lo} {name} {hi}"
+
+
+_BOUND_ERRORS = frozenset({"greater_than", "greater_than_equal", "less_than", "less_than_equal"})
+
 _QUOTED = re.compile(r"'([^']*)'")
 
 
-def _clean_message(err: Mapping[str, Any], allowed: list[str] | None = None) -> str:
+def _clean_message(
+    err: Mapping[str, Any], allowed: list[str] | None = None, bounds: str | None = None
+) -> str:
     msg = str(err.get("msg", ""))
     for prefix in ("Value error, ", "Assertion failed, "):
         if msg.startswith(prefix):
@@ -249,11 +358,24 @@ def _clean_message(err: Mapping[str, Any], allowed: list[str] | None = None) -> 
     if err.get("type") == "extra_forbidden":
         loc = err.get("loc") or ()
         key = loc[-1] if loc else None
-        msg = "unknown key" + (_closest(key, allowed or []) or " (not allowed here)")
+        msg = "unknown key" + (did_you_mean(key, allowed or []) or " (not allowed here)")
     elif err.get("type") in ("literal_error", "enum"):
         expected = str((err.get("ctx") or {}).get("expected", ""))
-        msg += _closest(err.get("input"), _QUOTED.findall(expected))
+        msg += did_you_mean(err.get("input"), _QUOTED.findall(expected))
+    elif bounds is not None:  # a bound error states the whole range, both sides
+        msg += f"; allowed: {bounds}"
     return msg
+
+
+def _range_at(model: type[BaseModel], data: Any, loc: tuple[int | str, ...]) -> str | None:
+    """The allowed range of the number at ``loc`` named by its key (``rate``,
+    ``position[2]``), or None (unknown field, or bounded on one side only)."""
+    found = _field_at(model, data, loc)
+    keys = [i for i, p in enumerate(loc) if isinstance(p, str)]
+    if found is None or not keys:
+        return None
+    name = str(loc[keys[-1]]) + "".join(f"[{p}]" for p in loc[keys[-1] + 1 :])
+    return allowed_range(name, numeric_bounds(*found))
 
 
 def format_validation_error(
@@ -267,7 +389,9 @@ def format_validation_error(
     """One line per problem: ``source: key.path = value: message``.
 
     With ``model`` and the validated ``data``, an unknown key names the closest allowed
-    one (``unknown key; did you mean 'descent_rate'?``); a wrong choice always does.
+    one (``unknown key; did you mean 'descent_rate'?``), and a number out of range gives
+    the field's whole range when it has two sides (``; allowed: 0 < rate <= 10000``); a
+    wrong choice always names the closest allowed one.
     """
     src = f"{source}: " if source is not None else ""
     lines = []
@@ -277,13 +401,16 @@ def format_validation_error(
         allowed = None
         if model is not None and err.get("type") == "extra_forbidden" and loc:
             allowed = allowed_keys(model, data, loc[:-1])
+        bounds = None
+        if model is not None and err.get("type") in _BOUND_ERRORS and loc:
+            bounds = _range_at(model, data, loc)
         full = (*prefix, *loc)
         value = err.get("input")
         # A whole mapping (model-level check) is not worth echoing: its message names the keys.
         hide = err.get("type") == "missing" or isinstance(value, Mapping)
         shown = "" if hide else f" = {short_repr(value)}"
         where = f"{_loc(full)}{shown}: " if full else ""
-        lines.append(f"{src}{where}{_clean_message(err, allowed)}")
+        lines.append(f"{src}{where}{_clean_message(err, allowed, bounds)}")
     return "\n".join(lines)
 
 

@@ -11,8 +11,9 @@ dynamics):
   writes the step's messages to the bags as they come and returns the step's
   :class:`~roslan.pipeline.engine.StepOutput` (messages and taps);
 * :meth:`LiveRun.finish` fixes the end: the sensors' last messages, their dataset files,
-  the trajectory files, then ``run.json`` and the other run files, any extra files (the
-  environment's ``episode.json``), and the atomic rename into OUTDIR;
+  the trajectory files, any extra files (the environment's ``episode.json``), then the
+  other run files (``README.md`` describes the extra files too) and ``run.json``, and the
+  atomic rename into OUTDIR;
 * :meth:`LiveRun.abort` removes everything (no half-written OUTDIR, ever).
 
 Without an OUTDIR (``outdir=None``: an environment that does not record) the same engine
@@ -232,10 +233,10 @@ class LiveRun(_Run):
         write_trajectory_files(self.traj, self.tmp, ground_truth_rate=rate)
         self.plot = BackgroundPlot(self.traj, self.tmp)
         counts = self._close()
-        manifest = self._write_run_files(counts)
-        for name, data in extra_files.items():
+        for name, data in extra_files.items():  # before README.md and run.json list them
             path = self.ctx.path(name)
             path.write_bytes(data)
+        manifest = self._write_run_files(counts)
         finalize(self.tmp, self.outdir, self.opts.overwrite)
         self.progress.stop()
         return manifest

@@ -14,7 +14,7 @@ import signal
 import sys
 import threading
 import time
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -171,8 +171,16 @@ class BackgroundPlot:
 
 
 def playback_text(
-    duration_s: float, wall_s: float, formats: Sequence[str], topics: dict[str, int]
+    duration_s: float,
+    wall_s: float,
+    formats: Sequence[str],
+    topics: dict[str, int],
+    types: Mapping[str, str] | None = None,
 ) -> str:
+    """PLAYBACK.md: how to play this run's bags at its pace, what ROS 2 playback needs
+    (the MCAP storage plugin; a ``dvs_msgs`` package for the event topics, which
+    ``types``, topic -> message type, names) and the topics."""
+    events = sorted(t for t, ty in (types or {}).items() if ty.startswith("dvs_msgs/"))
     rtf = wall_s / duration_s if duration_s > 0 else float("inf")
     pace = 1.0 / rtf if rtf > 0 else float("inf")  # the play rate of this run's pace
     lines = [
@@ -196,6 +204,12 @@ def playback_text(
             "```",
             "",
         ]
+        if events:
+            lines += [
+                "`rosbag play` needs no message packages; a node subscribing to "
+                f"{_ticked(events)} (`dvs_msgs/EventArray`) needs rpg_dvs_ros' `dvs_msgs`.",
+                "",
+            ]
     if "ros2" in formats:
         lines += [
             "## ROS 2",
@@ -206,7 +220,32 @@ def playback_text(
             f"ros2 bag play landing_ros2 --clock -r {pace:.2f}",
             "```",
             "",
+            "Needs the MCAP storage plugin: `sudo apt install ros-<distro>-rosbag2-storage-mcap`"
+            " (Humble; from Iron on it comes with rosbag2). metadata.yaml says "
+            "`storage_identifier: mcap`, so no `--storage` option is needed.",
+            "",
         ]
+        if events:
+            lines += [
+                f"The event topics ({_ticked(events)}) hold `dvs_msgs/msg/EventArray` "
+                "(rpg_dvs_ros' messages): "
+                "`ros2 bag play` skips them, with a warning, unless a ROS 2 `dvs_msgs` package "
+                "is built in your workspace (sourced before playing) with these two messages:",
+                "",
+                "```",
+                "# dvs_msgs/msg/Event.msg",
+                "uint16 x",
+                "uint16 y",
+                "builtin_interfaces/Time ts",
+                "bool polarity",
+                "# dvs_msgs/msg/EventArray.msg",
+                "std_msgs/Header header",
+                "uint32 height",
+                "uint32 width",
+                "Event[] events",
+                "```",
+                "",
+            ]
     bags = [f"`{b}`" for f, b in (("ros2", "landing_ros2/landing_ros2.mcap"),
                                       ("ros1", "landing.bag")) if f in formats]  # fmt: skip
     lines += [
@@ -247,3 +286,7 @@ def print_profile(per: dict[str, dict[str, Any]], writers_s: float) -> None:
         )
     table.add_row("bag writers", "", "", "", "", f"{writers_s:.3f}")
     Console(stderr=True).print(table)
+
+
+def _ticked(names: Sequence[str]) -> str:
+    return ", ".join(f"`{n}`" for n in names)

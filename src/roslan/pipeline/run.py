@@ -375,7 +375,14 @@ class _Run:
             timing["overview_s"] = time.perf_counter() - t0
         write_json(tmp / TIMING_FILE, timing)
         (tmp / "PLAYBACK.md").write_text(
-            playback_text(self.traj.duration, wall, plan.formats, counts), encoding="utf-8"
+            playback_text(
+                self.traj.duration,
+                wall,
+                plan.formats,
+                counts,
+                {t: e["type"] for t, e in topics.items()},
+            ),
+            encoding="utf-8",
         )
         if plan.formats:
             write_layouts(tmp, {t: e["type"] for t, e in topics.items()}, plan.formats)

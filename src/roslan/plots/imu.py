@@ -28,6 +28,9 @@ __all__ = ["ImuTruth", "imu_truth", "plot_imu"]
 
 F64 = NDArray[np.float64]
 COMMAND = "roslan plot imu"
+MEASURED_WIDTH = 1.4
+TRUTH_WIDTH = 0.6
+"""Line widths (pt): the truth thinner than the measurement under it."""
 DEFAULT_GRAVITY = 9.81
 
 
@@ -141,16 +144,24 @@ def plot_imu(outdir: Path, out: Path | None = None, imu_file: Path | None = None
         for r, (what, meas, true, unit, scale) in enumerate(rows):
             for i in range(3):
                 ax = axes[r, i]
+                # the measurement wider than the truth drawn over it: where the noise is
+                # below a line's width (a_z, w_y: large signals), it still shows beside
+                # the truth instead of hiding under it
                 ax.plot(
                     data.t,
                     meas[:, i] * scale,
                     color=AXIS_COLORS[i],
-                    alpha=MEASURED_ALPHA,
-                    linewidth=0.7,
+                    alpha=MEASURED_ALPHA + 0.2,
+                    linewidth=MEASURED_WIDTH,
                     label=f"measured ({data.path.name})",
                 )
                 ax.plot(
-                    data.t, true[:, i] * scale, color="k", linewidth=1.1, label="noise-free truth"
+                    data.t,
+                    true[:, i] * scale,
+                    color="k",
+                    linewidth=TRUTH_WIDTH,
+                    zorder=3,
+                    label="noise-free truth (thin, on top)",
                 )
                 err = (meas[:, i] - true[:, i]) * scale
                 ax.set_title(

@@ -154,7 +154,8 @@ def plot_lidar(
         t = sc.t_ns * 1e-9
         ax2.set_title("Bird's-eye view (sensor frame)")
         fig.suptitle(
-            f"LiDAR '{seq.name}' scan {i + 1}/{len(seq)}, t = {t:.3f} s, "
+            f"LiDAR '{seq.name}' scan {i} of 0..{len(seq) - 1} ({seq.paths[i].name}), "
+            f"t = {t:.3f} s, "
             f"{sc.xyz.shape[0]:,} returns",
             fontsize=10,
         )

@@ -257,10 +257,10 @@ def make_preview(
                 )
                 writer.send(np.ascontiguousarray(canvas))
                 if progress and (k % 30 == 0 or k == n - 1):
-                    print(f"\rframe {k + 1}/{n}", end="", file=sys.stderr, flush=True)
+                    _frame_progress(k, n)
             writer.close()
-            if progress:
-                print(file=sys.stderr)
+            if progress and sys.stderr.isatty():
+                print(file=sys.stderr)  # end the line the counter overwrote
             os.replace(tmp, out)
         except BaseException:
             writer.close()
@@ -269,6 +269,15 @@ def make_preview(
     finally:
         media.close()
     return PreviewInfo(out, n, fps, (W, H))
+
+
+def _frame_progress(k: int, n: int) -> None:
+    """``frame k+1/n`` on stderr: rewritten in place on a terminal, one line each
+    elsewhere (a log, a pipe, a notebook)."""
+    if sys.stderr.isatty():
+        print(f"\rframe {k + 1}/{n}", end="", file=sys.stderr, flush=True)
+    else:
+        print(f"frame {k + 1}/{n}", file=sys.stderr, flush=True)
 
 
 def _check_rates(fps: float, speed: float, window_ms: float) -> None:

@@ -110,6 +110,23 @@ def render_views(
     return out
 
 
+_HEIGHT_IN = 7.0
+"""Height of the preview figure (inches)."""
+
+
+def _column_widths(
+    map_aspect: float, views: list[tuple[str, NDArray[np.uint8]]]
+) -> tuple[float, float]:
+    """Widths (inches) of the top view's column and of the rendered views' column that
+    the figure's height fills: the top view at its aspect (width / height) plus its
+    colour bar, the views stacked at theirs, so neither column leaves a blank strip."""
+    titles, colorbar = 0.45, 1.5  # per row: a title line; the colour bar and its labels
+    h, w = views[0][1].shape[:2]
+    right = (w / h) * (_HEIGHT_IN / len(views) - titles) + 0.2
+    left = map_aspect * (_HEIGHT_IN - 2.0 * titles) + colorbar
+    return left, right
+
+
 def write_preview(scene: Scene, path: Path, *, dpi: int = 120, rendered: bool = True) -> None:
     """PNG top view: every triangle projected on x-y, coloured by its top height (floors
     and roofs left out), the goal with the goal frame's x axis, and the approach zone;
@@ -145,9 +162,20 @@ def write_preview(scene: Scene, path: Path, *, dpi: int = 120, rendered: bool = 
             views = render_views(scene)
         except RenderError as err:
             warnings.warn(f"preview without rendered views: {err}", stacklevel=2)
+    g = np.asarray(scene.goal_position, dtype=np.float64)
+    R = rpy_to_matrix(np.asarray(scene.goal_rpy, dtype=np.float64))
+    (x0, x1), (y0, y1) = APPROACH_ZONE
+    zone = np.array([[x0, y0, 0], [x1, y0, 0], [x1, y1, 0], [x0, y1, 0], [x0, y0, 0]]) @ R.T + g
+    # scaled to what is drawn (objects, goal, approach zone), not to a wide ground slab
+    shown = [zone[:, :2]] + ([np.concatenate(tris).reshape(-1, 2)] if tris else [])
+    pts = np.concatenate(shown)
+    lo2, hi2 = pts.min(axis=0), pts.max(axis=0)
+    pad = 0.05 * max(float(hi2[0] - lo2[0]), float(hi2[1] - lo2[1]), 1.0)
+    lo2, hi2 = lo2 - pad, hi2 + pad
     if views:
-        fig = plt.figure(figsize=(15, 7), layout="constrained")
-        grid = fig.add_gridspec(len(views), 2, width_ratios=(1.25, 1.0))
+        left, right = _column_widths(float((hi2[0] - lo2[0]) / (hi2[1] - lo2[1])), views)
+        fig = plt.figure(figsize=(left + right, _HEIGHT_IN), layout="constrained")
+        grid = fig.add_gridspec(len(views), 2, width_ratios=(left, right))
         ax = fig.add_subplot(grid[:, 0])
         for k, (title, img) in enumerate(views):
             axr = fig.add_subplot(grid[k, 1])
@@ -165,20 +193,11 @@ def write_preview(scene: Scene, path: Path, *, dpi: int = 120, rendered: bool = 
         )
         ax.add_collection(pc)
         fig.colorbar(pc, ax=ax, label="top z of each triangle (m)")
-    g = np.asarray(scene.goal_position, dtype=np.float64)
-    R = rpy_to_matrix(np.asarray(scene.goal_rpy, dtype=np.float64))
-    (x0, x1), (y0, y1) = APPROACH_ZONE
-    zone = np.array([[x0, y0, 0], [x1, y0, 0], [x1, y1, 0], [x0, y1, 0], [x0, y0, 0]]) @ R.T + g
     ax.plot(zone[:, 0], zone[:, 1], "r--", lw=1, label="approach zone (F)")
     ax.plot(g[0], g[1], "r*", ms=14, label="goal")
     ax.arrow(g[0], g[1], 2.0 * R[0, 0], 2.0 * R[1, 0], color="r", width=0.08)
-    # scaled to what is drawn (objects, goal, approach zone), not to a wide ground slab
-    shown = [zone[:, :2]] + ([np.concatenate(tris).reshape(-1, 2)] if tris else [])
-    pts = np.concatenate(shown)
-    lo2, hi2 = pts.min(axis=0), pts.max(axis=0)
-    pad = 0.05 * max(float(hi2[0] - lo2[0]), float(hi2[1] - lo2[1]), 1.0)
-    ax.set_xlim(lo2[0] - pad, hi2[0] + pad)
-    ax.set_ylim(lo2[1] - pad, hi2[1] + pad)
+    ax.set_xlim(lo2[0], hi2[0])
+    ax.set_ylim(lo2[1], hi2[1])
     ax.set_aspect("equal")
     ax.set_xlabel("x (m, world ENU)")
     ax.set_ylabel("y (m)")

@@ -48,9 +48,11 @@ def plot_tau_family(
         axes[1].plot(t, -dg, lw=1.5)
         axes[2].plot(t[:-1], ddg[:-1], lw=1.5)  # the last point may be unbounded (k > 0.5)
         acc_cap = max(acc_cap, float(ddg[0]))
-    axes[0].set_title("gap χ (closes at T = χ0 / (k |χ'0|))")
+    axes[0].set_title("gap χ [m] (closes at T = χ0 / (k |χ'0|))")
     axes[1].set_title("closure rate -χ' [m/s]")
     axes[2].set_title("acceleration χ'' [m/s²] (braking > 0)")
+    for ax, unit in zip(axes, ("χ [m]", "-χ' [m/s]", "χ'' [m/s²]"), strict=True):
+        ax.set_ylabel(unit)
     axes[2].set_ylim(-0.05 * max(acc_cap, 1e-9) * 4, 4.0 * max(acc_cap, 1e-9))
     for ax in axes:
         ax.set_xlabel("t [s]")

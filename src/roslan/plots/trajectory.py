@@ -33,7 +33,13 @@ from roslan.rundir.readers import (
     resolved_config,
 )
 
-__all__ = ["TrajectorySamples", "load_samples", "plot_trajectory", "tau_limits"]
+__all__ = [
+    "TrajectorySamples",
+    "coincident_groups",
+    "load_samples",
+    "plot_trajectory",
+    "tau_limits",
+]
 
 F64 = NDArray[np.float64]
 COMMAND = "roslan plot trajectory"
@@ -231,24 +237,65 @@ def tau_limits(curves: list[F64], theory: F64 | None = None) -> tuple[float, flo
     return float(lo - pad), float(hi + pad)
 
 
+COINCIDENT = 0.005
+"""Curves closer than this fraction of the tau panel's height everywhere share one line on
+the page: :func:`coincident_groups` finds them, and they are drawn in interleaved dashes."""
+
+
+def coincident_groups(
+    curves: dict[str, F64], span: float, tol: float = COINCIDENT
+) -> list[list[str]]:
+    """The curves (same samples) that would hide one another: each group (in ``curves``'
+    order) holds curves within ``tol * span`` of its first one wherever both are finite,
+    both being finite at nine in ten samples where either is (tau = 0 / 0 is NaN at the
+    goal, a few samples sooner or later for each gap)."""
+    groups: list[list[str]] = []
+    for name, c in curves.items():
+        for group in groups:
+            ref = curves[group[0]]
+            both, either = np.isfinite(ref) & np.isfinite(c), np.isfinite(ref) | np.isfinite(c)
+            gap = float(np.max(np.abs(ref[both] - c[both]))) if both.any() else np.inf
+            if gap <= tol * span and np.count_nonzero(both) >= 0.9 * np.count_nonzero(either):
+                group.append(name)
+                break
+        else:
+            groups.append([name])
+    return groups
+
+
 def _draw_tau(ax_tau: Any, s: TrajectorySamples) -> None:
     """tau of each non-zero gap up to touchdown, with the paper's Fig. 3 theory line for
-    tau_z; with flapping, of the tau-theory gaps (the flapping is in the gap panels)."""
+    tau_z; with flapping, of the tau-theory gaps (the flapping is in the gap panels).
+    Curves on one line (equal kappa and tau(0)) are drawn in interleaved dashes of their
+    colours, and the legend says which equal which."""
     d = s.unperturbed if s.unperturbed is not None else s.dense
     land = d.t < s.touchdown - 1e-9
-    curves = []
-    for i, g in enumerate(GAP_NAMES):
-        if np.max(np.abs(d.gaps[:, i]), initial=0.0) < 1e-9:
-            continue
-        tau = tau_of(d.gaps[land, i], d.rates[land, i])
-        curves.append(tau)
-        ax_tau.plot(
-            d.t[land], tau, color=GAP_COLORS[g], label=f"τ_{g}", linestyle="-" if i < 3 else "--"
-        )
-    theory = None
-    if s.k is not None and s.tau0 is not None:
-        tt = np.array([0.0, s.touchdown])
-        theory = s.tau0 + s.k * tt
+    taus = {
+        g: tau_of(d.gaps[land, i], d.rates[land, i])
+        for i, g in enumerate(GAP_NAMES)
+        if np.max(np.abs(d.gaps[:, i]), initial=0.0) >= 1e-9
+    }
+    curves = list(taus.values())
+    tt = np.array([0.0, s.touchdown])
+    theory = s.tau0 + s.k * tt if s.k is not None and s.tau0 is not None else None
+    lo, hi = tau_limits(curves, theory)
+    for group in coincident_groups(taus, hi - lo):
+        n, dash = len(group), 5.0
+        for j, g in enumerate(group):
+            solid = GAP_NAMES.index(g) < 3
+            style: str | tuple[float, tuple[float, float]]
+            if n == 1:
+                style, label = ("-" if solid else "--"), f"τ_{g}"
+            else:  # dashes of length `dash` taking turns: every colour shows along the line
+                style = (j * dash, (dash, (n - 1) * dash))
+                label = f"τ_{g}" + ("" if j == 0 else f" = τ_{group[0]}")
+            color = GAP_COLORS[g]
+            ax_tau.plot(d.t[land], taus[g], color=color, label=label if n == 1 else None,
+                        linestyle=style)  # fmt: skip
+            if n > 1:  # the legend's short line shows the colour: a dash that starts at once
+                ax_tau.plot([], [], color=color, label=label, linestyle=(0, (2.0, 1.0)))
+    if theory is not None:
+        assert s.k is not None
         ax_tau.plot(
             tt,
             theory,
@@ -258,7 +305,7 @@ def _draw_tau(ax_tau: Any, s: TrajectorySamples) -> None:
             label=f"τ_z theory, τ̇ = k = {s.k:g}",
             zorder=5,
         )
-    ax_tau.set_ylim(*tau_limits(curves, theory))
+    ax_tau.set_ylim(lo, hi)
     ax_tau.set_ylabel("τ = gap / rate [s]")
     ax_tau.set_xlabel("trajectory time t [s]")
     if s.unperturbed is not None:

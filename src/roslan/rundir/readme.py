@@ -149,7 +149,12 @@ _ROOT_FILES: tuple[tuple[str, str], ...] = (
         "the landing's figures: touchdown time, tau(0), k, the goal (of base_link), the "
         "terminal behaviour.",
     ),
-    ("trajectory.png", "the trajectory's gaps, rates and accelerations against time."),
+    (
+        "trajectory.png",
+        "left, the 3-D path in the goal frame F (a file trajectory: relative to its last "
+        "pose) with start, goal and velocity arrows; right, the six gaps (x, y, z in m; "
+        "roll, pitch, yaw in rad) against time, touchdown T dashed.",
+    ),
     (
         "overview.png",
         "one look at the run: the path in the goal frame, a camera frame, the events and "
@@ -165,6 +170,12 @@ _ROOT_FILES: tuple[tuple[str, str], ...] = (
         "run.json",
         "resolved config, seed, versions, messages per topic, and every file the run wrote "
         "(what `--overwrite` may replace).",
+    ),
+    (
+        "episode.json",
+        "the closed-loop episode (`roslan fly`, `roslan.env` with `record`): policy, seed, "
+        "success, reason (touchdown, collision, ...), touchdown time and speeds, position and "
+        "heading error.",
     ),
     ("timing.json", "wall time and real-time factor of this run."),
     ("PLAYBACK.md", "how to play the bags."),

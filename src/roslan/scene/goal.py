@@ -4,7 +4,9 @@ A simulation config that names a scene but gives no ``trajectory.goal`` lands on
 scene's goal (:func:`goal_from_scene`): the warehouse's landing marker, the refinery's
 perching pipe, a scene file's ``goal:`` (or its ``perch:`` placed by ``pose``). A scene
 without one (``empty``, a scene file with neither) keeps the world origin, with a
-warning. The goal is read without building the scene (a file is only parsed).
+warning. The goal is read without building the scene (a file is only parsed); a scene
+that cannot be loaded (an unknown name, an invalid file, a missing mesh) raises its
+:class:`SceneError` here, before any note or warning about its goal.
 """
 
 from __future__ import annotations
@@ -14,8 +16,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from roslan.config.base import Pose
-from roslan.errors import Note, SceneError
-from roslan.scene.loader import BUILTIN_SCENES, parse_scene_file
+from roslan.errors import Note
+from roslan.scene.loader import BUILTIN_SCENES, load_scene, parse_scene_file
 from roslan.trajectory.config import TrajectoryConfig
 
 __all__ = ["GoalNote", "SceneGoal", "goal_from_scene", "scene_goal"]
@@ -56,20 +58,24 @@ def scene_path(spec: str | Path, base_dir: Path | None) -> Path:
 
 def scene_goal(spec: str | Path, *, base_dir: Path | None = None) -> SceneGoal | None:
     """The landing goal the scene ``spec`` (a built-in name or a scene YAML) defines, or
-    None when it defines none. A missing or invalid file gives None here: loading the
-    scene reports it.
+    None when it defines none.
+
+    Raises:
+        SceneError: ``spec`` is neither a built-in name nor an existing file (with the
+            closest built-in name), or the file is invalid (as :func:`load_scene` says).
     """
     text = str(spec)
     if text in BUILTIN_SCENES:
         return _builtin_goal(text)
     path = scene_path(text, base_dir)
     if not path.is_file():
+        load_scene(text, base_dir=base_dir)  # raises load_scene's own error for the name
         return None
     with warnings.catch_warnings():  # loading the scene warns about the file once
         warnings.simplefilter("ignore")
         try:
             model = parse_scene_file(path)
-        except (SceneError, OSError):  # the scene's own load reports the problem
+        except OSError:  # the scene's own load reports the problem
             return None
     perch = model.perch
     if model.goal is not None:
@@ -91,13 +97,21 @@ def goal_from_scene(
 
     Only a tau landing (no ``file:``) in a scene without a configured ``goal`` changes:
     it gets the scene's marker or perch, announced by a :class:`GoalNote`; a scene
-    without one keeps the world origin, with a ``UserWarning``. Otherwise ``trajectory``
-    is returned unchanged (the same object).
+    without one keeps the world origin, with a ``UserWarning`` (given only once the scene
+    loads: a scene file without a goal is built first). Otherwise ``trajectory`` is
+    returned unchanged (the same object).
+
+    Raises:
+        SceneError: the scene cannot be loaded (see :func:`scene_goal`).
     """
     if scene is None or trajectory.file is not None or "goal" in trajectory.model_fields_set:
         return trajectory
     found = scene_goal(scene, base_dir=base_dir)
     if found is None:
+        if scene not in BUILTIN_SCENES:  # a file that fails to build errs before the warning
+            with warnings.catch_warnings():  # (its own load warns once, later)
+                warnings.simplefilter("ignore")
+                load_scene(scene, base_dir=base_dir)
         warnings.warn(
             f"scene {scene!r} defines no landing marker or perch and trajectory.goal is "
             "not set: landing at the world origin (set trajectory.goal to land elsewhere)",

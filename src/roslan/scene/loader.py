@@ -13,7 +13,7 @@ import numpy as np
 from numpy.typing import NDArray
 from pydantic import ValidationError
 
-from roslan.config.base import UnitWarning, format_validation_error, load_yaml
+from roslan.config.base import UnitWarning, did_you_mean, format_validation_error, load_yaml
 from roslan.config.units import unit_slips
 from roslan.errors import ConfigError, SceneError
 from roslan.scene import mesh as m
@@ -70,7 +70,7 @@ def load_scene(
     if not path.is_file():
         msg = (
             f"scene {text!r}: neither a built-in scene ({', '.join(BUILTIN_SCENES)}) "
-            f"nor an existing scene file ({path})"
+            f"nor an existing scene file ({path}){did_you_mean(text, list(BUILTIN_SCENES))}"
         )
         raise SceneError(msg)
     spec_model = parse_scene_file(path)

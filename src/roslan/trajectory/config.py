@@ -83,7 +83,7 @@ class Flapping(StrictModel):
 class TrajectoryConfig(StrictModel):
     """Tau-theory landing: height gap closed with constant tau-dot ``k``, five coupled gaps."""
 
-    k: Annotated[FiniteFloat, Field(ge=1e-3)] = 0.5
+    k: Annotated[FiniteFloat, Field(ge=1e-3, lt=1.0)] = 0.5
     kappa: Kappa = Kappa()
     initial: Initial = Initial(position=(-8.0, 2.0, 4.6), rpy=(0.05, 0.15, 0.3), descent_rate=2.0)
     approach: Approach | None = None
@@ -112,9 +112,11 @@ class TrajectoryConfig(StrictModel):
             data.pop("vibration", None)
         return data
 
-    @field_validator("k")
+    @field_validator("k", mode="before")  # before the range check: say why k >= 1 fails
     @classmethod
-    def _below_one(cls, v: float) -> float:
+    def _below_one(cls, v: Any) -> Any:
+        if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
+            return v  # (the field's own checks name the problem)
         if v > 1.0:
             msg = (
                 "must satisfy 0 < k < 1: k > 1 makes the height gap close with growing speed "
