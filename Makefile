@@ -36,4 +36,4 @@ bench: $(DEV)
 	for b in benchmarks/bench_*.py; do $(BIN)/python $$b || exit 1; done
 
 clean:
-	rm -rf $(VENV) out build src/*.egg-info .pytest_cache .mypy_cache .ruff_cache
+	rm -rf $(VENV) out out_* build src/*.egg-info .pytest_cache .mypy_cache .ruff_cache
