@@ -51,6 +51,7 @@ from roslan.sensors.cameras.common import RAW_ROWS_FACTOR, CameraBase, Eye, Shot
 from roslan.sensors.cameras.config import CameraIntrinsics, intrinsics_model
 from roslan.sensors.cameras.encoding import encode_image, srgb_lut
 from roslan.sensors.cameras.model import T_LINK_OPTICAL, CameraModel
+from roslan.sensors.cameras.row_exposure import output_rays, render_row_frame
 from roslan.sensors.cameras.shutter import (
     AutoExposure,
     AutoExposureLoop,
@@ -415,6 +416,59 @@ class _ImagingCamera(CameraBase):
         plan = shutter_plan(t_ns, exposure, c.readout_time, c.exposure_samples, e.model.height)
         return plan, pose_matrices(ctx, plan.instants_ns)
 
+    def frame_linear(
+        self, ctx: SimContext, renderer: FrameRenderer, e: Eye, t_ns: int, exposure: float
+    ) -> F32:
+        """Linear radiance of eye ``e``'s frame stamped ``t_ns`` at ``exposure`` (s): (H, W,
+        3), or (H, W) luminance for ``mono8``; a work buffer of ``e`` (valid until the next
+        call for ``e``)."""
+        return self.frame_raw(ctx, renderer, e, t_ns, exposure, inline=True)()
+
+    def frame_raw(
+        self,
+        ctx: SimContext,
+        renderer: FrameRenderer,
+        e: Eye,
+        t_ns: int,
+        exposure: float,
+        *,
+        inline: bool,
+    ) -> Callable[[], F32]:
+        """:meth:`frame_linear` in two steps: the renders now (this thread), the rest as a
+        call for any thread. Without exposure and readout: one render at the stamp
+        (:meth:`render_raw`); else every row integrates its own exposure window from the
+        ``exposure_samples`` renders (:mod:`.row_exposure`)."""
+        c = self.config
+        if exposure <= 0.0 and c.readout_time <= 0.0:
+            plan, T_wb = self.eye_poses(ctx, e, t_ns, exposure)
+            return self.render_raw(renderer, e, T_wb, plan, inline=inline)
+        p = e.plan
+        assert p is not None
+        if e.rays is None:
+            e.rays = output_rays(p, e.model.width, e.model.height)
+        T_bo = self._T_body_sensor @ e.T_sensor_optical
+
+        def poses(t: NDArray[np.int64]) -> F64:
+            out: F64 = pose_matrices(ctx, t) @ T_bo
+            return out
+
+        mono = c.encoding == "mono8"
+        compose = render_row_frame(
+            renderer,
+            p,
+            e.rays,
+            poses,
+            t_ns,
+            exposure,
+            c.readout_time,
+            c.exposure_samples,
+            mono,
+            c.near_clip,
+            c.supersampling,
+        )
+        shape = (e.model.height, e.model.width, *(() if mono else (3,)))
+        return lambda: compose(e.buffer("rows", shape))
+
     def messages(self, ctx: SimContext) -> Iterator[Message]:
         """Every eye's frames: renders on this thread, the rest on the sensor's pool
         (:meth:`CameraBase._frames`); noise drawn eye after eye, frame after frame."""
@@ -434,8 +488,7 @@ class _ImagingCamera(CameraBase):
                     e.exposure_fh.write(f"{format_seconds(np.array([t]))[0]} {exposure:.9f}\n")
             composes = []
             for e in self._eyes:
-                plan, T_wb = self.eye_poses(ctx, e, t, exposure)
-                composes.append(self.render_raw(renderer, e, T_wb, plan, inline=inline))
+                composes.append(self.frame_raw(ctx, renderer, e, t, exposure, inline=inline))
             return exposure, composes
 
         def post(
