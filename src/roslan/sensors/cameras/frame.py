@@ -51,6 +51,7 @@ from roslan.sensors.cameras.common import RAW_ROWS_FACTOR, CameraBase, Eye, Shot
 from roslan.sensors.cameras.config import CameraIntrinsics, intrinsics_model
 from roslan.sensors.cameras.encoding import encode_image, srgb_lut
 from roslan.sensors.cameras.model import T_LINK_OPTICAL, CameraModel
+from roslan.sensors.cameras.remap import remap_view
 from roslan.sensors.cameras.row_exposure import output_rays, render_row_frame
 from roslan.sensors.cameras.shutter import (
     AutoExposure,
@@ -306,13 +307,11 @@ class _ImagingCamera(CameraBase):
 
     def _remap(self, e: Eye, acc: F32) -> F32:
         """The virtual pinhole view ``acc`` through the lens maps, into a work buffer."""
-        import cv2
-
         p = e.plan
         assert p is not None
         # straight from the readback buffer into a reused output (no copies)
         out = e.buffer("remap", (e.model.height, e.model.width, *acc.shape[2:]))
-        cv2.remap(acc, p.map1, p.map2, cv2.INTER_LINEAR, dst=out, borderMode=cv2.BORDER_REPLICATE)
+        remap_view(p, acc, dst=out)
         return out
 
     def finish_image(self, lin: F32, rng: np.random.Generator, exposure: float | None = None) -> U8:
