@@ -9,8 +9,11 @@ products of a render (:class:`~roslan.render.RenderResult`) is the interpolation
   (``map1``/``map2``, 1/32 px);
 * depth and ids: never a blend of two surfaces. ``nearest=True`` reads one render pixel:
   with ``exact=True`` the one nearest the point (the float maps ``mapx``/``mapy``; the
-  depth camera's silhouettes), else the fixed-point maps' integer part (the event
-  camera's depth, as it has always been read: its bytes stay those of earlier versions).
+  depth camera's silhouettes), else what ``cv2.INTER_NEAREST`` reads through the
+  fixed-point maps: a render pixel within about a pixel of the point (OpenCV rounds the
+  1/32 px map, and on 1-2 % of the pixels reads one pixel past the point's four taps;
+  the event camera's depth, as it has always been read: its bytes stay those of earlier
+  versions).
 
 :func:`remap_view` is the one call site of ``cv2.remap`` for camera images;
 :func:`remap_result` applies it to a whole render product. The frame camera's rows
@@ -74,7 +77,7 @@ def remap_view(
 
 def remap_result(plan: RenderPlan, res: RenderResult) -> RenderResult:
     """Every product of the render ``res`` at the output pixels: colour, luminance and
-    flow bilinear, depth and ids nearest (fixed-point maps' integer part)."""
+    flow bilinear, depth and ids one render pixel each (the fixed-point maps)."""
 
     def lin(a: NDArray[Any] | None) -> Any:
         return None if a is None else remap_view(plan, a)
