@@ -1,8 +1,10 @@
 """Frame and stereo cameras rendered with the shared OpenGL rasterizer.
 
-Every frame: the closed-form trajectory gives the body pose at the stamp (or at
-``exposure_samples`` instants spread over the shutter window, averaged per row: motion
-blur and rolling shutter, :mod:`.shutter`);
+Every frame: the closed-form trajectory gives the body pose at the stamp (or, with an
+exposure or a rolling shutter, at ``exposure_samples`` render instants spread over the
+shutter window, every row then integrating its own exposure window from the nearest
+render along the exact per-pixel motion: motion blur and rolling shutter,
+:mod:`.row_exposure`);
 ``T_world_optical = T_world_body @ T_body_sensor @ T_sensor_optical``; the renderer
 draws a pinhole view (larger than the image when the lens distorts: see
 :meth:`CameraModel.render_plan`) that ``cv2.remap`` turns into the distorted image.
@@ -91,11 +93,15 @@ class _ImagingConfig(SensorConfig, CameraIntrinsics, RollingShutterKeys):
 
     encoding: Literal["mono8", "rgb8", "bgr8"] = "rgb8"
     exposure_time: NonNegative = 0.0
-    """Exposure (s); > 0 averages ``exposure_samples`` renders over it (motion blur).
-    With ``auto_exposure``: the initial exposure, and the one at which ``gain`` maps the
-    radiance 1:1 (an exposure ``E`` scales the image by ``E / exposure_time``)."""
+    """Exposure (s); > 0 blurs: every row integrates its own exposure window along the
+    exact motion (:mod:`.row_exposure`). With ``auto_exposure``: the initial exposure, and
+    the one at which ``gain`` maps the radiance 1:1 (an exposure ``E`` scales the image by
+    ``E / exposure_time``)."""
     exposure_samples: Annotated[int, Field(ge=1, le=64)] = 8
-    """Renders per frame, spread over the shutter window (exposure plus readout)."""
+    """Renders per frame, spread over the shutter window (exposure plus readout); every
+    row is formed from the one nearest its window's middle, warped along each pixel's
+    motion (more renders: shorter warps, fewer disocclusions and less of one render's
+    edge aliasing; the accuracy knob)."""
     auto_exposure: AutoExposure | None = None
     """Auto-exposure (:class:`~roslan.sensors.cameras.shutter.AutoExposure`); each
     frame's exposure is written to ``exposures.txt`` next to ``images.txt``."""

@@ -3,8 +3,9 @@
 A frame with exposure ``E`` and readout ``R`` on an ``H``-row sensor exposes row ``r``
 over ``[t_r, t_r + E]``, ``t_r = t_start + r * R / H`` (:mod:`.shutter`). Rendering the
 scene at enough instants to cover every row's window costs a render per instant; instead
-the frame takes the :func:`~.shutter.shutter_plan`'s ``exposure_samples`` renders (colour
-or luminance, and depth) and forms every row from them by the exact per-pixel motion:
+the frame takes ``exposure_samples`` renders (colour or luminance, and depth) spread
+evenly over the middles of the rows' windows (``t_r + E / 2``; a global shutter: one, at
+the stamp) and forms every row from them by the exact per-pixel motion:
 
 * row ``r`` is the mean of ``N_r`` sub-samples at ``t_rj = t_r + (j + 1/2) E / N_r`` (the
   midpoint rule over its own window; ``E = 0``: one, at ``t_r``), ``N_r`` chosen so that
@@ -49,6 +50,7 @@ __all__ = [
     "ROW_STEP_PX",
     "RowFrame",
     "output_rays",
+    "plan_row_frame",
     "render_row_frame",
 ]
 
@@ -250,11 +252,14 @@ def plan_row_frame(
     readout: float,
     samples: int,
 ) -> tuple[RowFrame, F64]:
-    """The frame's renders, and their optical poses (n, 4, 4): band ``k`` holds the rows
-    that the rotation-only points of its sub-samples (times in its cell) reach, with
-    :data:`PARALLAX_MARGIN` rows more on each side."""
+    """The frame's renders, and their optical poses (n, 4, 4): ``samples`` instants
+    spread evenly over the middles of the rows' windows (the readout; a global shutter:
+    one, at the stamp), every row served by the nearest; band ``k`` holds the rows that
+    the rotation-only points of its rows' windows reach, with :data:`PARALLAX_MARGIN`
+    rows more on each side."""
     H, W = rays[0].shape
-    sp = shutter_plan(stamp_ns, exposure, readout, samples, H)
+    # the renders: spread over the rows' window middles (a global shutter: one, the stamp)
+    sp = shutter_plan(stamp_ns, 0.0, readout, samples, H)
     span_ns = (readout * (H - 1) / H + exposure) * 1e9
     t_r = (stamp_ns - 0.5 * span_ns) + np.arange(H, dtype=np.float64) * (readout * 1e9 / H)
     e_ns = exposure * 1e9
