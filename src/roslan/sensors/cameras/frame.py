@@ -100,8 +100,8 @@ class _ImagingConfig(SensorConfig, CameraIntrinsics, RollingShutterKeys):
     exposure_samples: Annotated[int, Field(ge=1, le=64)] = 8
     """Renders per frame, spread over the shutter window (exposure plus readout); every
     row is formed from the one nearest its window's middle, warped along each pixel's
-    motion (more renders: shorter warps, fewer disocclusions and less of one render's
-    edge aliasing; the accuracy knob)."""
+    motion (more renders: shorter warps, fewer disocclusions; the accuracy knob). A
+    global shutter takes one render, at the stamp."""
     auto_exposure: AutoExposure | None = None
     """Auto-exposure (:class:`~roslan.sensors.cameras.shutter.AutoExposure`); each
     frame's exposure is written to ``exposures.txt`` next to ``images.txt``."""
