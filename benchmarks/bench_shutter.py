@@ -2,7 +2,8 @@
 
 The default job's frame camera (640x480 mono8, plumb_bob lens) over the default
 landing's trajectory, one frame every ``1 / STEP`` s, rendered through the sensor's own
-code (shutter plan, poses, banded renders, remap, encoding), for several shutter
+code (``Camera.frame_linear``: shutter plan, poses, renders, every row's own exposure
+window, encoding), for several shutter
 settings; the settings alternate within each round (the machine is shared). Prints per
 setting the process CPU time and the best wall time per frame, the renders and the
 rendered pixels per frame (relative to one full render), and the metering pass's cost
@@ -23,6 +24,7 @@ from roslan.cli.simulate import load_config
 from roslan.render.gl import get_renderer
 from roslan.scene import load_scene
 from roslan.sensors.cameras import Camera, CameraConfig
+from roslan.sensors.cameras.row_exposure import output_rays, plan_row_frame
 from roslan.trajectory import TauTrajectory
 from roslan.vehicle import base_link_trajectory
 
@@ -54,6 +56,15 @@ SETTINGS: dict[str, dict[str, Any]] = {
         "auto_exposure": None,
     },
 }
+
+
+def _poses(traj: Any, t_ns: np.ndarray) -> np.ndarray:
+    st = traj.state(t_ns.astype(np.float64) * 1e-9)
+    T = np.zeros((len(t_ns), 4, 4))
+    T[:, :3, :3] = st.R_world_body
+    T[:, :3, 3] = st.position
+    T[:, 3, 3] = 1.0
+    return T
 
 
 class _Ctx:
@@ -91,8 +102,8 @@ def main() -> None:
             e = cam._eyes[0]
             c0, w0 = time.process_time(), time.perf_counter()
             for t, x in zip(stamps_ns.tolist(), ex.tolist(), strict=True):
-                plan, T_wb = cam.eye_poses(ctx, e, t, x)  # type: ignore[arg-type]
-                cam.finish_image(cam.render_linear(ctx.renderer(), e, T_wb, plan), rng, x)
+                lin = cam.frame_linear(ctx, ctx.renderer(), e, t, x)  # type: ignore[arg-type]
+                cam.finish_image(lin, rng, x)
             cpu[name].append((time.process_time() - c0) / len(stamps))
             wall[name].append((time.perf_counter() - w0) / len(stamps))
     base = float(np.mean(cpu[next(iter(cams))]))
@@ -100,13 +111,23 @@ def main() -> None:
     for name, cam in cams.items():
         c = cam.config
         e = cam._eyes[0]
-        plan, _ = cam.eye_poses(ctx, e, int(stamps_ns[len(stamps_ns) // 2]), c.exposure_time)  # type: ignore[arg-type]
-        n = plan.instants_ns.size
-        if plan.global_shutter:
-            px = float(n)
+        t_mid = int(stamps_ns[len(stamps_ns) // 2])
+        assert e.plan is not None
+        if c.exposure_time <= 0 and c.readout_time <= 0:
+            n, px = 1, 1.0
         else:
-            assert e.plan is not None
-            px = float((plan.rows[:, 1] - plan.rows[:, 0]).sum()) / e.model.height
+            T_bo = cam._T_body_sensor @ e.T_sensor_optical
+            rf, _ = plan_row_frame(
+                e.plan,
+                output_rays(e.plan, e.model.width, e.model.height),
+                lambda t, T_bo=T_bo: _poses(traj, t) @ T_bo,
+                t_mid,
+                c.exposure_time,
+                c.readout_time,
+                c.exposure_samples,
+            )
+            n = len(rf.bands)
+            px = float(sum(b - a for _, a, b in rf.bands)) / e.plan.height
         m = float(np.mean(meter[name])) * 1e3
         print(
             f"  {name:40s} {np.mean(cpu[name]) * 1e3:6.1f} ms CPU "

@@ -21,7 +21,9 @@ F64 = NDArray[np.float64]
 
 @dataclass(frozen=True)
 class RenderResult:
-    """One rendered view.
+    """One rendered view: the one render product of every camera kind (each camera
+    remaps it through its lens with :func:`roslan.sensors.cameras.remap.remap_result`:
+    radiance and flow bilinear, depth and ids nearest).
 
     Attributes:
         color: (H, W, 3) float32 linear radiance in [0, 1], or None if not requested.
@@ -29,11 +31,17 @@ class RenderResult:
             nothing is hit, or None if not requested.
         luminance: (H, W) float32 Rec. 709 luminance of the linear radiance in [0, 1]
             (``0.2126 R + 0.7152 G + 0.0722 B``), or None if not requested.
+        flow: (H, W, 2) float32 image motion (px/s), or None (no renderer computes it
+            yet: the cameras derive it from ``depth`` and their twist).
+        ids: (H, W) int32 object id of every pixel, or None (room for the object ids of
+            a later version: no renderer writes them yet).
     """
 
     color: F32 | None
     depth: F32 | None
     luminance: F32 | None = None
+    flow: F32 | None = None
+    ids: NDArray[np.int32] | None = None
 
 
 class FrameRenderer(Protocol):

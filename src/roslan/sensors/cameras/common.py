@@ -70,6 +70,7 @@ class Eye:
     files: str = ""  # PNG folder: images, <name>/images or depth/<name>
     index_fh: IO[str] | None = None
     exposure_fh: IO[str] | None = None  # exposures.txt: t exposure
+    rays: tuple[F32, F32] | None = None  # (x, y) of every output pixel's ray (row_exposure)
     scratch: threading.local = field(default_factory=threading.local, repr=False)
 
     def buffer(self, key: str, shape: tuple[int, ...]) -> F32:

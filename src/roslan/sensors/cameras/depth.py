@@ -26,6 +26,7 @@ from roslan.sensors.cameras.common import (
 )
 from roslan.sensors.cameras.config import CameraIntrinsics
 from roslan.sensors.cameras.model import T_LINK_OPTICAL
+from roslan.sensors.cameras.remap import remap_view
 from roslan.sensors.cameras.shutter import RollingShutterKeys, shutter_plan
 
 __all__ = ["DepthCamera", "DepthCameraConfig"]
@@ -122,8 +123,6 @@ class DepthCamera(CameraBase):
         assert e.plan is not None
         if e.plan.identity:
             return np.asarray(z, dtype=np.float32)
-        import cv2
-
         # Inverse depth is affine in the image on a plane, so bilinear interpolation of 1/z
         # is exact there. Where it is not affine (silhouettes against other surfaces or
         # nothing, creases, strong curvature) a blend would be a depth no surface has (a
@@ -131,19 +130,9 @@ class DepthCamera(CameraBase):
         # taps take the nearest render pixel's depth instead.
         with np.errstate(divide="ignore"):
             inv = np.reciprocal(z)
-        flag = cv2.remap(
-            _non_affine(inv),
-            e.plan.map1,
-            e.plan.map2,
-            cv2.INTER_LINEAR,
-            borderMode=cv2.BORDER_REPLICATE,
-        )
-        lin = cv2.remap(
-            inv, e.plan.map1, e.plan.map2, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE
-        )
-        near = cv2.remap(
-            inv, e.plan.mapx, e.plan.mapy, cv2.INTER_NEAREST, borderMode=cv2.BORDER_REPLICATE
-        )
+        flag = remap_view(e.plan, _non_affine(inv))
+        lin = remap_view(e.plan, inv)
+        near = remap_view(e.plan, inv, nearest=True, exact=True)
         edge = flag > 0.0
         lin[edge] = near[edge]
         with np.errstate(divide="ignore"):

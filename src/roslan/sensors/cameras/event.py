@@ -61,6 +61,7 @@ from roslan.sensors.cameras.event_stream import AfterRender
 from roslan.sensors.cameras.event_truth import DepthH5Writer, FlowPngWriter
 from roslan.sensors.cameras.flow_truth import FlowTruth, depth_on_rays, flow_end_times
 from roslan.sensors.cameras.model import T_LINK_OPTICAL, CameraModel, RenderPlan
+from roslan.sensors.cameras.remap import remap_result, remap_view
 
 __all__ = ["EventCamera"]
 
@@ -105,16 +106,10 @@ class _Camera:
         return self.plan
 
     def remap(self, img: NDArray[Any], *, nearest: bool = False) -> NDArray[Any]:
-        plan = self.plan
-        if plan is None or plan.map1 is None or plan.map2 is None:
+        """``img`` of the virtual view at the output pixels (:func:`.remap.remap_view`)."""
+        if self.plan is None:
             return img
-        import cv2
-
-        interp = cv2.INTER_NEAREST if nearest else cv2.INTER_LINEAR
-        out: NDArray[Any] = cv2.remap(
-            img, plan.map1, plan.map2, interp, borderMode=cv2.BORDER_REPLICATE
-        )
-        return out
+        return remap_view(self.plan, img, nearest=nearest)
 
     def max_flow_speed(self, depth: NDArray[np.floating], v: F64, w: F64) -> float:
         """``max |flow|`` of the output pixels, px/s (one pass for a pinhole camera)."""
@@ -227,8 +222,9 @@ class EventCamera:
             supersampling=self.config.supersampling,
         )
         assert res.luminance is not None
-        lum = cam.remap(res.luminance)
-        depth = None if res.depth is None else cam.remap(res.depth, nearest=True)
+        out = res if cam.plan is None else remap_result(cam.plan, res)
+        lum, depth = out.luminance, out.depth
+        assert lum is not None
         if depth is not None and exact_depth and not cam.model.is_pinhole:
             depth = depth_on_rays(ctx.raycaster(), T_wc, cam.rays)
         return lum, depth, v, w

@@ -39,6 +39,7 @@ from pydantic import Field, model_validator
 from roslan.config.base import FiniteFloat, StrictModel
 from roslan.render import FrameRenderer
 from roslan.sensors.cameras.model import RenderPlan
+from roslan.sensors.cameras.remap import remap_view
 
 __all__ = [
     "BAND_MARGIN",
@@ -337,19 +338,7 @@ def add_band(plan: RenderPlan, shutter: ShutterPlan, band: Band, out: F32, mono:
     ((H, W) luminance or (H, W, 3) linear RGB at the output size)."""
     assert shutter.weights is not None
     r0, r1, a = band.r0, band.r1, band.a
-    if plan.identity:
-        img = band.img[r0 - a : r1 - a]
-    else:
-        import cv2
-
-        m1 = plan.map1[r0:r1].copy()
-        m1[..., 1] -= a
-        img = np.asarray(
-            cv2.remap(
-                band.img, m1, plan.map2[r0:r1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE
-            ),
-            dtype=np.float32,
-        )
+    img = np.asarray(remap_view(plan, band.img, rows=(r0, r1), first_row=a), dtype=np.float32)
     w = shutter.weights[r0:r1, band.k]
     out[r0:r1] += img * (w[:, None] if mono else w[:, None, None])
 
