@@ -106,6 +106,21 @@ def test_actions_nan_raises_out_of_range_clips() -> None:
     env.close()
 
 
+def test_policy_context_is_the_episodes_goal_frame_and_action_bounds() -> None:
+    env = LandingEnv(tiny_config())
+    with pytest.raises(ActionError, match=r"policy_context\(\) before reset\(\)"):
+        env.policy_context()
+    _, info = env.reset(seed=4)
+    ctx = env.policy_context()
+    np.testing.assert_array_equal(ctx.R_world_goal, info["R_world_goal"])
+    np.testing.assert_allclose(ctx.R_world_goal @ ctx.R_world_goal.T, np.eye(3), atol=1e-12)
+    assert ctx.control_dt == pytest.approx(1.0 / env.metadata["render_fps"])
+    high = env.action_space.high
+    assert (ctx.max_acceleration, ctx.max_body_rate) == (float(high[0]), float(high[3]))
+    assert ctx.config.seed == 4
+    env.close()
+
+
 @pytest.mark.parametrize(
     ("over", "key"),
     [

@@ -14,7 +14,7 @@ from __future__ import annotations
 import json
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import gymnasium as gym
 import numpy as np
@@ -27,6 +27,9 @@ from roslan.env.contact import ContactModel, Outcome, StepEvent, is_success, rew
 from roslan.env.dynamics import MAX_PITCH, DynamicsTrajectory
 from roslan.env.observe import EventPacket, ObservationBuilder
 from roslan.errors import ActionError, ConfigError
+
+if TYPE_CHECKING:
+    from roslan.env.policies import PolicyContext
 
 __all__ = ["DEFAULT_CONFIG", "PERCHING_CONFIG", "LandingEnv", "load_env_config"]
 
@@ -341,6 +344,24 @@ class LandingEnv(gym.Env[dict[str, NDArray[Any]], F32]):
         out = self._session.finish(self._traj.duration_ns, extra)
         self._session = None
         return out, reward
+
+    def policy_context(self) -> PolicyContext:
+        """What a policy may know before this episode's first step (its config, the
+        control period, the goal frame's orientation, the action bounds); call after
+        :meth:`reset` (ActionError before the first one)."""
+        if self._traj is None:
+            msg = "policy_context() before reset(): the episode's goal frame is not known yet"
+            raise ActionError(msg)
+        from roslan.env.policies import PolicyContext
+
+        dyn = self.closed_loop.dynamics
+        return PolicyContext(
+            self.config,
+            self.dt,
+            self._traj.R_world_goal.copy(),
+            dyn.max_acceleration,
+            dyn.max_body_rate,
+        )
 
     @property
     def episode(self) -> dict[str, Any]:

@@ -195,7 +195,7 @@ class EventCamera:
     @property
     def T_body_cam(self) -> F64:
         """(4, 4) pose of the optical frame in base_link."""
-        return self.config.base_T_optical()
+        return self.config.T_base_optical()
 
     def _prefix(self, ctx: SimContext) -> str:
         """'' for the OUTDIR-root camera (the first event camera), else '<name>/'."""

@@ -196,7 +196,7 @@ class StereoCameraConfig(_ImagingConfig):
         except SensorError as err:
             raise ValueError(str(err)) from None
         left = _renamed(left, f"{self.name}_left")
-        T_left = self.base_T_optical()
+        T_left = self.T_base_optical()
         T_lr = np.eye(4)
         T_lr[0, 3] = self.baseline
         topic = self.topic
