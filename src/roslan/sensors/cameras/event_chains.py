@@ -48,14 +48,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from roslan.events.sampling import AdaptiveSampler
-from roslan.io.child import (
-    JOIN_TIMEOUT_S,
-    ChildProcess,
-    child_connection,
-    end_child,
-    error_blob,
-    raise_error_record,
-)
+from roslan.io import child
 from roslan.sensors.base import SimContext
 
 if TYPE_CHECKING:
@@ -263,7 +256,7 @@ def helper_main(argv: Sequence[str] | None = None) -> None:
     import sys
 
     args = list(sys.argv[1:] if argv is None else argv)
-    conn = child_connection(args)
+    conn = child.child_connection(args)
     code = 0
     try:
         _warm_helper(args[2:])
@@ -285,8 +278,8 @@ def helper_main(argv: Sequence[str] | None = None) -> None:
     except BaseException as err:
         code = 1
         with contextlib.suppress(BaseException):
-            conn.send_bytes(error_blob(err))
-    end_child(conn, code)
+            conn.send_bytes(child.error_blob(err))
+    child.end_child(conn, code)
 
 
 _PRESTARTED: list[_Helper] = []
@@ -315,7 +308,7 @@ def _take_helpers(n: int) -> list[_Helper]:
     return out
 
 
-class _Helper(ChildProcess):
+class _Helper(child.ChildProcess):
     """One render helper process (owner side) and the thread reading its answers."""
 
     def __init__(self, warm: Sequence[str] = ()) -> None:
@@ -365,7 +358,7 @@ class _Helper(ChildProcess):
             self.join()
         finally:
             if self.reader is not None:
-                self.reader.join(JOIN_TIMEOUT_S)
+                self.reader.join(child.JOIN_TIMEOUT_S)
 
 
 class ChainFarm:
@@ -475,7 +468,7 @@ class ChainFarm:
                 self.results[j] = chain
                 h.in_flight -= 1
             elif kind == "error":
-                raise_error_record(rec, h.describe(), "the render helper process")
+                child.raise_error_record(rec, h.describe(), "the render helper process")
             else:  # eof: it died
                 raise h.died("while rendering")
 

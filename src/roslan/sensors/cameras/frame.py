@@ -423,7 +423,8 @@ class _ImagingCamera(CameraBase):
         renderer = self._plans(ctx)
         grid = self._grid(ctx)
         exposure_of = self._exposure_source(ctx)
-        if c.write_images:
+        writes = c.write_images and ctx.files is not None  # (None: a run recording nothing)
+        if writes:
             for e in self._eyes:
                 self._open_index(ctx, e, "image")
 
@@ -451,9 +452,9 @@ class _ImagingCamera(CameraBase):
             shots = []
             for e, (lin, gain) in zip(self._eyes, noisy, strict=True):
                 img = self.encode(lin, gain)
-                if c.write_images:
+                if writes:
                     self._png(ctx, e, i, img)
-                shots.append(Shot(e, img, c.encoding, c.write_images))
+                shots.append(Shot(e, img, c.encoding, writes))
             return shots
 
         yield from self._frames(ctx, grid, render, post)
