@@ -57,20 +57,14 @@ def _estimate_ttc(policy: Any) -> float | None:
 def fly_one(config: Any, name: str, seed: int) -> dict[str, Any]:
     """One episode: episode.json's content plus the time series (t, true and estimated
     time to contact of the height gap)."""
-    from roslan.env import LandingEnv, PolicyContext, make_policy
+    from roslan.env import LandingEnv, make_policy
 
     policy = make_policy(name)
     env = LandingEnv(config, policy_name=name)
     series: list[tuple[float, float, float]] = []
     try:
         obs, info = env.reset(seed=seed)
-        assert env._traj is not None
-        dyn = env.closed_loop.dynamics
-        policy.reset(
-            PolicyContext(
-                env.config, env.dt, env._traj.R_world_goal, dyn.max_acceleration, dyn.max_body_rate
-            )
-        )
+        policy.reset(env.policy_context())
         while True:
             action = policy.act(obs, info)
             st = info["state"]

@@ -192,7 +192,7 @@ def cost(args: argparse.Namespace) -> None:
         if s.type not in ("event_camera", "camera"):
             continue
         plan = s.camera_model().render_plan(r.max_size)
-        poses = [camera_twist(traj, int(t * 1e9), s.base_T_optical())[0] for t in times]
+        poses = [camera_twist(traj, int(t * 1e9), s.T_base_optical())[0] for t in times]
         opts = {"color": False, "depth": False, "luminance": True}
         for T in poses:  # warm up: targets, programs
             r.render(T, plan.K, plan.width, plan.height, **opts)

@@ -13,6 +13,7 @@ import time
 from pathlib import Path
 
 from roslan.config.base import Pose
+from roslan.render.raycast import get_raycaster
 from roslan.scene import check_clearance, export_scene
 from roslan.scene.builtin import empty
 from roslan.scene.export import _GLB_CACHE
@@ -38,7 +39,7 @@ def main() -> None:
         goal = Pose(position=scene.goal_position, rpy=scene.goal_rpy)
         traj = TauTrajectory(TrajectoryConfig(goal=goal))
         t0 = time.perf_counter()
-        assert check_clearance(scene, traj) is None
+        assert check_clearance(scene, traj, caster=get_raycaster(scene)) is None
         t_clear = time.perf_counter() - t0
         _GLB_CACHE.clear()
         with tempfile.TemporaryDirectory() as tmp:

@@ -351,3 +351,128 @@ def test_lazy_packages_resolve_every_public_name(package: str) -> None:
         [sys.executable, "-c", code], capture_output=True, text=True, check=True
     ).stdout
     assert f"module {package!r} has no attribute 'no_such_name'" in out
+
+
+# ------------------------------------------------------------ the seams (guide: architecture)
+_POOLS = ("ProcessPoolExecutor", "multiprocessing.Pool", "multiprocessing.pool", "WorkerPool")
+
+
+def _sensor_violations(path: Path) -> list[str]:
+    """What a sensor module must not import: the pipeline (its ``Context`` above all) or
+    any process pool."""
+    tree = ast.parse(path.read_text(encoding="utf-8"))
+    out = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.ImportFrom) and node.module:
+            names = {a.name for a in node.names}
+            if node.module.startswith("roslan.pipeline") or (
+                "Context" in names and (node.module.startswith("roslan.pipeline"))
+            ):
+                out.append(f"from {node.module} import {', '.join(sorted(names))}")
+            full = {f"{node.module}.{n}" for n in names} | names | {node.module}
+            out += [f"from {node.module} import {p}" for p in _POOLS if p in full]
+        elif isinstance(node, ast.Import):
+            for a in node.names:
+                if a.name.startswith("roslan.pipeline") or a.name in _POOLS:
+                    out.append(f"import {a.name}")
+        elif isinstance(node, ast.Attribute) and ast.unparse(node) in _POOLS:
+            out.append(ast.unparse(node))
+    return out
+
+
+def test_the_sensor_checker_finds_a_context_and_a_pool(tmp_path: Path) -> None:
+    bad = tmp_path / "bad.py"
+    bad.write_text(
+        "from roslan.pipeline.context import Context\n"
+        "from concurrent.futures import ProcessPoolExecutor\n"
+        "import multiprocessing\n"
+        "def f():\n    return multiprocessing.Pool(2)\n",
+        encoding="utf-8",
+    )
+    found = _sensor_violations(bad)
+    assert "from roslan.pipeline.context import Context" in found
+    assert "from concurrent.futures import ProcessPoolExecutor" in found
+    assert "multiprocessing.Pool" in found
+
+
+@pytest.mark.parametrize("name", sorted(n for n in MODULES if n.startswith("roslan.sensors")))
+def test_no_sensor_imports_the_pipeline_context_or_a_process_pool(name: str) -> None:
+    assert _sensor_violations(MODULES[name]) == []
+
+
+def _type_branches(path: Path) -> list[str]:
+    """Branches on a sensor's type in a module: a comparison with a ``.type`` attribute,
+    or any registered type name written as a string."""
+    from roslan.sensors.registry import SENSOR_TYPES
+
+    tree = ast.parse(path.read_text(encoding="utf-8"))
+    out = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Compare):
+            sides = [node.left, *node.comparators]
+            if any(isinstance(s, ast.Attribute) and s.attr == "type" for s in sides):
+                out.append(ast.unparse(node))
+        elif isinstance(node, ast.Constant) and node.value in SENSOR_TYPES:
+            out.append(repr(node.value))
+    return out
+
+
+def test_the_branch_checker_finds_type_branches(tmp_path: Path) -> None:
+    bad = tmp_path / "bad.py"
+    bad.write_text(
+        "def f(s):\n    if s.type == 'imu':\n        return 1\n    return s.type in ('laser',)\n",
+        encoding="utf-8",
+    )
+    assert sorted(_type_branches(bad)) == sorted(
+        ["s.type == 'imu'", "'imu'", "s.type in ('laser',)", "'laser'"]
+    )
+
+
+def test_the_observation_has_no_per_type_branches() -> None:
+    """env/observe.py only gathers the observers each SensorSpec declares."""
+    assert _type_branches(MODULES["roslan.env.observe"]) == []
+
+
+_CACHES = ("lru_cache", "cache", "functools.lru_cache", "functools.cache")
+_HOLDS_SCENE = re.compile(r"\b(Scene|SceneObject|Renderer|RayCaster|SceneBackends)\b")
+
+
+def _scene_caches(path: Path) -> list[str]:
+    """Module-level caches that may hold a scene strongly: a cached function taking or
+    returning one, or a module-level container of them that is not a weak one."""
+    tree = ast.parse(path.read_text(encoding="utf-8"))
+    out = []
+    for node in tree.body:
+        if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef):
+            cached = [
+                d
+                for d in node.decorator_list
+                if ast.unparse(d.func if isinstance(d, ast.Call) else d) in _CACHES
+            ]
+            sig = " ".join(
+                ast.unparse(a.annotation) for a in node.args.args if a.annotation is not None
+            ) + (" " + ast.unparse(node.returns) if node.returns is not None else "")
+            if cached and _HOLDS_SCENE.search(sig):
+                out.append(f"cached function {node.name}({sig})")
+        elif isinstance(node, ast.AnnAssign) and isinstance(node.target, ast.Name):
+            ann = ast.unparse(node.annotation)
+            if _HOLDS_SCENE.search(ann) and "Weak" not in ann:
+                out.append(f"{node.target.id}: {ann}")
+    return out
+
+
+def test_the_cache_checker_finds_a_strong_scene_cache(tmp_path: Path) -> None:
+    bad = tmp_path / "bad.py"
+    bad.write_text(
+        "from functools import lru_cache\n"
+        "@lru_cache(maxsize=4)\ndef f(scene: Scene) -> int:\n    return 1\n"
+        "_BY_NAME: dict[str, Scene] = {}\n"
+        "_OK: weakref.WeakKeyDictionary[Scene, RayCaster] = weakref.WeakKeyDictionary()\n",
+        encoding="utf-8",
+    )
+    assert _scene_caches(bad) == ["cached function f(Scene int)", "_BY_NAME: dict[str, Scene]"]
+
+
+def test_no_module_level_cache_holds_a_scene() -> None:
+    found = {name: _scene_caches(path) for name, path in MODULES.items()}
+    assert {k: v for k, v in found.items() if v} == {}

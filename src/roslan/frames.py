@@ -20,7 +20,9 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 __all__ = [
-    "OPTICAL_FROM_BODY",
+    "R_LINK_OPTICAL",
+    "T_LINK_OPTICAL",
+    "body_rates_to_euler_rates",
     "euler_rates_to_body_acceleration",
     "euler_rates_to_body_rates",
     "euler_zyx_kinematics",
@@ -38,9 +40,15 @@ __all__ = [
 
 F64 = NDArray[np.float64]
 
-OPTICAL_FROM_BODY: F64 = np.array([[0.0, -1.0, 0.0], [0.0, 0.0, -1.0], [1.0, 0.0, 0.0]])
-"""``R_optical_link``: maps a camera link frame (x forward, y left, z up) into its
-optical frame (z forward, x right, y down)."""
+R_LINK_OPTICAL: F64 = np.array([[0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])
+"""The orientation of a camera's optical frame (z forward, x right, y down) in its link
+frame (x forward, y left, z up): maps optical-frame vectors into the link frame (its
+transpose maps link vectors into the optical frame)."""
+
+T_LINK_OPTICAL: F64 = np.eye(4)
+T_LINK_OPTICAL[:3, :3] = R_LINK_OPTICAL
+"""The pose (4, 4) of a camera's optical frame in its link frame: :data:`R_LINK_OPTICAL`,
+no offset."""
 
 
 def rpy_to_matrix(rpy: ArrayLike) -> F64:
@@ -171,6 +179,19 @@ def euler_rates_to_body_rates(rpy: ArrayLike, rpy_dot: ArrayLike) -> F64:
         [dr - dy * sp, dp * cr + dy * sr * cp, -dp * sr + dy * cr * cp],
         axis=-1,
     )
+
+
+def body_rates_to_euler_rates(rpy: ArrayLike, omega: ArrayLike) -> F64:
+    """ZYX Euler-angle rates giving body angular velocity ``omega`` (rad/s, body frame)
+    at Euler angles ``rpy``: the inverse of :func:`euler_rates_to_body_rates` (singular at
+    ``cos(pitch) = 0``). Shapes: (N, 3), (N, 3) -> (N, 3)."""
+    a = np.asarray(rpy, dtype=np.float64)
+    w = np.asarray(omega, dtype=np.float64)
+    r, p = a[..., 0], a[..., 1]
+    wx, wy, wz = w[..., 0], w[..., 1], w[..., 2]
+    sr, cr, sp, cp = np.sin(r), np.cos(r), np.sin(p), np.cos(p)
+    dy = (wy * sr + wz * cr) / cp
+    return np.stack([wx + dy * sp, wy * cr - wz * sr, dy], axis=-1)
 
 
 def euler_rates_to_body_acceleration(

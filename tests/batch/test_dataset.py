@@ -16,6 +16,7 @@ from roslan.batch import make_tasks
 from roslan.batch.paper import dataset_plan, default_sensor_suite
 from roslan.config.sim import SimConfig
 from roslan.errors import ConfigError
+from roslan.render.raycast import get_raycaster
 from roslan.scene import check_clearance, load_scene
 from roslan.trajectory.base import Trajectory
 from roslan.trajectory.config import TrajectoryConfig
@@ -80,7 +81,12 @@ def test_planned_paths_clear_the_scene_built_with_their_seed(plan, scene: str, n
     sc = load_scene(scene, seed=run.seed)
     cfg = SimConfig.model_validate(run.config)
     traj = TauTrajectory(base_link_trajectory(cfg.trajectory, cfg.vehicle, sc), warn=False)
-    assert check_clearance(sc, traj, vehicle=cfg.vehicle, sensors=cfg.sensors) is None
+    assert (
+        check_clearance(
+            sc, traj, caster=get_raycaster(sc), vehicle=cfg.vehicle, sensors=cfg.sensors
+        )
+        is None
+    )
 
 
 def test_paths_are_visibly_different(plan) -> None:  # type: ignore[no-untyped-def]

@@ -16,12 +16,9 @@ from hypothesis import strategies as st
 from pipeline_helpers import SHORT_TRAJECTORY
 from roslan.config.closed_loop import ClosedLoopConfig, Dynamics
 from roslan.config.sim import SimConfig
-from roslan.env.dynamics import (
-    DynamicsTrajectory,
-    body_rates_to_euler_rates,
-    euler_rates_to_body_rates,
-)
+from roslan.env.dynamics import DynamicsTrajectory
 from roslan.env.policies import PolicyContext, TauStatePolicy
+from roslan.frames import body_rates_to_euler_rates, euler_rates_to_body_rates
 from roslan.trajectory import TauTrajectory, TrajectoryConfig
 from roslan.trajectory.base import HorizonError
 

@@ -106,6 +106,21 @@ def test_actions_nan_raises_out_of_range_clips() -> None:
     env.close()
 
 
+def test_policy_context_is_the_episodes_goal_frame_and_action_bounds() -> None:
+    env = LandingEnv(tiny_config())
+    with pytest.raises(ActionError, match=r"policy_context\(\) before reset\(\)"):
+        env.policy_context()
+    _, info = env.reset(seed=4)
+    ctx = env.policy_context()
+    np.testing.assert_array_equal(ctx.R_world_goal, info["R_world_goal"])
+    np.testing.assert_allclose(ctx.R_world_goal @ ctx.R_world_goal.T, np.eye(3), atol=1e-12)
+    assert ctx.control_dt == pytest.approx(1.0 / env.metadata["render_fps"])
+    high = env.action_space.high
+    assert (ctx.max_acceleration, ctx.max_body_rate) == (float(high[0]), float(high[3]))
+    assert ctx.config.seed == 4
+    env.close()
+
+
 @pytest.mark.parametrize(
     ("over", "key"),
     [
@@ -143,6 +158,43 @@ def test_an_unfinished_recorded_episode_leaves_no_outdir(tmp_path: Path) -> None
     env.close()
     assert not out.exists()
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]
+
+
+def test_an_unrecorded_episode_creates_no_file(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Without ``record`` no file sink is attached: a whole episode (IMU, event camera
+    with APS frames, optic flow and depth truth, a frame camera, LiDAR) creates nothing
+    under TMPDIR nor in the working folder, and observes what the recorded episode does."""
+    import tempfile
+
+    cfg = tiny_config()
+    cfg["sensors"][1].update(aps=True, optic_flow=True, depthmap=True, write_h5=True)
+    cfg["sensors"] += [
+        {"type": "camera", "name": "cam", "rate": 10.0, "resolution": [32, 24]},
+        {"type": "lidar", "name": "lidar", "rate": 10.0, "preset": "vlp16", "azimuth_steps": 90},
+    ]
+    seen: dict[str, list[dict[str, Any]]] = {"rec": [], "quiet": []}
+
+    def keep(into: str) -> Any:
+        return lambda obs, info: seen[into].append({k: np.copy(v) for k, v in obs.items()})
+
+    recorded = fly(cfg, "tau-state", seed=2, record=tmp_path / "rec", on_step=keep("rec"))
+    assert (tmp_path / "rec" / "events.h5").is_file()
+    quiet = tmp_path / "quiet"
+    (quiet / "tmp").mkdir(parents=True)
+    monkeypatch.setenv("TMPDIR", str(quiet / "tmp"))
+    monkeypatch.setattr(tempfile, "tempdir", None)  # gettempdir() reads TMPDIR again
+    monkeypatch.chdir(quiet)
+    unrecorded = fly(cfg, "tau-state", seed=2, on_step=keep("quiet"))
+    assert list(quiet.rglob("*")) == [quiet / "tmp"]
+    assert unrecorded == recorded
+    assert len(seen["quiet"]) == len(seen["rec"]) > 10
+    assert any(np.any(o["events"]) for o in seen["rec"])
+    for a, b in zip(seen["rec"], seen["quiet"], strict=True):
+        assert a.keys() == b.keys()
+        for k in a:
+            np.testing.assert_array_equal(a[k], b[k], err_msg=k)
 
 
 @pytest.fixture(scope="module")
@@ -273,6 +325,51 @@ def test_range_and_laser_observations_are_the_steps_latest_readings() -> None:
             break
     env.close()
     assert scans >= 1
+
+
+def test_lidar_and_stereo_observations_are_the_steps_latest_measurements() -> None:
+    """A LiDAR's observation is its last scan's returns as ``valid, x, y, z`` rows (then
+    zero rows), a stereo camera's both eyes' last frames; each as its typed tap holds it."""
+    cfg = tiny_config()
+    cfg["sensors"] += [
+        {"type": "lidar", "name": "lidar", "rate": 10.0, "preset": "vlp16", "azimuth_steps": 90},
+        {
+            "type": "stereo_camera",
+            "name": "stereo",
+            "rate": 10.0,
+            "resolution": [32, 24],
+            "baseline": 0.1,
+            "pose": {"position": [0.0, 0.0, -0.05], "rpy": [0.0, 1.5707963, 0.0]},
+        },
+    ]
+    env = LandingEnv(cfg)
+    assert env.observation_space["lidar"].shape == (16 * 90, 4)
+    assert env.observation_space["stereo"].shape == (2, 24, 32, 3)  # rgb8, as published
+    env.reset(seed=1)
+    scans = frames = 0
+    for _ in range(15):
+        obs, _, term, trunc, info = env.step(np.zeros(6, np.float32))
+        for q in info["taps"].get("lidar", []):
+            pts = q.points
+            ok = np.isfinite(pts["x"])
+            n = int(ok.sum())
+            assert 0 < n <= 16 * 90
+            assert (obs["lidar"][:n, 0] == 1).all()
+            assert not obs["lidar"][n:].any()
+            np.testing.assert_array_equal(obs["lidar"][:n, 1], pts["x"][ok])
+            np.testing.assert_array_equal(obs["lidar"][:n, 3], pts["z"][ok])
+            scans += 1
+        eyes = {q.eye: q.image for q in info["taps"].get("stereo", [])}
+        if eyes:
+            np.testing.assert_array_equal(obs["stereo"][0], eyes["left"])
+            np.testing.assert_array_equal(obs["stereo"][1], eyes["right"])
+            frames += 1
+        assert env.observation_space.contains(obs)
+        if term or trunc:
+            break
+    env.close()
+    assert scans >= 1
+    assert frames >= 1
 
 
 def test_start_spread_draws_each_episodes_start_from_its_seed() -> None:

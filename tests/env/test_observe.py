@@ -56,3 +56,25 @@ def test_event_packets_compare_by_content() -> None:
     a, b = _events(20), _events(20)
     assert a == b
     assert a != EventPacket(a.x, a.y, a.t, -a.p)
+
+
+def test_typed_taps_read_like_mappings_and_recode_polarity() -> None:
+    """The event camera taps 1 ON / 0 OFF (as ESIM makes them); the step's packet holds
+    +1 / -1; a measurement reads like the mapping it replaced and compares by content."""
+    from roslan.sensors.measurements import EventSamples, ImuSamples
+
+    t = np.array([5, 9], np.int64)
+    a = ImuSamples(t, np.ones((2, 3)), np.zeros((2, 3)))
+    assert a["t"] is t
+    assert "acc" in a
+    assert "points" not in a
+    assert a.get("points") is None
+    assert a == ImuSamples(t.copy(), np.ones((2, 3)), np.zeros((2, 3)))
+    assert a != ImuSamples(t, np.ones((2, 3)), np.full((2, 3), 1e-9))
+    x = np.array([1, 2, 3], np.uint16)
+    taps = [EventSamples(x, x, np.array([1, 2, 3], np.int64), np.array([1, 0, 1], np.int8))]
+    packet = EventPacket.of(taps)
+    np.testing.assert_array_equal(packet.p, [1, -1, 1])
+    np.testing.assert_array_equal(packet.x, [1, 2, 3])
+    assert packet.x.dtype == np.int32
+    assert len(EventPacket.of([])) == 0

@@ -56,13 +56,7 @@ def _fly(cfg: dict[str, Any], seed: int) -> tuple[dict[str, Any], np.ndarray, Ta
     rows = []
     try:
         obs, info = env.reset(seed=seed)
-        assert env._traj is not None
-        dyn = env.closed_loop.dynamics
-        policy.reset(
-            PolicyContext(
-                env.config, env.dt, env._traj.R_world_goal, dyn.max_acceleration, dyn.max_body_rate
-            )
-        )
+        policy.reset(env.policy_context())
         while True:
             action = policy.act(obs, info)
             assert np.all(np.isfinite(action))

@@ -9,7 +9,6 @@ import pytest
 
 from env_helpers import tiny_config
 from roslan.env import LandingEnv, ReducedAction, TauStatePolicy, VerticalAction
-from roslan.env.policies import PolicyContext
 from roslan.errors import ActionError, ConfigError
 
 pytest.importorskip("roslan.render.gl")
@@ -49,10 +48,7 @@ def test_tau_state_rest_with_tau_state_vertical_is_tau_state() -> None:
     full_env = LandingEnv(tiny_config())
     obs, info = full_env.reset(seed=seed)
     pol = TauStatePolicy()
-    dyn = full_env.closed_loop.dynamics
-    ctx = PolicyContext(
-        full_env.config, full_env.dt, info["R_world_goal"], dyn.max_acceleration, dyn.max_body_rate
-    )
+    ctx = full_env.policy_context()
     pol.reset(ctx)
     env = VerticalAction(LandingEnv(tiny_config()), rest="tau-state")
     obs_w, info_w = env.reset(seed=seed)

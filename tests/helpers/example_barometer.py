@@ -60,8 +60,9 @@ class Barometer:
         z = state.position[:, 2] + np.einsum("nj,j->n", state.R_world_body[:, 2, :], T_mount[:3, 3])
         noise = ctx.rng(c.name).normal(0.0, c.noise_pa, len(t_ns)) if c.noise_pa > 0 else 0.0
         pressure = isa_pressure(z) + noise
-        with ctx.path(f"baro_{c.name}.txt").open("w", encoding="utf-8") as fh:
-            write_columns(fh, t_ns, pressure, fmt="%.3f")  # t in s, 9 decimals, exact
+        if ctx.files is not None:  # None: a run that records no files
+            with ctx.files.path(f"baro_{c.name}.txt").open("w", encoding="utf-8") as fh:
+                write_columns(fh, t_ns, pressure, fmt="%.3f")  # t in s, 9 decimals, exact
         for t, p in zip(t_ns.tolist(), pressure.tolist(), strict=True):
             yield Message(t, c.topic, "sensor_msgs/msg/FluidPressure", self._build(ctx, t, p))
 

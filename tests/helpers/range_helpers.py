@@ -11,6 +11,7 @@ from typing import Any
 
 import numpy as np
 
+from roslan.io.files import DatasetFolder
 from roslan.render.raycast import get_raycaster
 from roslan.scene.model import Material, Scene, SceneObject
 from roslan.sensors.clock import Clock
@@ -130,6 +131,7 @@ class FakeContext:
         self.root_imu: str | None = None
         self.sensor_threads = 1
         self.outdir = outdir
+        self.files = DatasetFolder(outdir)
         self._clock: Clock | None = None
 
     def stamp(self, t_ns: int) -> int:
@@ -140,9 +142,7 @@ class FakeContext:
         return np.random.default_rng(np.random.SeedSequence(key))
 
     def path(self, relpath: str) -> Path:
-        p = self.outdir / relpath
-        p.parent.mkdir(parents=True, exist_ok=True)
-        return p
+        return self.files.path(relpath)
 
     @property
     def scene(self) -> Scene:

@@ -8,6 +8,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from roslan.config.sim import SimConfig
@@ -88,15 +89,36 @@ def test_an_aborted_or_failed_live_run_leaves_no_outdir(tmp_path: Path) -> None:
     assert list(tmp_path.iterdir()) == []
 
 
-def test_a_live_run_without_outdir_writes_nothing(tmp_path: Path) -> None:
+def test_a_live_run_without_outdir_writes_nothing(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """No recorder attached: no bags, no folder, not even a temporary one; the taps are
+    the recorded run's readings (imu.txt of the same landing)."""
+    import tempfile
+
     cfg = SimConfig.model_validate(CONFIG)
+    run_simulation(cfg, tmp_path / "sim", quiet=True)
+    quiet = tmp_path / "quiet"
+    (quiet / "tmp").mkdir(parents=True)
+    monkeypatch.setenv("TMPDIR", str(quiet / "tmp"))
+    monkeypatch.setattr(tempfile, "tempdir", None)  # gettempdir() reads TMPDIR again
+    monkeypatch.chdir(quiet)
     guard, end = _guard(cfg)
     run = open_run(cfg, None, guard)
-    guard.set_horizon(STEP_NS)
-    step = run.advance(STEP_NS)
-    assert step.tap("imu")
-    assert step.tap("imu")[0]["acc"].shape[1] == 3
+    assert run.rec is None
+    h, rows = 0, []
+    while h + STEP_NS < end:
+        h += STEP_NS
+        guard.set_horizon(h)
+        step = run.advance(h)
+        rows += [
+            np.column_stack([tap["t"] * 1e-9, tap["acc"], tap["gyro"]]) for tap in step.tap("imu")
+        ]
     guard.finish()
-    _, manifest = run.finish(end)
+    last, manifest = run.finish(end)
+    rows += [np.column_stack([tap["t"] * 1e-9, tap["acc"], tap["gyro"]]) for tap in last.tap("imu")]
     assert manifest is None
-    assert not Path(run.tmp).exists()
+    assert list(quiet.rglob("*")) == [quiet / "tmp"]
+    written = np.loadtxt(tmp_path / "sim" / "imu.txt")
+    # (imu.txt holds 9 significant digits)
+    np.testing.assert_allclose(np.concatenate(rows), written, rtol=1e-8, atol=1e-12)

@@ -18,6 +18,7 @@ from roslan.cli import main
 from roslan.config.base import Pose
 from roslan.config.sim import SimConfig
 from roslan.frames import quat_xyzw_to_matrix
+from roslan.render.raycast import get_raycaster
 from roslan.scene import check_clearance, load_scene
 from roslan.trajectory import TauTrajectory, TrajectoryConfig
 from roslan.vehicle import VehicleConfig, base_link_trajectory
@@ -275,7 +276,9 @@ def test_camera_near_plane_is_checked(near_clip: float) -> None:
     )
     scene = load_scene("empty")
     traj = TauTrajectory(base_link_trajectory(cfg.trajectory, cfg.vehicle, scene))
-    msg = check_clearance(scene, traj, vehicle=cfg.vehicle, sensors=cfg.sensors)
+    msg = check_clearance(
+        scene, traj, caster=get_raycaster(scene), vehicle=cfg.vehicle, sensors=cfg.sensors
+    )
     if near_clip < 0.08:
         assert msg is None
     else:
@@ -312,9 +315,9 @@ def test_perching_uses_the_grasp_point(tmp_path: Path) -> None:
     top = np.asarray(scene.goal_position)
     p = traj.state([traj.duration]).position[0]
     assert p == pytest.approx(top + np.array([0.0, 0.0, 0.06]), abs=1e-9)
-    assert check_clearance(scene, traj, vehicle=v) is None
+    assert check_clearance(scene, traj, caster=get_raycaster(scene), vehicle=v) is None
     default = TauTrajectory(base_link_trajectory(cfg, VehicleConfig(), scene))
-    assert check_clearance(scene, default) is None
+    assert check_clearance(scene, default, caster=get_raycaster(scene)) is None
     # `roslan trajectory` flies the same goal (it reads the scene only for this choice)
     job = tmp_path / "perch.yaml"
     job.write_text(

@@ -148,7 +148,7 @@ def _events(landing: dict[str, Any], n: int) -> tuple[int, np.ndarray]:
     mid = None
     times = np.arange(int(WINDOW[0] * 1e9), int(WINDOW[1] * 1e9) + 1, int(1e9 / RATE))
     for k, t in enumerate(times.tolist()):
-        T, _, _ = camera_twist(landing["trajectory"], t, ec.base_T_optical())
+        T, _, _ = camera_twist(landing["trajectory"], t, ec.T_base_optical())
         res = r.render(
             T, model.K, model.width, model.height, color=False, depth=False, luminance=True,
             supersampling=n,
@@ -185,7 +185,7 @@ def test_camera_frame_matches_the_reference(landing: dict[str, Any]) -> None:
     r: gl.Renderer = landing["renderer"]
     f = cam.camera_model().fx
     K = np.array([[f, 0, 319.5], [0, f, 239.5], [0, 0, 1]])
-    T, _, _ = camera_twist(landing["trajectory"], int(2.0e9), cam.base_T_optical())
+    T, _, _ = camera_twist(landing["trajectory"], int(2.0e9), cam.T_base_optical())
     imgs = []
     for n in (1, 4):
         lum = r.render(T, K, 640, 480, color=False, depth=False, luminance=True, supersampling=n)

@@ -143,3 +143,37 @@ def test_parallel_cast_works_in_a_forked_child() -> None:
 
 def _child_cast(sc: object, o: np.ndarray, d: np.ndarray) -> np.ndarray:
     return RayCaster(sc, threads=2).cast(o, d).distance  # type: ignore[arg-type]
+
+
+def test_the_hit_record_has_range_point_triangle_and_object() -> None:
+    """One record per ray: the point lies ``range`` along the ray on the hit triangle's
+    plane, and the object is the scene's owner of that triangle (-1 and NaN: no hit)."""
+    ground = plane(z=0.0, half=10.0, refl=0.2)
+    b = box((-1, -1, 0), (1, 1, 2), refl=0.9)
+    sc = scene(ground, b)
+    rc = get_raycaster(sc)
+    rng = np.random.default_rng(7)
+    n = 500
+    o = np.column_stack([rng.uniform(-3, 3, n), rng.uniform(-3, 3, n), np.full(n, 4.0)])
+    d = _unit(np.column_stack([rng.normal(0, 0.3, n), rng.normal(0, 0.3, n), -np.ones(n)]))
+    d[:20] = _unit(np.array([0.3, 0.1, 1.0]))  # upward: nothing above
+    hits = rc.cast(o, d)
+    assert (hits.range == hits.distance).all()
+    hit = hits.hit
+    assert hit[20:].all()
+    assert not hit[:20].any()
+    np.testing.assert_allclose(hits.point[hit], (o + d * hits.distance[:, None])[hit], atol=1e-5)
+    assert np.isnan(hits.point[~hit]).all()
+    verts, faces, owner = sc.triangles
+    v0 = verts[faces[hits.triangle[hit], 0]].astype(np.float64)
+    # the point is on its triangle's plane (independent: the plane through its vertex)
+    off = np.einsum("ij,ij->i", hits.point[hit] - v0, hits.normal[hit])
+    np.testing.assert_allclose(off, 0.0, atol=1e-4)
+    np.testing.assert_array_equal(hits.object[hit], owner[hits.triangle[hit]])
+    assert (hits.object[~hit] == -1).all()
+    # the box (object 1) where the foot point falls on its top, the ground elsewhere
+    foot = o + d * ((4.0 - 2.0) / -d[:, 2])[:, None]
+    on_top = hit & (np.abs(foot[:, :2]) < 0.99).all(axis=1)
+    assert on_top.sum() > 20
+    assert (hits.object[on_top] == 1).all()
+    np.testing.assert_allclose(hits.point[on_top][:, 2], 2.0, atol=1e-5)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -11,13 +12,19 @@ import yaml
 
 from roslan.batch.paper import default_sensor_suite
 from roslan.config.base import Pose
-from roslan.scene import check_clearance, load_scene
+from roslan.render.raycast import get_raycaster
+from roslan.scene import Scene, check_clearance, load_scene
 from roslan.sensors.registry import config_class
 from roslan.trajectory import TauTrajectory, Trajectory, TrajectoryConfig
 from roslan.vehicle import VehicleConfig, base_link_trajectory
 
 VEHICLE = VehicleConfig()
 SUITE = [config_class(s["type"]).model_validate(s) for s in default_sensor_suite()]
+
+
+def _clear(scene: Scene, traj: Trajectory, **kw: Any) -> str | None:
+    """check_clearance through the scene's ray caster (the beam sensors' own)."""
+    return check_clearance(scene, traj, caster=get_raycaster(scene), **kw)
 
 
 def _landing(cfg: TrajectoryConfig, scene) -> Trajectory:  # type: ignore[no-untyped-def]
@@ -36,7 +43,7 @@ def test_default_trajectory_is_clear(name: str) -> None:
     assert cfg.initial.position == (-8.0, 2.0, 4.6)
     scene = load_scene(name)
     traj = _landing(cfg, scene)
-    assert check_clearance(scene, traj, vehicle=VEHICLE, sensors=SUITE) is None
+    assert _clear(scene, traj, vehicle=VEHICLE, sensors=SUITE) is None
 
 
 @pytest.mark.parametrize("name", ["warehouse", "refinery"])
@@ -60,7 +67,7 @@ def test_paper_dataset_approaches_are_clear(name: str, seed: int) -> None:
                     }
                 )
                 traj = _landing(cfg, scene)
-                msg = check_clearance(scene, traj, vehicle=VEHICLE, sensors=SUITE)
+                msg = _clear(scene, traj, vehicle=VEHICLE, sensors=SUITE)
                 if msg is not None:
                     failures.append((distance, heading, kx, ky, msg))
     assert failures == []
@@ -110,7 +117,7 @@ def test_collision_reported_with_time_and_object(tmp_path: Path) -> None:
     # the body's nose (0.15 m ahead of base_link; no rotation on this path) meets it first
     t_cross = t[np.argmax(x >= -4.2 - 0.15)]
     scene = load_scene(str(_box_scene(tmp_path, [-4.0, 0.0, 4.0])))
-    msg = check_clearance(scene, traj)
+    msg = _clear(scene, traj)
     assert msg is not None
     assert "'wall_block'" in msg
     reported = float(msg.split("t = ")[1].split(" s")[0])
@@ -118,9 +125,9 @@ def test_collision_reported_with_time_and_object(tmp_path: Path) -> None:
     assert msg.startswith("the body enters")
     # landing on the feet at the goal is not a collision; a wall off the path is none either
     far = load_scene(str(_box_scene(tmp_path, [30.0, 0.0, 4.0])))
-    assert check_clearance(far, _landing(cfg, far)) is None
+    assert _clear(far, _landing(cfg, far)) is None
     # but base_link itself on the ground puts the body into it
-    low = check_clearance(far, traj)
+    low = _clear(far, traj)
     assert low is not None
     assert low.startswith("the body enters object 'ground'")
 
@@ -132,6 +139,68 @@ def test_goal_below_ground_is_a_collision(tmp_path: Path) -> None:
             "goal": {"position": [0.0, 0.0, -1.0]},
         }
     )
-    msg = check_clearance(load_scene("empty"), TauTrajectory(cfg))
+    msg = _clear(load_scene("empty"), TauTrajectory(cfg))
     assert msg is not None
     assert "'ground'" in msg
+
+
+def test_clearance_and_the_sensors_cast_the_same_hits() -> None:
+    """The clearance check and the beam sensors cast through one robust caster: the same
+    rays (aimed at the scene's own vertices and edge midpoints, where a non-robust BVH
+    lets rays slip between triangles) give the same triangles and ranges both ways."""
+    from roslan.pipeline import make_plan
+    from roslan.pipeline.plan import load_checked_scene
+    from roslan.scene.clearance import path_hit, segment_hits
+
+    cfg = SimConfig_for("warehouse")
+    plan = make_plan(cfg, None)
+    checked = load_checked_scene(plan)
+    assert checked.backends is not None
+    assert checked.scene is not None
+    ctx = plan.context(checked.traj, None, checked.scene, backends=checked.backends)
+    caster = ctx.raycaster()  # what every beam sensor of the run casts with
+    assert caster is checked.backends.caster()  # ... and the clearance check
+    verts, faces, _ = checked.scene.triangles
+    v = verts.astype(np.float64)
+    targets = np.concatenate([v[faces[:, 0]], (v[faces[:, 0]] + v[faces[:, 1]]) / 2])
+    rng = np.random.default_rng(3)
+    targets = targets[rng.choice(targets.shape[0], size=min(20_000, targets.shape[0]))]
+    origins = np.array([0.5, -0.3, 2.5]) + rng.normal(0, 0.2, targets.shape)
+    seg = targets - origins
+    length = np.linalg.norm(seg, axis=1)
+    d = seg / length[:, None]
+    ends = origins + d * (length + 0.05)[:, None]  # a little past the target
+    beams = caster.cast(origins, d, length + 0.05)
+    tri, frac = segment_hits(caster, origins, ends)
+    np.testing.assert_array_equal(tri, beams.triangle)
+    hit = beams.hit
+    assert hit.mean() > 0.9  # (a target may hide behind another surface: still a hit)
+    np.testing.assert_allclose(
+        frac[hit] * (length[hit] + 0.05), beams.distance[hit], rtol=1e-5, atol=1e-4
+    )
+    # the same segments as a standstill path (two instants, identity attitude)
+    k = 64
+    pts = np.zeros((k, 3))
+    one = path_hit(
+        checked.scene,
+        caster,
+        pts,
+        np.array([0.0, 1.0]),
+        np.stack([origins[0], ends[0]]),
+        np.stack([np.eye(3)] * 2),
+    )
+    assert (one is not None) == bool(hit[0])
+    if one is not None:
+        assert one.triangle == int(beams.triangle[0])
+
+
+def SimConfig_for(scene_name: str) -> Any:
+    from roslan.config.sim import SimConfig
+
+    return SimConfig.model_validate(
+        {
+            "scene": scene_name,
+            "trajectory": {"goal": {"position": [2.0, -1.0, 0.01], "rpy": [0.0, 0.0, 0.3]}},
+            "sensors": [{"type": "imu", "name": "imu", "rate": 100.0}],
+        }
+    )

@@ -58,7 +58,7 @@ def _scene() -> Any:
 
 
 def _run_sensor(
-    type_name: str, outdir: Path, seed: int = 5
+    type_name: str, outdir: Path | None, seed: int = 5
 ) -> tuple[Sensor, list[Any], dict[str, bytes]]:
     cfg_cls, cls = _load(type_name)
     cfg = cfg_cls.model_validate(_minimal(type_name))
@@ -78,6 +78,8 @@ def _run_sensor(
     sensor = cls(cfg)
     msgs = list(sensor.messages(ctx))
     sensor.close(ctx)
+    if outdir is None:
+        return sensor, msgs, {}
     files = {
         str(p.relative_to(outdir)): p.read_bytes() for p in sorted(outdir.rglob("*")) if p.is_file()
     }
@@ -172,3 +174,28 @@ def test_stream_conformance_and_determinism(
     assert sorted(bagged, key=lambda x: (x[0], x[1])) == ours
     for rel, data in files.items():
         assert (out / rel).read_bytes() == data, rel
+
+
+def test_without_a_file_sink_the_same_messages_and_no_file(
+    type_name: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A run that records no files (``ctx.files is None``, an unrecorded closed-loop
+    episode): every sensor publishes the same bytes and creates no file or folder, neither
+    in the temporary folder nor in the working folder."""
+    import tempfile
+
+    _, recorded, files = _run_sensor(type_name, tmp_path / "recorded")
+    assert files, "the recorded run writes the sensor's dataset files"
+    quiet = tmp_path / "quiet"
+    (quiet / "tmp").mkdir(parents=True)
+    monkeypatch.setenv("TMPDIR", str(quiet / "tmp"))
+    monkeypatch.setattr(tempfile, "tempdir", None)  # gettempdir() reads TMPDIR again
+    monkeypatch.chdir(quiet)
+    assert tempfile.gettempdir() == str(quiet / "tmp")
+    _, unrecorded, none = _run_sensor(type_name, None)
+    assert none == {}
+    assert list(quiet.rglob("*")) == [quiet / "tmp"]
+    store = STORES[Flavor.ROS1]
+    assert [(m.t_ns, m.topic, _decode(store, m)[1]) for m in unrecorded] == [
+        (m.t_ns, m.topic, _decode(store, m)[1]) for m in recorded
+    ]

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from roslan.errors import TrajectoryError
+from roslan.render.raycast import get_raycaster
 from roslan.trajectory import TauTrajectory, Trajectory, TrajectoryConfig
 from roslan.trajectory.spline import FileTrajectory
 
@@ -191,7 +192,8 @@ def test_clearance_check_on_file_trajectory(
         ],
     }
     (tmp_path / "scene.yaml").write_text(yaml.safe_dump(doc))
-    msg = check_clearance(load_scene(str(tmp_path / "scene.yaml")), ft)
+    sc = load_scene(str(tmp_path / "scene.yaml"))
+    msg = check_clearance(sc, ft, caster=get_raycaster(sc))
     assert msg is not None
     assert "'wall_block'" in msg
     reported = float(msg.split("t = ")[1].split(" s")[0])

@@ -12,7 +12,8 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
 from roslan.frames import (
-    OPTICAL_FROM_BODY,
+    R_LINK_OPTICAL,
+    T_LINK_OPTICAL,
     euler_rates_to_body_acceleration,
     euler_rates_to_body_rates,
     euler_zyx_kinematics,
@@ -174,6 +175,11 @@ def test_goal_frame_world_round_trip() -> None:
 
 def test_optical_frame_axes() -> None:
     # body x (forward) is optical z, body y (left) is optical -x, body z (up) is optical -y
-    np.testing.assert_array_equal(OPTICAL_FROM_BODY @ [1, 0, 0], [0, 0, 1])
-    np.testing.assert_array_equal(OPTICAL_FROM_BODY @ [0, 1, 0], [-1, 0, 0])
-    np.testing.assert_array_equal(OPTICAL_FROM_BODY @ [0, 0, 1], [0, -1, 0])
+    R_optical_link = R_LINK_OPTICAL.T
+    np.testing.assert_array_equal(R_optical_link @ [1, 0, 0], [0, 0, 1])
+    np.testing.assert_array_equal(R_optical_link @ [0, 1, 0], [-1, 0, 0])
+    np.testing.assert_array_equal(R_optical_link @ [0, 0, 1], [0, -1, 0])
+    # the pose of the optical frame in the link frame: the same rotation, no offset
+    np.testing.assert_array_equal(T_LINK_OPTICAL[:3, :3], R_LINK_OPTICAL)
+    np.testing.assert_array_equal(T_LINK_OPTICAL[:3, 3], 0.0)
+    np.testing.assert_array_equal(T_LINK_OPTICAL[3], [0, 0, 0, 1])

@@ -213,7 +213,13 @@ def _clear(scene: Any, block: Mapping[str, Any], sensors: Sequence[Mapping[str, 
 
     cfg = SimConfig.model_validate({"trajectory": dict(block), "sensors": list(sensors)})
     traj = TauTrajectory(base_link_trajectory(cfg.trajectory, cfg.vehicle, scene), warn=False)
-    return check_clearance(scene, traj, vehicle=cfg.vehicle, sensors=cfg.sensors) is None
+    from roslan.render.raycast import get_raycaster
+
+    caster = get_raycaster(scene)  # the beam sensors' caster
+    return (
+        check_clearance(scene, traj, caster=caster, vehicle=cfg.vehicle, sensors=cfg.sensors)
+        is None
+    )
 
 
 def dataset_plan(

@@ -22,7 +22,7 @@ from typing import TYPE_CHECKING, Any, Literal
 import numpy as np
 from numpy.typing import NDArray
 
-from roslan.scene.clearance import path_hit, vehicle_points
+from roslan.scene.clearance import SegmentCaster, path_hit, vehicle_points
 from roslan.vehicle import contact_point, resolve_contact
 
 if TYPE_CHECKING:
@@ -80,11 +80,23 @@ class ContactModel:
         config: the episode's config (vehicle, sensors, the goal of the contact point).
         scene: the scene (None: only the goal plane).
         traj: the vehicle's trajectory (base_link's goal).
+        caster: the scene's ray caster, the sensors' own (the episode's
+            :class:`~roslan.render.backends.SceneBackends`); needed with a scene.
     """
 
-    def __init__(self, config: SimConfig, scene: Scene | None, traj: DynamicsTrajectory) -> None:
+    def __init__(
+        self,
+        config: SimConfig,
+        scene: Scene | None,
+        traj: DynamicsTrajectory,
+        caster: SegmentCaster | None = None,
+    ) -> None:
         goal = config.trajectory.goal
+        if scene is not None and caster is None:
+            msg = "ContactModel: a scene needs its ray caster (SceneBackends.caster())"
+            raise ValueError(msg)
         self.scene = scene
+        self.caster = caster
         self.traj = traj
         which = resolve_contact(config.vehicle, scene, goal)
         self.c_body = contact_point(config.vehicle, which)
@@ -130,13 +142,14 @@ class ContactModel:
         if td is not None:
             events.append(StepEvent("touchdown", td, "the goal plane"))
         if self.scene is not None:
+            assert self.caster is not None
             t = np.linspace(t0_ns, t1_ns, SAMPLES) * 1e-9
             st = self.traj.state(t)
-            hit = path_hit(self.scene, self.body, t, st.position, st.R_world_body)
+            hit = path_hit(self.scene, self.caster, self.body, t, st.position, st.R_world_body)
             if hit is not None:
                 what = f"{self.labels[hit.point]} hit object {hit.obj!r}"
                 events.append(StepEvent("collision", _ns(hit.time, t0_ns, t1_ns), what))
-            foot = path_hit(self.scene, self.contacts, t, st.position, st.R_world_body)
+            foot = path_hit(self.scene, self.caster, self.contacts, t, st.position, st.R_world_body)
             if foot is not None:
                 what = f"object {foot.obj!r}"
                 events.append(StepEvent("touchdown", _ns(foot.time, t0_ns, t1_ns), what))

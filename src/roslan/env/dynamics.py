@@ -28,7 +28,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from roslan.config.closed_loop import Dynamics
-from roslan.frames import rpy_to_matrix, rpy_to_quat_xyzw
+from roslan.frames import body_rates_to_euler_rates, rpy_to_matrix, rpy_to_quat_xyzw
 from roslan.trajectory.base import GAPS, HorizonError, State, Trajectory
 from roslan.trajectory.config import TrajectoryConfig
 from roslan.trajectory.generator import TauTrajectory, add_flapping, fill_pose, table_times
@@ -36,8 +36,6 @@ from roslan.trajectory.generator import TauTrajectory, add_flapping, fill_pose, 
 __all__ = [
     "DynamicsTrajectory",
     "MeanState",
-    "body_rates_to_euler_rates",
-    "euler_rates_to_body_rates",
 ]
 
 F64 = NDArray[np.float64]
@@ -60,25 +58,6 @@ class MeanState:
     gaps: F64
     rates: F64
     accels: F64
-
-
-def body_rates_to_euler_rates(rpy: F64, omega: F64) -> F64:
-    """(3,) ZYX Euler-angle rates giving body rates ``omega`` (3,) at Euler angles ``rpy``."""
-    sr, cr = math.sin(rpy[0]), math.cos(rpy[0])
-    sp, cp = math.sin(rpy[1]), math.cos(rpy[1])
-    wx, wy, wz = (float(w) for w in omega)
-    dp = wy * cr - wz * sr
-    dy = (wy * sr + wz * cr) / cp
-    return np.array([wx + dy * sp, dp, dy])
-
-
-def euler_rates_to_body_rates(rpy: F64, rpy_dot: F64) -> F64:
-    """(3,) body rates of ZYX Euler-angle rates ``rpy_dot`` (3,) at Euler angles ``rpy``
-    (the inverse of :func:`body_rates_to_euler_rates`)."""
-    sr, cr = math.sin(rpy[0]), math.cos(rpy[0])
-    sp, cp = math.sin(rpy[1]), math.cos(rpy[1])
-    dr, dp, dy = (float(v) for v in rpy_dot)
-    return np.array([dr - dy * sp, dp * cr + dy * sr * cp, dy * cr * cp - dp * sr])
 
 
 def _lag(u: F64, tau: float) -> tuple[F64, F64, F64]:

@@ -14,7 +14,7 @@ from __future__ import annotations
 import json
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import gymnasium as gym
 import numpy as np
@@ -27,6 +27,9 @@ from roslan.env.contact import ContactModel, Outcome, StepEvent, is_success, rew
 from roslan.env.dynamics import MAX_PITCH, DynamicsTrajectory
 from roslan.env.observe import EventPacket, ObservationBuilder
 from roslan.errors import ActionError, ConfigError
+
+if TYPE_CHECKING:
+    from roslan.env.policies import PolicyContext
 
 __all__ = ["DEFAULT_CONFIG", "PERCHING_CONFIG", "LandingEnv", "load_env_config"]
 
@@ -138,17 +141,24 @@ class LandingEnv(gym.Env[dict[str, NDArray[Any]], F32]):
 
     # ------------------------------------------------------------------ episode
     def _scene(self, seed: int) -> Any:
+        """The scene of ``seed`` and its back ends (renderer, ray caster), kept while the
+        seed stays: a new seed releases the old ones (the env owns them)."""
         if self.base_config.scene is None:
-            return None
+            return None, None
         if seed not in self._scenes:
             import roslan.scene as scene_mod
+            from roslan.render.backends import SceneBackends
 
+            self._release_scenes()
             base = self.config_path.parent if self.config_path is not None else None
-            # one scene kept: a new seed replaces it
-            self._scenes = {
-                seed: scene_mod.load_scene(self.base_config.scene, base_dir=base, seed=seed)
-            }
+            scene = scene_mod.load_scene(self.base_config.scene, base_dir=base, seed=seed)
+            self._scenes = {seed: (scene, SceneBackends(scene))}
         return self._scenes[seed]
+
+    def _release_scenes(self) -> None:
+        for _, backends in self._scenes.values():
+            backends.release()
+        self._scenes = {}
 
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
@@ -162,10 +172,11 @@ class LandingEnv(gym.Env[dict[str, NDArray[Any]], F32]):
         cfg = self._start(self.base_config.model_copy(update={"seed": ep_seed}), ep_seed)
         from roslan.vehicle import base_link_trajectory
 
-        scene = self._scene(ep_seed)  # as `simulate` loads it with the run's seed
+        scene, backends = self._scene(ep_seed)  # as `simulate` loads it with the run's seed
         traj_cfg = base_link_trajectory(cfg.trajectory, cfg.vehicle, scene)
         self._traj = traj = DynamicsTrajectory(traj_cfg, self.closed_loop.dynamics, self.step_ns)
-        self._contact = ContactModel(cfg, scene, traj)
+        caster = backends.caster() if backends is not None else None
+        self._contact = ContactModel(cfg, scene, traj, caster)
         limit = self.closed_loop.time_limit
         self.time_limit_ns = round(
             1e9 * (limit if limit is not None else 4.0 * traj.reference_T + 1.0)
@@ -177,6 +188,7 @@ class LandingEnv(gym.Env[dict[str, NDArray[Any]], F32]):
             cfg,
             traj,
             scene,
+            backends=backends,
             record=self.record,
             overwrite=self.overwrite,
             config_path=self.config_path,
@@ -342,6 +354,24 @@ class LandingEnv(gym.Env[dict[str, NDArray[Any]], F32]):
         self._session = None
         return out, reward
 
+    def policy_context(self) -> PolicyContext:
+        """What a policy may know before this episode's first step (its config, the
+        control period, the goal frame's orientation, the action bounds); call after
+        :meth:`reset` (ActionError before the first one)."""
+        if self._traj is None:
+            msg = "policy_context() before reset(): the episode's goal frame is not known yet"
+            raise ActionError(msg)
+        from roslan.env.policies import PolicyContext
+
+        dyn = self.closed_loop.dynamics
+        return PolicyContext(
+            self.config,
+            self.dt,
+            self._traj.R_world_goal.copy(),
+            dyn.max_acceleration,
+            dyn.max_body_rate,
+        )
+
     @property
     def episode(self) -> dict[str, Any]:
         """The episode's summary so far (episode.json's content once it ended)."""
@@ -363,12 +393,9 @@ class LandingEnv(gym.Env[dict[str, NDArray[Any]], F32]):
                 img[ev["y"][on], ev["x"][on]] = (40, 80, 255)
                 img[ev["y"][~on], ev["x"][~on]] = (255, 60, 40)
             return img
-        for name, (shape, _) in self._obs.frames.items():
-            if len(shape) >= 2:
-                frame = np.asarray(self._obs._last[name])
-                if frame.dtype != np.uint8:
-                    continue
-                return np.repeat(frame[..., None], 3, axis=2) if frame.ndim == 2 else frame
+        frame = self._obs.image()
+        if frame is not None:
+            return np.repeat(frame[..., None], 3, axis=2) if frame.ndim == 2 else frame
         return np.full((48, 64, 3), 128, dtype=np.uint8)
 
     # ------------------------------------------------------------------ close
@@ -379,6 +406,8 @@ class LandingEnv(gym.Env[dict[str, NDArray[Any]], F32]):
         self._done = True
 
     def close(self) -> None:
-        """Stop a running episode (a recorded one that did not end leaves no OUTDIR)."""
+        """Stop a running episode (a recorded one that did not end leaves no OUTDIR) and
+        release the scene's renderer and ray caster."""
         self._close_session()
+        self._release_scenes()
         super().close()

@@ -21,8 +21,8 @@ from typing import TYPE_CHECKING, Any, Protocol
 import numpy as np
 from numpy.typing import NDArray
 
-from roslan.env.dynamics import euler_rates_to_body_rates
 from roslan.errors import ConfigError
+from roslan.frames import euler_rates_to_body_rates
 from roslan.trajectory.tau import exponent
 
 if TYPE_CHECKING:

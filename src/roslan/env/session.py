@@ -1,10 +1,10 @@
 """The sensors of one episode, run causally on the growing trajectory.
 
 A thin layer over the incremental run driver (:func:`roslan.pipeline.live.open_run`):
-without ``record`` the sensors run with no bag writers (their dataset files go to a
-temporary folder, removed at the end); with ``record=OUTDIR`` the same engine's messages
-stream into the bags and the episode ends with the OUTDIR ``simulate`` writes, plus
-``episode.json``, moved into place atomically.
+without ``record`` no OUTDIR sink is attached (no bag writers, no folder, no dataset
+file at all: the sensors get ``ctx.files = None``); with ``record=OUTDIR`` the same
+engine's messages stream into the bags and the episode ends with the OUTDIR
+``simulate`` writes, plus ``episode.json``, moved into place atomically.
 """
 
 from __future__ import annotations
@@ -17,6 +17,7 @@ if TYPE_CHECKING:
     from roslan.config.sim import SimConfig
     from roslan.env.dynamics import DynamicsTrajectory
     from roslan.pipeline.engine import StepOutput
+    from roslan.render.backends import SceneBackends
     from roslan.scene.model import Scene
 
 __all__ = ["SensorSession"]
@@ -29,6 +30,7 @@ class SensorSession:
         config: the episode's config (its ``seed`` is the episode's).
         traj: the vehicle's growing trajectory.
         scene: the loaded scene (None: none).
+        backends: its renderer and ray caster (the environment's, shared with contact).
         record: OUTDIR to write, or None.
         overwrite: replace an existing OUTDIR (only once the new one is complete).
         config_path: the YAML file the config came from (relative paths, run.json).
@@ -40,6 +42,7 @@ class SensorSession:
         traj: DynamicsTrajectory,
         scene: Scene | None,
         *,
+        backends: SceneBackends | None = None,
         record: Path | None = None,
         overwrite: bool = False,
         config_path: Path | None = None,
@@ -53,6 +56,7 @@ class SensorSession:
             traj,
             RunOptions(overwrite=overwrite, quiet=True),
             scene=scene,
+            backends=backends,
             config_path=config_path,
         )
 

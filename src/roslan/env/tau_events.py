@@ -40,10 +40,9 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
-from roslan.env.dynamics import euler_rates_to_body_rates
 from roslan.errors import ConfigError
 from roslan.events.divergence import DivergenceEstimate, DivergenceEstimator, DivergenceParams
-from roslan.frames import matrix_to_rpy, rpy_to_matrix
+from roslan.frames import R_LINK_OPTICAL, euler_rates_to_body_rates, matrix_to_rpy, rpy_to_matrix
 
 if TYPE_CHECKING:
     from roslan.env.policies import PolicyContext
@@ -53,8 +52,6 @@ __all__ = ["TauEventsEstimate", "TauEventsPolicy"]
 F64 = NDArray[np.float64]
 
 G_WORLD = np.array([0.0, 0.0, -9.81])
-R_LINK_OPTICAL = np.array([[0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])
-"""A camera's optical frame (z forward, x right, y down) in its link frame (x forward)."""
 
 
 @dataclass(frozen=True)

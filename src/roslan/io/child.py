@@ -16,6 +16,11 @@ Two kinds of roslan child processes use this: the sensor worker processes
   pickles, with the child's traceback text attached as ``__cause__``;
 * a child that dies (killed, crashed) is described by :func:`death_message`, and
   :func:`stop_child` ends one for good (SIGTERM, then SIGKILL, reaped).
+
+:class:`ChildProcess` is the parent's handle of one such child (start, send, why it
+died, wait for its clean exit, kill), and :func:`end_child` the child's last act (its
+connection closed, its output flushed, no interpreter teardown); both kinds of child use
+them.
 """
 
 from __future__ import annotations
@@ -37,9 +42,12 @@ from roslan.errors import RoslanError
 __all__ = [
     "JOIN_TIMEOUT_S",
     "ChildError",
+    "ChildProcess",
     "RemoteTraceback",
     "child_connection",
     "death_message",
+    "end_child",
+    "error_blob",
     "error_record",
     "raise_error_record",
     "spawn",
@@ -132,6 +140,54 @@ def stop_child(proc: subprocess.Popen[bytes], conn: Connection | None) -> None:
             proc.wait(JOIN_TIMEOUT_S)
 
 
+class ChildProcess:
+    """The parent's handle of one child interpreter (see the module docstring).
+
+    Args:
+        code: the child's ``python -c`` program; ``what``: what it is, for messages
+            (``'a sensor worker process'``); ``args``: its arguments after ``FD PID``.
+    Raises:
+        ChildError: the interpreter cannot be started.
+    """
+
+    error: type[ChildError] = ChildError
+    """The exception a subclass raises for a child that died or exited badly."""
+
+    def __init__(self, code: str, what: str, args: Sequence[str] = ()) -> None:
+        self.what = what
+        self.proc, self.conn = spawn(code, what, args)
+
+    def describe(self) -> str:
+        """Who it is, for messages (subclasses say what it runs)."""
+        return f"{self.what} (pid {self.proc.pid})"
+
+    def send(self, obj: Any) -> None:
+        """Send one pickled object (OSError: the child is gone)."""
+        self.conn.send_bytes(pickle.dumps(obj, protocol=pickle.HIGHEST_PROTOCOL))
+
+    def died(self, doing: str) -> ChildError:
+        """The error of a child whose connection ended early, ``doing`` what."""
+        return self.error(death_message(self.proc, self.describe(), doing))
+
+    def join(self) -> None:
+        """Wait for a child that finished its work to exit, then close its connection
+        (a hung exit is killed: its work was delivered). Raises :attr:`error` for a
+        non-zero exit status."""
+        try:
+            code = self.proc.wait(JOIN_TIMEOUT_S)
+        except subprocess.TimeoutExpired:
+            self.kill()
+            code = 0
+        self.conn.close()
+        if code != 0:
+            msg = f"{self.describe()} exited with status {code} after finishing"
+            raise self.error(msg)
+
+    def kill(self) -> None:
+        """Stop the child now (SIGTERM, then SIGKILL) and reap it."""
+        stop_child(self.proc, self.conn)
+
+
 def raise_error_record(rec: Sequence[Any], describe: str, where: str) -> NoReturn:
     """Raise the exception of an :func:`error_record` received from a child."""
     _, exc_blob, type_name, text, tb = rec
@@ -166,6 +222,23 @@ def child_connection(argv: Sequence[str] | None = None) -> Connection:
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
     _die_with_parent(parent_pid)
     return Connection(fd)
+
+
+def end_child(conn: Connection, code: int) -> NoReturn:
+    """The child's end: close its connection, flush its output, exit with ``code``
+    without interpreter teardown (files are closed; EGL/Embree exit handlers add
+    nothing)."""
+    with contextlib.suppress(BaseException):
+        conn.close()
+    with contextlib.suppress(BaseException):
+        sys.stdout.flush()
+        sys.stderr.flush()
+    os._exit(code)
+
+
+def error_blob(err: BaseException) -> bytes:
+    """The pickled :func:`error_record` of ``err``, ready to send to the parent."""
+    return pickle.dumps(error_record(err), protocol=pickle.HIGHEST_PROTOCOL)
 
 
 def error_record(err: BaseException) -> tuple[Any, ...]:

@@ -18,12 +18,35 @@ import numpy as np
 
 __all__ = [
     "NPZ_DEFLATE_LEVEL",
+    "DatasetFolder",
     "atomic_write",
     "atomic_write_bytes",
     "atomic_write_text",
     "current_umask",
     "save_npz",
 ]
+
+
+class DatasetFolder:
+    """The file sink of a recorded run: where its sensors' dataset files go.
+
+    A run that records attaches one (its hidden partial OUTDIR folder); a run that does
+    not attaches none, and its sensors then write no file at all.
+    """
+
+    def __init__(self, root: Path) -> None:
+        self.root = Path(root)
+
+    def path(self, relpath: str) -> Path:
+        """``root / relpath`` with its parent folders made; ValueError for a path that
+        is absolute or leaves the folder (``..``)."""
+        rel = Path(relpath)
+        if rel.is_absolute() or ".." in rel.parts:
+            msg = f"dataset path {relpath!r} must be relative and stay inside the output folder"
+            raise ValueError(msg)
+        p = self.root / rel
+        p.parent.mkdir(parents=True, exist_ok=True)
+        return p
 
 
 def current_umask() -> int:

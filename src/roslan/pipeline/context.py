@@ -11,6 +11,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from roslan.errors import ConfigError
+from roslan.io.files import DatasetFolder
+from roslan.render.backends import SceneBackends
 from roslan.rundir.calibration import camera_folder, root_camera, root_imu
 from roslan.sensors.base import SensorConfig
 from roslan.sensors.clock import Clock
@@ -33,7 +35,8 @@ class Context:
 
     Args:
         trajectory: the landing.
-        outdir: the (temporary) output folder dataset files go to.
+        outdir: the (temporary) output folder dataset files go to (:attr:`files`), or
+            None: the run records no files (its sensors write none).
         seed: run seed;
             ``rng(name)`` = ``Generator(PCG64(SeedSequence([seed, stream_key(name)])))``,
             so each component's stream depends only on the seed and its name (adding a sensor
@@ -47,12 +50,15 @@ class Context:
             :mod:`roslan.sensors.cameras.event_chains`); absent names get none.
         clock: how far sensors may read the trajectory (default: all of it,
             :meth:`Clock.fixed`; closed loop: the engine's growing clock).
+        backends: the scene's renderer and ray caster, owned by the run
+            (:class:`~roslan.render.backends.SceneBackends`; default: made here on first
+            use, owned by this context).
     """
 
     def __init__(
         self,
         trajectory: Trajectory,
-        outdir: Path,
+        outdir: Path | None,
         *,
         seed: int = 0,
         start_time_ns: int = 1,
@@ -63,10 +69,11 @@ class Context:
         sensor_threads: int = 1,
         render_helpers: Mapping[str, int] | None = None,
         clock: Clock | None = None,
+        backends: SceneBackends | None = None,
     ) -> None:
         self.trajectory = trajectory
         self.clock = clock if clock is not None else Clock.fixed(trajectory.duration_ns)
-        self.outdir = Path(outdir)
+        self.files = DatasetFolder(Path(outdir)) if outdir is not None else None
         self.seed = int(seed)
         self.start_time_ns = int(start_time_ns)
         self.sensors: Sequence[SensorConfig] = tuple(sensors)
@@ -77,8 +84,7 @@ class Context:
         self._scene = scene
         self.sensor_threads = max(1, int(sensor_threads))
         self._helpers = dict(render_helpers or {})
-        self._renderer: FrameRenderer | None = None
-        self._raycaster: BeamCaster | None = None
+        self._backends = backends
 
     def stamp(self, t_ns: int) -> int:
         """Absolute header stamp (ns) of trajectory time ``t_ns``."""
@@ -90,14 +96,12 @@ class Context:
         return np.random.Generator(np.random.PCG64(ss))
 
     def path(self, relpath: str) -> Path:
-        """``outdir / relpath`` with parent folders created; must stay inside outdir."""
-        rel = Path(relpath)
-        if rel.is_absolute() or ".." in rel.parts:
-            msg = f"dataset path {relpath!r} must be relative and stay inside the output folder"
-            raise ValueError(msg)
-        p = self.outdir / rel
-        p.parent.mkdir(parents=True, exist_ok=True)
-        return p
+        """``outdir / relpath`` with parent folders created; must stay inside outdir
+        (RuntimeError in a run that records no files: check :attr:`files` first)."""
+        if self.files is None:
+            msg = f"dataset file {relpath!r}: this run records no files (ctx.files is None)"
+            raise RuntimeError(msg)
+        return self.files.path(relpath)
 
     @property
     def has_scene(self) -> bool:
@@ -120,12 +124,17 @@ class Context:
             )
         return self._scene
 
+    @property
+    def backends(self) -> SceneBackends:
+        """The scene's renderer and ray caster (made here on first use unless the run
+        handed its own)."""
+        if self._backends is None:
+            self._backends = SceneBackends(self.scene)
+        return self._backends
+
     def renderer(self) -> FrameRenderer:
-        """The process-wide OpenGL renderer of the scene (created on first use)."""
-        if self._renderer is None:
-            gl = importlib.import_module("roslan.render.gl")
-            self._renderer = gl.get_renderer(self.scene)
-        return self._renderer
+        """The OpenGL renderer of the scene (created on first use)."""
+        return self.backends.renderer()
 
     def render_helpers(self, name: str) -> int:
         """Render helper processes sensor ``name`` may start (0: none)."""
@@ -137,8 +146,6 @@ class Context:
         return camera_folder(self.root_camera, camera)
 
     def raycaster(self) -> BeamCaster:
-        """The process-wide Embree ray caster of the scene (created on first use)."""
-        if self._raycaster is None:
-            rc = importlib.import_module("roslan.render.raycast")
-            self._raycaster = rc.get_raycaster(self.scene)
-        return self._raycaster
+        """The Embree ray caster of the scene (created on first use), the one the run's
+        clearance and contact checks cast through."""
+        return self.backends.caster()

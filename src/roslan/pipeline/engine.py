@@ -30,6 +30,7 @@ from typing import Any
 from roslan.errors import SensorError
 from roslan.pipeline.merge import CheckedStream, MergeItem, tagged
 from roslan.sensors.base import WAIT_TOPIC, Message, Sensor, SimContext
+from roslan.sensors.measurements import Measurement
 
 __all__ = ["SensorEngine", "StepOutput"]
 
@@ -45,21 +46,22 @@ class StepOutput:
             whose stamp precedes the step's end may come in a later step (a frame whose
             shutter window or a scan whose sweep ends after it, an event packet still
             open), never out of order.
-        taps: per sensor name, the raw data it measured this step, in time order: a list
-            of dicts of arrays (:meth:`~roslan.sensors.clock.Clock.tap`): ``imu``: ``t``
-            (N,) int64 ns, ``acc`` (N, 3) m/s^2, ``gyro`` (N, 3) rad/s (sensor frame);
-            event camera: ``x``, ``y`` (N,) pixel, ``t`` (N,) int64 ns, ``p`` (N,) +-1;
-            frame / depth cameras: ``t`` (stamp, ns) and ``image`` (the frame as
-            published; a stereo camera adds ``eye``); range sensors: ``t`` and
-            ``range`` (m); scanners: ``t`` and ``points`` (the cloud's structured
-            array) or ``ranges``.
+        taps: per sensor name, what it measured this step, in time order: a list of its
+            kind's step outputs (:meth:`~roslan.sensors.clock.Clock.tap`, the dataclasses
+            of :mod:`roslan.sensors.measurements`): ``ImuSamples`` (``t`` (N,) int64 ns,
+            ``acc`` (N, 3) m/s^2, ``gyro`` (N, 3) rad/s, sensor frame); ``EventSamples``
+            (``x``, ``y`` (N,) pixel, ``t`` (N,) int64 ns, ``p`` (N,) int8 1 ON / 0
+            OFF); ``Frame`` (``t`` stamp ns, ``image`` as published, ``eye``);
+            ``RangeSamples`` (``t``, ``range`` m); ``LaserScan`` (``t``, ``ranges``,
+            ``intensities``); ``CloudScan`` (``t``, ``points``, the cloud's structured
+            array). Each also reads like a mapping (``tap["t"]``).
     """
 
     horizon_ns: int
     messages: list[Message] = field(default_factory=list)
-    taps: dict[str, list[dict[str, Any]]] = field(default_factory=dict)
+    taps: dict[str, list[Measurement]] = field(default_factory=dict)
 
-    def tap(self, name: str) -> list[dict[str, Any]]:
+    def tap(self, name: str) -> list[Measurement]:
         """The taps of sensor ``name`` (empty when it measured nothing this step)."""
         return self.taps.get(name, [])
 
@@ -165,7 +167,7 @@ class SensorEngine:
 
     def _step(self) -> StepOutput:
         clock = self.clock
-        taps: dict[str, list[dict[str, Any]]] | None = None
+        taps: dict[str, list[Measurement]] | None = None
         if clock.taps is not None:
             taps = clock.taps = {}
         held, counter = self._held, self._counter

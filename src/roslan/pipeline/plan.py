@@ -26,13 +26,16 @@ from roslan.config.sim import SimConfig
 from roslan.errors import ConfigError, SensorError
 from roslan.io.bag import BagTopic
 from roslan.limits import preflight as check_limits
+from roslan.pipeline.context import Context
 from roslan.pipeline.estimate import check_free_space, estimate_run
 from roslan.pipeline.namespace import check_namespace
 from roslan.pipeline.threads import sensor_threads
 from roslan.pipeline.worker import plan_helpers, plan_workers, resolve_workers
+from roslan.render.backends import SceneBackends
 from roslan.rundir.extrinsics import static_transforms
 from roslan.rundir.folder import check_outdir
 from roslan.sensors.base import Sensor
+from roslan.sensors.clock import Clock
 from roslan.sensors.ground_truth import GroundTruth
 from roslan.sensors.registry import sensor_class
 from roslan.trajectory.base import Trajectory
@@ -62,7 +65,9 @@ class RunPlan:
     """Everything a run needs, validated."""
 
     config: SimConfig
-    outdir: Path
+    outdir: Path | None
+    """The OUTDIR written, or None: a run that records nothing (a closed-loop episode
+    without ``record``)."""
     config_path: Path | None
     base_dir: Path | None
     """Folder that relative paths of the config (scene, trajectory file) are resolved in."""
@@ -84,6 +89,37 @@ class RunPlan:
     sensor_threads: int = 1
     """Threads of each frame/scan sensor for its per-instant work
     (:func:`~roslan.pipeline.threads.sensor_threads`)."""
+
+    def context(
+        self,
+        trajectory: Trajectory,
+        files: Path | None,
+        scene: Scene | None,
+        *,
+        clock: Clock | None = None,
+        backends: SceneBackends | None = None,
+    ) -> Context:
+        """The sensors' context of this run (``simulate``'s and a closed-loop episode's
+        alike): dataset files into the folder ``files`` (None: a run that records no
+        files). A stepped run (``clock``, closed loop) runs each sensor on one thread and
+        starts no render helpers (they look ahead). ``backends``: the scene's renderer and
+        caster, owned by the caller (default: the context makes its own on first use)."""
+        config = self.config
+        stepped = clock is not None
+        return Context(
+            trajectory,
+            files,
+            seed=config.seed,
+            start_time_ns=config.output.start_time,
+            sensors=config.sensors,
+            scene_spec=config.scene,
+            base_dir=self.base_dir,
+            scene=scene,
+            sensor_threads=1 if stepped else self.sensor_threads,
+            render_helpers=None if stepped else self.render_helpers,
+            clock=clock,
+            backends=backends,
+        )
 
 
 def preflight(config: SimConfig, traj: Trajectory) -> None:
@@ -154,23 +190,28 @@ def with_scene_goal(config: SimConfig, base_dir: Path | None) -> SimConfig:
 
 def make_plan(
     config: SimConfig,
-    outdir: Path,
+    outdir: Path | None,
     *,
     overwrite: bool = False,
     formats: Sequence[str] | None = None,
     config_path: Path | None = None,
     workers: int | str | None = None,
 ) -> RunPlan:
-    """Validate ``config`` for a run into ``outdir`` (see the module docstring)."""
+    """Validate ``config`` for a run into ``outdir`` (see the module docstring); without
+    an OUTDIR (None: nothing recorded) there are no bags and no folder or disk checks."""
     fmts = _formats(config, formats)
     base_dir = config_path.parent.resolve() if config_path is not None else None
-    check_outdir(outdir, overwrite)
+    if outdir is None:
+        fmts = ()
+    else:
+        check_outdir(outdir, overwrite)
     config = with_scene_goal(config, base_dir)
     traj = make_trajectory(config.trajectory, base_dir=base_dir)
     source = str(config_path) if config_path is not None else "<config>"
     check_limits(config, traj.duration, fmts, source)
     preflight(config, traj)
-    check_free_space(outdir, estimate_run(config, fmts).bytes, "this run")
+    if outdir is not None:
+        check_free_space(outdir, estimate_run(config, fmts).bytes, "this run")
     sensors = _sensors(config)
     check_namespace(sensors, source)
     gt = GroundTruth(
@@ -215,6 +256,8 @@ class CheckedScene:
     scene: Scene | None
     traj_config: TrajectoryConfig
     traj: Trajectory
+    backends: SceneBackends | None = None
+    """The scene's renderer and caster, owned by the run (the clearance check's caster)."""
 
 
 def load_checked_scene(
@@ -240,13 +283,16 @@ def load_checked_scene(
     traj = plan.traj
     if traj_config is not config.trajectory:
         traj = make_trajectory(traj_config, base_dir=plan.base_dir, warn=False)
-    checked = CheckedScene(scene, traj_config, traj)
-    if scene is None or allow_collision:
+    backends = SceneBackends(scene) if scene is not None else None
+    checked = CheckedScene(scene, traj_config, traj, backends)
+    if scene is None or backends is None or allow_collision:
         return checked
     from roslan.scene.clearance import check_clearance
 
     say("checking the path's clearance")
-    hit = check_clearance(scene, traj, vehicle=config.vehicle, sensors=config.sensors)
+    hit = check_clearance(
+        scene, traj, caster=backends.caster(), vehicle=config.vehicle, sensors=config.sensors
+    )
     if hit is not None:
         msg = (
             f"scene {config.scene!r}: {hit}; change the trajectory, the sensor "

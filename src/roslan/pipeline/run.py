@@ -31,58 +31,32 @@ except ``timing.json`` and ``PLAYBACK.md``, which report this run's measured spe
 from __future__ import annotations
 
 import contextlib
-import shutil
 import signal
 import threading
 import time
 from collections.abc import Iterable, Iterator, Sequence
-from dataclasses import dataclass
 from pathlib import Path
 from types import FrameType
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from roslan.config.sim import SimConfig
-from roslan.io.background import BackgroundSink
-from roslan.io.bag import BAG_NAMES, MultiBagWriter
-from roslan.io.messages import Flavor
-from roslan.pipeline.context import Context
 from roslan.pipeline.engine import SensorEngine
-from roslan.pipeline.merge import CheckedStream, MergeItem, pump
+from roslan.pipeline.merge import MergeItem, pump
 from roslan.pipeline.plan import RunPlan, load_checked_scene, make_plan
-from roslan.pipeline.report import BackgroundPlot, Progress, playback_text, print_profile
-from roslan.pipeline.worker import WorkerJob, WorkerPool, sensor_stats, worker_nice
-from roslan.rundir.calibration import root_camera, write_calibration
-from roslan.rundir.extrinsics import write_extrinsics
-from roslan.rundir.folder import clean_stale, finalize, make_temp, outdir_lock, run_files
-from roslan.rundir.layouts import write_layouts
-from roslan.rundir.manifest import (
-    RUN_FILE,
-    TIMING_FILE,
-    RunManifest,
-    Timing,
-    TopicEntry,
-    make_manifest,
-    write_json,
-)
-from roslan.rundir.readme import flow_notes, outdir_readme
+from roslan.pipeline.record import Recorder, RunOptions
+from roslan.pipeline.report import Progress
+from roslan.pipeline.worker import WorkerJob, WorkerPool, worker_nice
+from roslan.rundir.folder import clean_stale, outdir_lock
+from roslan.rundir.manifest import RunManifest
 from roslan.sensors.registry import sensor_spec
 from roslan.trajectory.base import Trajectory
 
 if TYPE_CHECKING:
+    from roslan.io.files import DatasetFolder
+    from roslan.render.backends import SceneBackends
     from roslan.scene.model import Scene
 
 __all__ = ["RunOptions", "run_simulation"]
-
-
-@dataclass(frozen=True)
-class RunOptions:
-    """How to run (none of it changes an output byte, except ``overview``)."""
-
-    overwrite: bool = False
-    quiet: bool = False
-    allow_collision: bool = False
-    profile: bool = False
-    overview: bool = True
 
 
 def run_simulation(
@@ -134,15 +108,6 @@ def run_simulation(
         return _Run(plan, options, wall0).execute()
 
 
-def _warm_up_plots() -> None:
-    """:func:`roslan.plots.overview.warm_up`, on a thread: a failure here is only a lost
-    head start (``write_overview`` reports any real problem)."""
-    with contextlib.suppress(Exception):
-        from roslan.plots.overview import warm_up
-
-        warm_up()
-
-
 @contextlib.contextmanager
 def _sigterm_as_interrupt() -> Iterator[None]:
     """Turn SIGTERM into KeyboardInterrupt while running, so cleanup runs (main thread only)."""
@@ -161,32 +126,22 @@ def _sigterm_as_interrupt() -> Iterator[None]:
 
 
 class _Run:
-    """The state of one run between its plan and its manifest."""
+    """The state of one ``simulate`` run between its plan and its manifest: the engine
+    and worker processes streaming into the run's :class:`~roslan.pipeline.record.
+    Recorder` (the OUTDIR sink)."""
 
     def __init__(self, plan: RunPlan, options: RunOptions, wall0: float) -> None:
         self.plan = plan
         self.opts = options
         self.config = plan.config
-        self.wall0 = wall0
         self.traj: Trajectory = plan.traj
         self.traj_config = plan.config.trajectory
         self.progress = Progress(options.quiet)
+        self.rec = Recorder(plan, options, wall0, self.progress)
         self.pool: WorkerPool | None = None
         self.scene: Scene | None = None
-        self.tmp: Path  # the hidden partial folder, made once the plan and scene hold
-        self.ctx: Context  # this process's sensor context, made when the merge starts
-        self.writers: MultiBagWriter | None = None
-        self.plot: BackgroundPlot | None = None
-        self.export: BackgroundSink | None = None  # the scene export's thread
-        self.warm: threading.Thread | None = None  # overview.png's warm-up thread
-        self.engine: SensorEngine | None = None
-        self.streams: list[CheckedStream] = []
-        self.ticks: dict[str, float] = {}
-        self.write_s = 0.0
-        self.bag_cpu_s = 0.0
-        self.compress_cpu_s = 0.0
-        self.build_s: dict[str, float] = {}
-        self.close_s: dict[str, float] = {}
+        self.backends: SceneBackends | None = None  # the scene's renderer and caster
+        self.files: DatasetFolder | None = None  # the partial folder's sink, once made
 
     @property
     def remote(self) -> set[int]:
@@ -196,27 +151,36 @@ class _Run:
     def execute(self) -> RunManifest:
         # the worker interpreters start (imports) while this process loads the scene
         if self.plan.groups:
-            self.pool = WorkerPool(self.plan.groups, self.config.sensors, self.plan.render_helpers)
+            self.pool = self.rec.pool = WorkerPool(
+                self.plan.groups, self.config.sensors, self.plan.render_helpers
+            )
         try:
             self._load_scene()
-            self.tmp = make_temp(self.plan.outdir)
+            self.files = self.rec.open_folder()
         except BaseException:
             self.progress.stop()
             if self.pool is not None:
                 self.pool.kill()
+            self._release()
             raise
         try:
             with _sigterm_as_interrupt():
                 self._start()
                 self._merge()
-                counts = self._close()
-                manifest = self._write_run_files(counts)
-                finalize(self.tmp, self.plan.outdir, self.opts.overwrite)
-                self.progress.stop()
+                counts = self.rec.close()
+                manifest = self.rec.write_run_files(counts, self.traj)
+                self.rec.finalize()
         except BaseException:
-            self._abort()
+            self.rec.abort()
             raise
+        finally:
+            self._release()
         return manifest
+
+    def _release(self) -> None:
+        """The run's scene back ends go with it."""
+        if self.backends is not None:
+            self.backends.release()
 
     # -------------------------------------------------------------------- 1. plan: scene
     def _load_scene(self) -> None:
@@ -224,37 +188,26 @@ class _Run:
             self.plan, allow_collision=self.opts.allow_collision, phase=self.progress.phase
         )
         self.scene, self.traj_config, self.traj = checked.scene, checked.traj_config, checked.traj
+        self.backends = checked.backends
 
     # ------------------------------------------------------------------- 2. folder: start
     def _start(self) -> None:
-        from roslan.trajectory.export import write_trajectory_files
-
-        config, plan, tmp = self.config, self.plan, self.tmp
-        self.ticks["setup"] = time.perf_counter()
+        config, rec = self.config, self.rec
+        rec.ticks["setup"] = time.perf_counter()
         remote = self.remote
-        if self.scene is not None and any(
+        if self.backends is not None and any(
             sensor_spec(sc.type).backend == "embree"
             for i, sc in enumerate(config.sensors)
             if i not in remote
         ):
-            from roslan.render.raycast import get_raycaster
-
             self.progress.phase("building the scene's BVH (ray casting)")
-            get_raycaster(self.scene)
+            self.backends.caster()
         self.progress.phase("preparing sensors (the first run compiles kernels, then cached)")
         if self.pool is not None:  # the workers render while this process sets up
             self._send_jobs(self.pool)
-        write_trajectory_files(self.traj, tmp, ground_truth_rate=config.output.ground_truth_rate)
-        self.plot = BackgroundPlot(self.traj, tmp)
-        if self.scene is not None:  # written beside the streaming (after the plot's fork)
-            import roslan.scene as scene_mod
-
-            self.export = BackgroundSink("scene-export", backlog=1)
-            self.export.submit(scene_mod.export_scene, self.scene, tmp / "scene")
-        out = config.output
-        self.writers = MultiBagWriter(
-            tmp, plan.formats, plan.bag_topics, out.compression, out.ros2_compression
-        )
+        rec.write_trajectory(self.traj)
+        rec.export_scene(self.scene)  # written beside the streaming (after the plot's fork)
+        rec.open_bags()
 
     def _send_jobs(self, pool: WorkerPool) -> None:
         config, plan = self.config, self.plan
@@ -262,7 +215,7 @@ class _Run:
         pool.send(
             lambda g: WorkerJob(
                 trajectory=self.traj_config,
-                outdir=self.tmp,
+                outdir=self.rec.folder,
                 seed=config.seed,
                 start_time_ns=config.output.start_time,
                 sensors=tuple(config.sensors),
@@ -279,190 +232,23 @@ class _Run:
             )
         )
 
-    def _context(self) -> Context:
-        config = self.config
-        return Context(
-            self.traj,
-            self.tmp,
-            seed=config.seed,
-            start_time_ns=config.output.start_time,
-            sensors=config.sensors,
-            scene_spec=config.scene,
-            base_dir=self.plan.base_dir,
-            scene=self.scene,
-            sensor_threads=self.plan.sensor_threads,
-            render_helpers=self.plan.render_helpers,
-        )
-
     # ------------------------------------------------------------------------- 3. merge
     def _merge(self) -> None:
-        plan, profile = self.plan, self.opts.profile
-        assert self.writers is not None
-        self.ctx = ctx = self._context()
-        self.ticks["stream"] = time.perf_counter()
+        plan, profile, rec = self.plan, self.opts.profile, self.rec
+        assert rec.writers is not None
+        ctx = plan.context(self.traj, rec.folder, self.scene, backends=self.backends)
+        rec.ticks["stream"] = time.perf_counter()
         # one step over the whole trajectory (the clock is fixed: nothing waits); merge
         # order: ground truth 0, sensor i -> i + 1 (ties resolve alike in workers)
-        self.engine = SensorEngine(
+        engine = rec.engine = SensorEngine(
             ctx, plan.sensors, plan.ground_truth, skip=self.remote, profile=profile
         )
-        self.streams = self.engine.streams
-        sources: list[Iterable[MergeItem]] = list(self.engine.sources())
+        sources: list[Iterable[MergeItem]] = list(engine.sources())
         if self.pool is not None:
             sources += self.pool.streams(plan.formats)
-        if self.opts.overview:  # matplotlib's first-draw costs, beside the streaming
-            self.warm = threading.Thread(target=_warm_up_plots, name="overview-warm-up")
-            self.warm.start()
+        rec.warm_up_overview()  # matplotlib's first-draw costs, beside the streaming
         self.progress.start(self.traj.duration)
-        self.write_s, self.build_s = pump(
-            sources, self.writers, ctx.start_time_ns, self.progress, profile, plan.owners
+        rec.write_s, rec.build_s = pump(
+            sources, rec.writers, ctx.start_time_ns, self.progress, profile, plan.owners
         )
         self.progress.update(self.traj.duration)
-
-    # --------------------------------------------------------------------- 4. manifest
-    def _close(self) -> dict[str, int]:
-        """Close workers, the plot, local sensors and the bags; the messages per topic."""
-        assert self.writers is not None
-        assert self.plot is not None
-        self.progress.phase("closing sensors and bags")
-        if self.pool is not None:
-            self.pool.finish()
-        if self.warm is not None:  # (before anything else draws with matplotlib)
-            self.warm.join()
-        self.plot.finish()
-        if self.export is not None:
-            self.export.close()  # raises the export's error, if any
-        if self.engine is not None:
-            self.close_s = self.engine.close_sensors()
-        t0 = time.perf_counter()
-        self.writers.close()
-        self.write_s += time.perf_counter() - t0
-        self.bag_cpu_s = self.writers.thread_cpu_s
-        self.compress_cpu_s = self.writers.compress_cpu_s
-        counts, self.writers = dict(self.writers.counts), None
-        self.ticks["done"] = time.perf_counter()
-        return counts
-
-    def _write_run_files(self, counts: dict[str, int]) -> RunManifest:
-        plan, tmp = self.plan, self.tmp
-        write_calibration(tmp, self.config.sensors)
-        write_extrinsics(tmp, plan.sensors, plan.ground_truth.static)
-        topics: dict[str, TopicEntry] = {
-            t.topic: {
-                "type": t.msgtype,
-                "messages": counts[t.topic],
-                "publisher": plan.owners[t.topic],
-            }
-            for t in plan.bag_topics
-        }
-        manifest = make_manifest(
-            config=self.config,
-            config_path=plan.config_path,
-            duration_s=self.traj.duration,
-            touchdown_s=self.traj.T,
-            bags={f: BAG_NAMES[Flavor(f)] for f in plan.formats},
-            topics=topics,
-            sensors=[s.config.name for s in plan.sensors],
-            renderer=_image_formation(self.config.sensors),
-        )
-        wall = time.perf_counter() - self.wall0
-        timing = self._timing(wall)
-        if self.opts.overview:
-            from roslan.plots.overview import overview_title, write_overview
-
-            self.progress.phase("drawing overview.png")
-            t0 = time.perf_counter()
-            write_overview(tmp, title=overview_title(self.config.scene, self.config.seed))
-            timing["overview_s"] = time.perf_counter() - t0
-        write_json(tmp / TIMING_FILE, timing)
-        (tmp / "PLAYBACK.md").write_text(
-            playback_text(
-                self.traj.duration,
-                wall,
-                plan.formats,
-                counts,
-                {t: e["type"] for t, e in topics.items()},
-            ),
-            encoding="utf-8",
-        )
-        if plan.formats:
-            write_layouts(tmp, {t: e["type"] for t, e in topics.items()}, plan.formats)
-        sensors = self.config.sensors
-        readme = outdir_readme(tmp, root_camera(sensors), flow_notes(sensors))
-        (tmp / "README.md").write_text(readme, encoding="utf-8")
-        manifest["files"] = run_files(tmp)  # what --overwrite may replace, nothing else
-        write_json(tmp / RUN_FILE, manifest)  # last: its presence marks a complete folder
-        return manifest
-
-    def _timing(self, wall: float) -> Timing:
-        plan, ticks, duration = self.plan, self.ticks, self.traj.duration
-        stream_s = ticks["done"] - ticks["stream"]
-        timing: Timing = {
-            "wall_time_s": wall,
-            "setup_s": ticks["stream"] - ticks["setup"],
-            "stream_start_s": ticks["stream"] - self.wall0,
-            "stream_s": stream_s,
-            # real-time factor = simulation wall time / trajectory time (<= 1: faster
-            # than real time)
-            "real_time_factor": wall / duration,
-            "stream_real_time_factor": stream_s / duration,
-            "workers": len(plan.groups),
-            "worker_sensors": [[plan.sensors[i].config.name for i in g] for g in plan.groups],
-            "sensor_threads": plan.sensor_threads,
-            "render_helpers": dict(plan.render_helpers),
-        }
-        if self.opts.profile:
-            timing["profile"] = self._profile()
-        return timing
-
-    def _profile(self) -> dict[str, Any]:
-        by_name = {s.config.name: s for s in self.plan.sensors}
-        local = {
-            st.name: {
-                "generator_s": st.seconds,
-                "build_s": self.build_s.get(st.name, 0.0),
-                "close_s": self.close_s.get(st.name, 0.0),
-                "messages": st.count,
-                **sensor_stats(by_name.get(st.name)),
-            }
-            for st in self.streams
-        }
-        # worker figures are the child's own (its wall clock, its build of the bytes)
-        away = self.pool.profile() if self.pool is not None else {}
-        names = ["ground_truth", *(s.config.name for s in self.plan.sensors)]
-        per = {name: away.get(name) or local[name] for name in names}
-        out: dict[str, Any] = {
-            "sensors": per,
-            "writers_s": self.write_s,
-            "bag_threads_cpu_s": self.bag_cpu_s,
-            "chunk_compression_cpu_s": self.compress_cpu_s,
-        }
-        if self.pool is not None:
-            out["worker_wait"] = self.pool.wait_seconds()
-        if not self.opts.quiet:
-            self.progress.stop()
-            print_profile(per, self.write_s)
-        return out
-
-    def _abort(self) -> None:
-        if self.pool is not None:
-            self.pool.kill()  # before removing tmp: the children write into it
-        if self.plot is not None:
-            self.plot.kill()
-        if self.export is not None:
-            self.export.abort()  # its running call ends before the folder is removed
-        if self.engine is not None:  # sensors stop their own threads (before removing tmp)
-            self.engine.abort()
-        self.progress.stop()
-        if self.writers is not None:
-            self.writers.abort()
-        shutil.rmtree(self.tmp, ignore_errors=True)
-
-
-def _image_formation(sensors: Any) -> dict[str, Any] | None:
-    """run.json's record of the renderer, for a run with a camera-type sensor (they all
-    have the ``supersampling`` key); None otherwise (no OpenGL context is made)."""
-    if not any(hasattr(s, "supersampling") for s in sensors):
-        return None
-    from roslan.render.gl import image_formation
-
-    return image_formation()

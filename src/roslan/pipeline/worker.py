@@ -41,7 +41,6 @@ import heapq
 import multiprocessing
 import os
 import pickle
-import subprocess
 import sys
 import threading
 import time
@@ -54,14 +53,12 @@ from typing import TYPE_CHECKING, Any
 
 from roslan.errors import ConfigError
 from roslan.io.child import (
-    JOIN_TIMEOUT_S,
     ChildError,
+    ChildProcess,
     child_connection,
-    death_message,
-    error_record,
+    end_child,
+    error_blob,
     raise_error_record,
-    spawn,
-    stop_child,
 )
 from roslan.pipeline.merge import MERGE_KEY, CheckedStream, MergeItem, tagged
 from roslan.pipeline.threads import usable_cpus
@@ -370,7 +367,7 @@ def main(argv: Sequence[str] | None = None) -> None:
         _run_job(job, queue.put)
     except BaseException as err:
         code = 1
-        record = pickle.dumps(error_record(err), protocol=pickle.HIGHEST_PROTOCOL)
+        record = error_blob(err)
         with contextlib.suppress(BaseException):
             if queue is not None:
                 queue.put(record)
@@ -380,12 +377,7 @@ def main(argv: Sequence[str] | None = None) -> None:
         with contextlib.suppress(BaseException):
             queue.put(None)
         sender.join()
-    with contextlib.suppress(BaseException):
-        conn.close()
-    sys.stdout.flush()
-    sys.stderr.flush()
-    # skip interpreter teardown: files are closed; EGL/Embree exit handlers add nothing
-    os._exit(code)
+    end_child(conn, code)
 
 
 # ---------------------------------------------------------------------------- parent side
@@ -404,12 +396,14 @@ class _Ready:
         return self.by_flavor[store.flavor]
 
 
-class _Worker:
+class _Worker(ChildProcess):
     """One child process and its connection (parent side)."""
+
+    error = WorkerError
 
     def __init__(self, names: list[str], helpers: int = 0) -> None:
         self.names = names
-        self.proc, self.conn = spawn(_CHILD_CODE, "a sensor worker process", (str(helpers),))
+        super().__init__(_CHILD_CODE, "a sensor worker process", (str(helpers),))
         self.profile: dict[str, dict[str, Any]] = {}
         self.wait_s = 0.0
         self.done = False
@@ -417,16 +411,11 @@ class _Worker:
     def describe(self) -> str:
         return f"the worker process (pid {self.proc.pid}) running {', '.join(self.names)}"
 
-    def send(self, job: WorkerJob) -> None:
+    def send_job(self, job: WorkerJob) -> None:
         try:
-            self.conn.send_bytes(pickle.dumps(job, protocol=pickle.HIGHEST_PROTOCOL))
+            self.send(job)
         except OSError as err:
-            raise self._died() from err
-
-    def _died(self) -> WorkerError:
-        return WorkerError(
-            death_message(self.proc, self.describe(), "before finishing its sensors")
-        )
+            raise self.died("before finishing its sensors") from err
 
     def records(self, fmts: Sequence[str]) -> Iterator[MergeItem]:
         """This worker's messages as merge items; ends after its ``done`` record."""
@@ -438,7 +427,7 @@ class _Worker:
             try:
                 blob = recv()
             except (EOFError, OSError) as err:
-                raise self._died() from err
+                raise self.died("before finishing its sensors") from err
             self.wait_s += perf() - t0
             rec = loads(blob)
             kind = rec[0]
@@ -457,19 +446,7 @@ class _Worker:
 
     def finish(self) -> None:
         """Wait for a worker that sent ``done`` to exit (WorkerError if it fails)."""
-        try:
-            code = self.proc.wait(JOIN_TIMEOUT_S)
-        except subprocess.TimeoutExpired:
-            self.kill()
-            code = 0  # its work is complete and delivered; only the exit hung
-        self.conn.close()
-        if code != 0:
-            msg = f"{self.describe()} exited with status {code} after finishing"
-            raise WorkerError(msg)
-
-    def kill(self) -> None:
-        """Stop the child now (SIGTERM, then SIGKILL) and reap it."""
-        stop_child(self.proc, self.conn)
+        self.join()
 
 
 class WorkerPool:
@@ -504,7 +481,7 @@ class WorkerPool:
 
     def send(self, make_job: Callable[[tuple[int, ...]], WorkerJob]) -> None:
         for g, w in zip(self.groups, self.workers, strict=True):
-            w.send(make_job(g))
+            w.send_job(make_job(g))
 
     def streams(self, fmts: Sequence[str]) -> list[Iterator[MergeItem]]:
         return [w.records(fmts) for w in self.workers]

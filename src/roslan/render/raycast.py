@@ -39,26 +39,55 @@ _CHUNK_RAYS = 8192
 
 
 class Hits(NamedTuple):
-    """Result of :meth:`RayCaster.cast` for N rays.
+    """The hit record of :meth:`RayCaster.cast` for N rays: range, point, triangle,
+    object (and the normal and reflectivity beams need).
 
     Attributes:
-        distance: (N,) float32 distance along the (unit) ray to the first hit, m;
-            ``inf`` where nothing is hit within ``max_range``.
+        distance: (N,) float32 range along the (unit) ray to the first hit, m; ``inf``
+            where nothing is hit within ``max_range``.
         triangle: (N,) int32 index into ``Scene.triangles`` faces; -1 for no hit.
         normal: (N, 3) float32 world unit normal of the hit triangle, flipped to face
             the incoming ray (``dot(normal, direction) <= 0``); 0 for no hit.
         reflectivity: (N,) float32 LiDAR reflectivity of the hit material; 0 for no hit.
+        origins, directions: (N, 3) float32 the rays cast (what :attr:`point` is made of).
+        owner: (T,) the scene's triangle -> object index map (``Scene.triangles[2]``).
     """
 
     distance: NDArray[np.float32]
     triangle: NDArray[np.int32]
     normal: NDArray[np.float32]
     reflectivity: NDArray[np.float32]
+    origins: NDArray[np.float32]
+    directions: NDArray[np.float32]
+    owner: NDArray[np.integer[Any]]
 
     @property
     def hit(self) -> NDArray[np.bool_]:
         """(N,) True where a surface was hit."""
         return self.triangle >= 0
+
+    @property
+    def range(self) -> NDArray[np.float32]:
+        """(N,) :attr:`distance`: the range to the hit, m (``inf``: no hit)."""
+        return self.distance
+
+    @property
+    def point(self) -> NDArray[np.float32]:
+        """(N, 3) float32 world position of each hit, m; NaN for no hit."""
+        hit = self.hit
+        d = np.where(hit, self.distance, np.float32(0.0))
+        p = (self.origins + d[:, None] * self.directions).astype(np.float32, copy=False)
+        p[~hit] = np.nan
+        return p
+
+    @property
+    def object(self) -> NDArray[np.int32]:
+        """(N,) int32 index into ``Scene.objects`` of the object hit; -1 for no hit."""
+        tri = self.triangle
+        if self.owner.shape[0] == 0:
+            return np.full(tri.shape[0], -1, np.int32)
+        obj = np.asarray(self.owner, dtype=np.int32)[np.where(tri >= 0, tri, 0)]
+        return np.where(tri >= 0, obj, np.int32(-1)).astype(np.int32, copy=False)
 
     def cos_incidence(self, directions: ArrayLike) -> NDArray[np.float32]:
         """(N,) cosine of the angle between each ray and its surface normal (0 for misses)."""
@@ -117,8 +146,9 @@ class RayCaster:
     """
 
     def __init__(self, scene: Scene, *, threads: int | None = None) -> None:
-        verts, faces, _owner = scene.triangles
+        verts, faces, owner = scene.triangles
         self.scene_name = scene.name
+        self._owner = owner
         self.n_triangles = int(faces.shape[0])
         self.threads = threads if threads is not None else raycast_threads()
         v64 = verts.astype(np.float64)
@@ -199,12 +229,14 @@ class RayCaster:
             max_range: scalar or (N,) largest distance reported, m; farther hits are misses.
 
         Returns:
-            :class:`Hits` (float32/int32 arrays of length N).
+            :class:`Hits`, the hit record (float32/int32 arrays of length N; the hit
+            points and objects are computed when read).
         """
-        _o, d, dist, tri = self._trace(origins, directions, max_range)
+        o, d, dist, tri = self._trace(origins, directions, max_range)
         n = tri.shape[0]
         if self.n_triangles == 0:
-            return Hits(dist, tri, np.zeros((n, 3), np.float32), np.zeros(n, np.float32))
+            zero = np.zeros(n, np.float32)
+            return Hits(dist, tri, np.zeros((n, 3), np.float32), zero, o, d, self._owner)
         hit = tri >= 0
         dist = np.where(hit, dist, np.float32(np.inf)).astype(np.float32, copy=False)
         idx = np.where(hit, tri, 0)
@@ -214,7 +246,7 @@ class RayCaster:
         normal[flip] *= -1.0
         normal[~hit] = 0.0
         refl = np.where(hit, self._reflectivity[idx], np.float32(0.0)).astype(np.float32)
-        return Hits(dist, tri, normal, refl)
+        return Hits(dist, tri, normal, refl, o, d, self._owner)
 
     def cast_incidence(
         self,

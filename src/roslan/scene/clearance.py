@@ -5,7 +5,10 @@ body's surface (:func:`roslan.vehicle.body_points`), every sensor's origin, and 
 corners and centre of every rendering sensor's near-clipping rectangle (its
 ``near_clip`` in front of the optical centre). Each point's path over the whole run,
 hold included, is cut into segments of at most ``step`` metres and cast against the
-scene's triangles with Embree; at the first and the last instant a segment also joins
+scene's triangles through the run's ray caster (``caster``: the same robust Embree
+:class:`~roslan.render.raycast.RayCaster` the beam sensors cast with, handed down by the
+caller, :class:`roslan.render.backends.SceneBackends`, so that clearance, contact and the
+sensors see the same hits); at the first and the last instant a segment also joins
 base_link to every point (nothing may lie between base_link and its own sensors). Any
 hit is a collision: unlike the contact points (feet, grasp point), none of these points
 may touch a surface, so no tolerance around the goal is needed.
@@ -15,8 +18,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from functools import lru_cache
-from typing import Any, NamedTuple
+from typing import Any, NamedTuple, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
@@ -24,7 +26,15 @@ from numpy.typing import NDArray
 from roslan.scene.model import Scene
 from roslan.trajectory import Trajectory
 
-__all__ = ["PathHit", "VehiclePoints", "check_clearance", "path_hit", "vehicle_points"]
+__all__ = [
+    "PathHit",
+    "SegmentCaster",
+    "VehiclePoints",
+    "check_clearance",
+    "path_hit",
+    "segment_hits",
+    "vehicle_points",
+]
 
 F64 = NDArray[np.float64]
 
@@ -32,19 +42,12 @@ _MAX_RAYS = 2_000_000
 """Rays per Embree call (bounds the memory of long runs)."""
 
 
-@lru_cache(maxsize=4)
-def _embree(scene: Scene) -> Any:
-    from embreex import rtcore_scene as rtcs
-    from embreex.mesh_construction import TriangleMesh
+class SegmentCaster(Protocol):
+    """What the clearance check needs of a ray caster (a
+    :class:`~roslan.render.base.BeamCaster`): the first hit of each ray within its range,
+    a record with ``distance`` and ``triangle`` (N,) arrays."""
 
-    verts, faces, _ = scene.triangles
-    es = rtcs.EmbreeScene()
-    TriangleMesh(
-        es,
-        np.ascontiguousarray(verts, dtype=np.float32),
-        np.ascontiguousarray(faces, dtype=np.int32),
-    )
-    return es
+    def cast(self, origins: Any, directions: Any, max_range: Any = ...) -> Any: ...
 
 
 class VehiclePoints(NamedTuple):
@@ -100,8 +103,11 @@ def vehicle_points(vehicle: Any = None, sensors: Sequence[Any] = ()) -> VehicleP
     return VehiclePoints(np.concatenate(pts), tuple(labels))
 
 
-def _cast(es: Any, origins: F64, ends: F64) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
-    """First hit of each segment ``origins -> ends``: triangle (-1 = none), fraction."""
+def segment_hits(
+    caster: SegmentCaster, origins: F64, ends: F64
+) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
+    """First hit of each segment ``origins -> ends`` (N, 3): the triangle (-1 = none) and
+    the fraction of the segment at the hit (0 for none), cast through ``caster``."""
     d = ends - origins
     seg = np.linalg.norm(d, axis=1)
     moving = seg > 1e-9
@@ -111,14 +117,13 @@ def _cast(es: Any, origins: F64, ends: F64) -> tuple[NDArray[np.int64], NDArray[
         return prim, frac
     idx = np.flatnonzero(moving)
     u = d[idx] / seg[idx, None]
-    res = es.run(
+    hits = caster.cast(
         np.ascontiguousarray(origins[idx], dtype=np.float32),
         np.ascontiguousarray(u, dtype=np.float32),
-        output=1,
-        dists=np.ascontiguousarray(seg[idx], dtype=np.float32),
+        np.ascontiguousarray(seg[idx], dtype=np.float32),
     )
-    p = np.asarray(res["primID"]).astype(np.int64)
-    tf = np.asarray(res["tfar"], dtype=np.float64)
+    p = np.asarray(hits.triangle).astype(np.int64)
+    tf = np.where(p >= 0, np.asarray(hits.distance, dtype=np.float64), 0.0)
     prim[idx] = p
     frac[idx] = np.where(p >= 0, np.clip(tf / seg[idx], 0.0, 1.0), 0.0)
     return prim, frac
@@ -128,6 +133,7 @@ def check_clearance(
     scene: Scene,
     trajectory: Trajectory,
     *,
+    caster: SegmentCaster,
     vehicle: Any = None,
     sensors: Sequence[Any] = (),
     step: float = 0.02,
@@ -136,6 +142,8 @@ def check_clearance(
 
     Args:
         scene: the scene.
+        caster: the scene's ray caster (:meth:`roslan.render.backends.SceneBackends.
+            caster`, or :func:`roslan.render.raycast.get_raycaster`).
         trajectory: base_link's trajectory (built with the vehicle's contact offset,
             :func:`roslan.vehicle.base_link_trajectory`), checked from 0 to its end.
         vehicle: the :class:`~roslan.vehicle.VehicleConfig` (None: the default body).
@@ -161,7 +169,6 @@ def check_clearance(
     t = np.linspace(0.0, t_td, n + 1)
     if T_end > t_td:
         t = np.append(t, T_end)
-    es = _embree(scene)
     owner = scene.triangles[2]
     K = P.shape[0]
 
@@ -177,7 +184,7 @@ def check_clearance(
         # base_link -> every point at one instant
         s1 = trajectory.state([when])
         pw = s1.position[0] + P @ s1.R_world_body[0].T
-        prim, frac = _cast(es, np.broadcast_to(s1.position[0], pw.shape).copy(), pw)
+        prim, frac = segment_hits(caster, np.broadcast_to(s1.position[0], pw.shape).copy(), pw)
         hit = np.flatnonzero(prim >= 0)
         if not hit.size:
             return None
@@ -193,7 +200,7 @@ def check_clearance(
     for i0 in range(0, t.shape[0] - 1, block - 1):
         tb = t[i0 : i0 + block]
         sb = trajectory.state(tb)
-        hit = path_hit(scene, P, tb, sb.position, sb.R_world_body)
+        hit = path_hit(scene, caster, P, tb, sb.position, sb.R_world_body)
         if hit is not None:
             return message(vp.labels[hit.point], hit.triangle, hit.where, hit.time)
     return static(T_end)
@@ -214,8 +221,16 @@ class PathHit(NamedTuple):
     """(3,) world position of the hit, m."""
 
 
-def path_hit(scene: Scene, points: F64, t: F64, position: F64, R_world_body: F64) -> PathHit | None:
-    """The earliest hit of ``points`` (K, 3, base_link) with the scene's triangles while
+def path_hit(
+    scene: Scene,
+    caster: SegmentCaster,
+    points: F64,
+    t: F64,
+    position: F64,
+    R_world_body: F64,
+) -> PathHit | None:
+    """The earliest hit of ``points`` (K, 3, base_link) with the scene's triangles (cast
+    through ``caster``, the scene's ray caster) while
     base_link goes through poses ``position`` (n, 3), ``R_world_body`` (n, 3, 3) at
     instants ``t`` (n,) (straight segments between consecutive instants); None if clear."""
     if scene.n_triangles == 0 or t.shape[0] < 2:
@@ -223,7 +238,7 @@ def path_hit(scene: Scene, points: F64, t: F64, position: F64, R_world_body: F64
     K = points.shape[0]
     wb = position[:, None, :] + np.einsum("nij,kj->nki", R_world_body, points)
     a, b = wb[:-1].reshape(-1, 3), wb[1:].reshape(-1, 3)
-    prim, frac = _cast(_embree(scene), a, b)
+    prim, frac = segment_hits(caster, a, b)
     hit = np.flatnonzero(prim >= 0)
     if not hit.size:
         return None

@@ -3,9 +3,10 @@
 from __future__ import annotations
 
 import re
+import threading
 import warnings
+import weakref
 from collections.abc import Callable
-from functools import lru_cache
 from pathlib import Path
 from typing import Any
 
@@ -37,10 +38,19 @@ def _builtins() -> dict[str, Callable[[int], Scene]]:
 BUILTIN_SCENES: tuple[str, ...] = ("warehouse", "refinery", "empty")
 
 
-@lru_cache(maxsize=8)
+_BUILT: weakref.WeakValueDictionary[tuple[str, int], Scene] = weakref.WeakValueDictionary()
+"""Built-in scenes alive in this process, by (name, seed): shared while someone holds one
+(scenes are immutable: frozen dataclasses, read-only arrays), never kept alive by this
+table (an environment that varies its scene does not grow)."""
+_BUILT_LOCK = threading.Lock()
+
+
 def _builtin(name: str, seed: int) -> Scene:
-    # Scenes are immutable (frozen dataclasses, read-only arrays): safe to share.
-    return _builtins()[name](seed)
+    with _BUILT_LOCK:
+        scene = _BUILT.get((name, seed))
+        if scene is None:
+            scene = _BUILT[(name, seed)] = _builtins()[name](seed)
+        return scene
 
 
 def load_scene(

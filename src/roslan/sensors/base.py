@@ -6,7 +6,9 @@ the shared renderer / ray caster) and yields :class:`Message` objects in non-dec
 trajectory time, never reading the trajectory past the clock's horizon
 (:mod:`roslan.sensors.clock`: it yields a wait marker instead). The pipeline merges all
 sensors' streams by stamp and writes them to the bags; sensors write their own dataset files
-(``imu.txt``, ``events.txt``...) through ``ctx.path(...)`` while they stream.
+(``imu.txt``, ``events.txt``...) through the run's file sink, ``ctx.files.path(...)``,
+while they stream. A run that records no files (an unrecorded closed-loop episode) hands
+them ``ctx.files = None``: a sensor then writes nothing (and skips the formatting).
 
 Adding a sensor = one new module (a config model with ``type: Literal[...]`` and a
 class satisfying :class:`Sensor`) + one :class:`~roslan.sensors.registry.SensorSpec` line in
@@ -37,6 +39,7 @@ from roslan.limits import MAX_RATE_HZ
 from roslan.trajectory.base import sample_times_ns
 
 if TYPE_CHECKING:
+    from roslan.io.files import DatasetFolder
     from roslan.io.messages import MessageStore
     from roslan.render.base import BeamCaster, FrameRenderer
     from roslan.scene.model import Scene
@@ -164,6 +167,9 @@ class SimContext(Protocol):
     root_imu: str | None
     """The IMU whose readings are the OUTDIR root's ``imu.txt``
     (:func:`roslan.rundir.calibration.root_imu`); other IMUs write ``imu_<name>.txt``."""
+    files: DatasetFolder | None
+    """The run's dataset-file sink (``files.path(relpath)``: a path inside the output
+    folder, its parent folders made), or None: this run records no files, write none."""
     sensor_threads: int
     """Threads a frame or scan sensor may use for its per-instant work after the render
     or cast (:class:`~roslan.io.ordered.OrderedPool`); outputs do not depend on it."""
@@ -177,7 +183,7 @@ class SimContext(Protocol):
         ...
 
     def path(self, relpath: str) -> Path:
-        """A file path inside the (temporary) output folder; parent folders exist."""
+        """``files.path(relpath)`` (RuntimeError in a run that records no files)."""
         ...
 
     @property

@@ -20,18 +20,20 @@ known when the episode ends (:attr:`Clock.end_ns`). A sensor therefore
 is the end from the start, nothing ever waits, and look-ahead (render helpers, the
 auto-exposure metering pass) is allowed there only (:attr:`Clock.lookahead`).
 
-Taps: with :attr:`Clock.taps` set (closed loop), sensors also hand the raw arrays of what
-they measured to :meth:`Clock.tap` (no copy; the engine hands them to the caller once per
-step, :class:`~roslan.pipeline.engine.StepOutput`).
+Taps: with :attr:`Clock.taps` set (closed loop), sensors also hand what they measured to
+:meth:`Clock.tap`, typed: each kind's step output (:mod:`roslan.sensors.measurements`,
+declared in its :class:`~roslan.sensors.registry.SensorSpec`; no copy). The engine hands
+them to the caller once per step (:class:`~roslan.pipeline.engine.StepOutput`).
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
+
+from roslan.sensors.measurements import Measurement
 
 __all__ = ["Clock", "Grid"]
 
@@ -61,8 +63,8 @@ class Clock:
         self.end_ns = None if end_ns is None else int(end_ns)
         self.lookahead = lookahead
         self.align = align
-        self.taps: dict[str, list[dict[str, Any]]] | None = None
-        """Per sensor name, the raw arrays handed to :meth:`tap` this step (None: taps
+        self.taps: dict[str, list[Measurement]] | None = None
+        """Per sensor name, the measurements handed to :meth:`tap` this step (None: taps
         off, :meth:`tap` does nothing)."""
 
     @classmethod
@@ -96,12 +98,13 @@ class Clock:
             raise ValueError(msg)
         self.horizon_ns = self.end_ns = int(end_ns)
 
-    def tap(self, name: str, **arrays: Any) -> None:
-        """Hand the raw data of one measurement of sensor ``name`` to the engine (kept by
-        reference: the caller must not modify the arrays afterwards)."""
+    def tap(self, name: str, measurement: Measurement) -> None:
+        """Hand one measurement of sensor ``name`` (its kind's step output, a
+        :mod:`roslan.sensors.measurements` dataclass) to the engine (kept by reference:
+        the caller must not modify its arrays afterwards)."""
         taps = self.taps
         if taps is not None:
-            taps.setdefault(name, []).append(arrays)
+            taps.setdefault(name, []).append(measurement)
 
     def grid(
         self,

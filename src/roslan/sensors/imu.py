@@ -44,6 +44,7 @@ from roslan.sensors.base import (
     paced,
     sample_times_ns,
 )
+from roslan.sensors.measurements import ImuSamples
 
 __all__ = ["GRAVITY", "Imu", "ImuConfig", "imu_measurements"]
 
@@ -157,7 +158,11 @@ class Imu:
             "turn_on"
         ].standard_normal(3)
         self._bias = (b_a.copy(), b_g.copy())
-        fh = ctx.path(self._file_stem(ctx) + ".txt").open("w", encoding="utf-8", newline="\n")
+        fh = None
+        if ctx.files is not None:  # (no file sink: a run that records nothing)
+            fh = ctx.files.path(self._file_stem(ctx) + ".txt").open(
+                "w", encoding="utf-8", newline="\n"
+            )
         self._fh = fh
         last = [-1]
         # a chunk of ``per_chunk`` samples may come in pieces (closed loop: up to each
@@ -194,11 +199,13 @@ class Imu:
                 end_bias = [walks[0][-1].copy(), walks[1][-1].copy()]
                 acc = f + walks[0] + sig_a * rng["acc_noise"].standard_normal((n, 3))
                 gyro = g + walks[1] + sig_g * rng["gyro_noise"].standard_normal((n, 3))
-                write_columns(fh, t, *acc.T, *gyro.T)
-                ctx.clock.tap(c.name, t=t, acc=acc, gyro=gyro)
+                if fh is not None:
+                    write_columns(fh, t, *acc.T, *gyro.T)
+                ctx.clock.tap(c.name, ImuSamples(t, acc, gyro))
                 yield from self._chunk_messages(ctx, t, i0, acc, gyro, R_ws)
         finally:
-            fh.close()
+            if fh is not None:
+                fh.close()
 
     def _chunk_messages(
         self, ctx: SimContext, t: NDArray[np.int64], i0: int, acc: F64, gyro: F64, R_ws: F64
@@ -282,7 +289,9 @@ class Imu:
     def close(self, ctx: SimContext) -> None:
         if self._fh is not None and not self._fh.closed:
             self._fh.close()
-        path = ctx.path(f"calib/{self._file_stem(ctx)}.yaml")
+        if ctx.files is None:
+            return
+        path = ctx.files.path(f"calib/{self._file_stem(ctx)}.yaml")
         with path.open("w", encoding="utf-8") as fh:
             fh.write(
                 f"# Kalibr IMU configuration of sensor '{self.config.name}' (written by roslan)\n"

@@ -14,7 +14,9 @@ from dataclasses import dataclass
 from functools import cache
 from typing import Any, Literal
 
+from roslan.config.closed_loop import ClosedLoopConfig
 from roslan.sensors.base import SensorConfig
+from roslan.sensors.measurements import MEASUREMENTS, OBSERVERS, Observer
 
 __all__ = [
     "SENSOR_TYPES",
@@ -42,6 +44,11 @@ class SensorSpec:
         backend: what it measures the scene with: ``opengl`` (rasterized images),
             ``embree`` (ray casting; the scene's BVH is built before the run starts) or
             ``none`` (no scene needed).
+        measurement: its step output, the class (in :mod:`roslan.sensors.measurements`)
+            of what it taps (``ImuSamples``...); ``""``: it taps nothing.
+        observation: its observation in the closed-loop environment: a factory of
+            :data:`roslan.sensors.measurements.OBSERVERS` (``"imu"``...) or a dotted
+            ``module.function`` path of the same signature; ``""``: not observed.
     """
 
     type: str
@@ -51,6 +58,27 @@ class SensorSpec:
     render_cost: float
     outputs: str
     backend: Literal["opengl", "embree", "none"] = "none"
+    measurement: str = ""
+    observation: str = ""
+
+    def measurement_class(self) -> builtins.type[Any] | None:
+        """The class of its step output (None: it taps nothing)."""
+        return MEASUREMENTS[self.measurement] if self.measurement else None
+
+    def observer(
+        self, config: SensorConfig, loop: ClosedLoopConfig, first: bool
+    ) -> Observer | None:
+        """Its entry of the environment's observation (None: not observed); ``first``:
+        the first sensor of this type in the config."""
+        if not self.observation:
+            return None
+        if "." in self.observation:
+            mod, _, fn = self.observation.rpartition(".")
+            make = getattr(importlib.import_module(mod), fn)
+        else:
+            make = OBSERVERS[self.observation]
+        out: Observer | None = make(config, loop, first)
+        return out
 
     def config_class(self) -> builtins.type[SensorConfig]:
         module = importlib.import_module(self.module)
@@ -72,6 +100,8 @@ _SPECS = (
         1.0,
         "lidar/<name>/NNNNNN.npz, lidar/<name>/timestamps.txt",
         backend="embree",
+        measurement="CloudScan",
+        observation="lidar",
     ),
     SensorSpec(
         "solid_state_lidar",
@@ -81,12 +111,30 @@ _SPECS = (
         1.0,
         "lidar/<name>/NNNNNN.npz, lidar/<name>/timestamps.txt",
         backend="embree",
+        measurement="CloudScan",
+        observation="solid_state",
     ),
     SensorSpec(
-        "laser", f"{_B}.laser", "LaserConfig", "Laser", 0.0, "laser_<name>.txt", backend="embree"
+        "laser",
+        f"{_B}.laser",
+        "LaserConfig",
+        "Laser",
+        0.0,
+        "laser_<name>.txt",
+        backend="embree",
+        measurement="LaserScan",
+        observation="laser",
     ),
     SensorSpec(
-        "sonar", f"{_B}.range", "SonarConfig", "Sonar", 0.0, "range_<name>.txt", backend="embree"
+        "sonar",
+        f"{_B}.range",
+        "SonarConfig",
+        "Sonar",
+        0.0,
+        "range_<name>.txt",
+        backend="embree",
+        measurement="RangeSamples",
+        observation="range",
     ),
     SensorSpec(
         "altimeter",
@@ -96,6 +144,8 @@ _SPECS = (
         0.0,
         "range_<name>.txt",
         backend="embree",
+        measurement="RangeSamples",
+        observation="range",
     ),
     SensorSpec(
         "imu",
@@ -104,6 +154,8 @@ _SPECS = (
         "Imu",
         0.0,
         "imu.txt + calib/imu.yaml (later IMUs: imu_<name>.txt, calib/imu_<name>.yaml)",
+        measurement="ImuSamples",
+        observation="imu",
     ),
     SensorSpec(
         "camera",
@@ -113,6 +165,8 @@ _SPECS = (
         2.0,
         "images.txt + images/ (or <name>/...), calib.txt, calib/<name>.yaml",
         backend="opengl",
+        measurement="Frame",
+        observation="camera",
     ),
     SensorSpec(
         "depth_camera",
@@ -122,6 +176,8 @@ _SPECS = (
         2.0,
         "depth/<name>/NNNNNNNN.png, depth_<name>.txt, calib/<name>.yaml",
         backend="opengl",
+        measurement="Frame",
+        observation="depth",
     ),
     SensorSpec(
         "stereo_camera",
@@ -132,6 +188,8 @@ _SPECS = (
         "per eye: images.txt + images/ (or <name>_left/..., <name>_right/...), calib.txt, "
         "calib/<name>_left.yaml, calib/<name>_right.yaml",
         backend="opengl",
+        measurement="Frame",
+        observation="stereo",
     ),
     SensorSpec(
         "event_camera",
@@ -141,6 +199,8 @@ _SPECS = (
         4.0,
         "events.txt, events.h5, images/ (or <name>/...), calib.txt, calib/<name>.yaml",
         backend="opengl",
+        measurement="EventSamples",
+        observation="events",
     ),
 )
 

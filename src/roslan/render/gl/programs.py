@@ -24,7 +24,7 @@ class Programs:
 
     def __init__(self, ctx: Any, scene: Scene, buffers: SceneBuffers, shadow: ShadowMap) -> None:
         self.ctx = ctx
-        self.scene = scene
+        self.lights = scene.lights  # (not the scene: see Renderer)
         self.buffers = buffers
         self.shadow = shadow
         self._color: dict[tuple[bool, bool, bool], tuple[Any, Any]] = {}
@@ -45,7 +45,7 @@ class Programs:
                     shaders.COLOR_FRAG, lum=lum, depth=depth, reference=reference
                 ),
             )
-            lights = self.scene.lights
+            lights = self.lights
             d = np.asarray(lights.sun_direction, dtype=np.float64)
             to_sun = -d / max(float(np.linalg.norm(d)), 1e-12)
             consts: dict[str, Any] = {

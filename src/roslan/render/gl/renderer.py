@@ -75,7 +75,9 @@ class _View:
 
 def get_renderer(scene: Scene) -> Renderer:
     """The renderer of ``scene`` in this process: created (scene uploaded) on first use
-    (and again after a fork: a renderer lives in the GL context of its process)."""
+    (and again after a fork: a renderer lives in the GL context of its process). Kept
+    while the scene lives (the lookup is weak on the scene, and a renderer does not hold
+    its scene); its GPU objects are freed when the last holder lets it go."""
     r = _renderers.get(scene)
     if r is not None and _owner.get(id(r)) != os.getpid():
         r = None  # inherited through fork: its context belongs to the parent
@@ -83,7 +85,6 @@ def get_renderer(scene: Scene) -> Renderer:
         r = Renderer(scene)
         _renderers[scene] = r
         _owner[id(r)] = os.getpid()
-        weakref.finalize(scene, r.release)
     return r
 
 
@@ -138,7 +139,9 @@ class Renderer:
     """
 
     def __init__(self, scene: Scene, *, samples: int | None = None) -> None:
-        self.scene = scene
+        # (the scene's lights only: a renderer must not keep its scene alive, so that the
+        # per-process lookup of get_renderer, weak on the scene, lets both go)
+        self.lights = scene.lights
         self.ctx = ctx = create_context()
         self.max_size = int(
             min(
@@ -479,7 +482,7 @@ class Renderer:
     def _clear(self, fbo: Any, lum: bool, depth: bool) -> None:
         """Clear a colour-pass target: colour = the sky (luminance: its luma) with 1/z = 0
         (nothing hit), the 1/z attachment (``depth``) = 0, depth buffer = far."""
-        sky = tuple(float(x) for x in self.scene.lights.sky)
+        sky = tuple(float(x) for x in self.lights.sky)
         if not any(sky):
             fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
             return
@@ -533,6 +536,10 @@ class Renderer:
         with np.errstate(divide="ignore"):
             np.reciprocal(inv, out=inv)  # 1/0 -> inf: nothing hit
         return inv
+
+    def __del__(self) -> None:
+        if _owner.pop(id(self), os.getpid()) == os.getpid():  # (never a parent's, forked)
+            self.release()
 
     def release(self) -> None:
         """Free the GPU objects of this renderer (the context stays for others)."""

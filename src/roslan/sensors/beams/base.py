@@ -26,6 +26,7 @@ from roslan.sensors.base import (
     sample_times_ns,
 )
 from roslan.sensors.beams.pointcloud import POINTCLOUD2, pointcloud2
+from roslan.sensors.measurements import CloudScan
 
 if TYPE_CHECKING:
     from roslan.render.base import BeamCaster
@@ -230,8 +231,10 @@ class PointCloudSensor:
         cfg = self.config
         caster = ctx.raycaster()
         rng = ctx.rng(cfg.name)
-        index = ctx.path(f"lidar/{cfg.name}/timestamps.txt")
-        writer = self._writer = ScanWriter(index.parent, index)
+        writer: ScanWriter | None = None
+        if ctx.files is not None:  # (no file sink: a run that records nothing)
+            index = ctx.files.path(f"lidar/{cfg.name}/timestamps.txt")
+            writer = self._writer = ScanWriter(index.parent, index)
         height, dense = self.cloud_layout()
         pool: OrderedPool[tuple[int, int, NDArray[Any]]] = OrderedPool(
             ctx.sensor_threads, f"{cfg.name}-scans"
@@ -239,13 +242,15 @@ class PointCloudSensor:
 
         def task(turn: Turn, seq: int, t0: int, draws: BeamDraws) -> tuple[int, int, NDArray[Any]]:
             pts = self.scan(ctx.trajectory, caster, t0, draws)
-            writer.write_file(seq, t0, pts)
+            if writer is not None:
+                writer.write_file(seq, t0, pts)
             return seq, t0, pts
 
         def emit(done: list[tuple[int, int, NDArray[Any]]]) -> Iterator[Message]:
             for seq, t0, pts in done:
-                writer.listed(seq, t0)
-                ctx.clock.tap(cfg.name, t=t0, points=pts)
+                if writer is not None:
+                    writer.listed(seq, t0)
+                ctx.clock.tap(cfg.name, CloudScan(t0, pts))
                 stamp = ctx.stamp(t0)
 
                 def build(

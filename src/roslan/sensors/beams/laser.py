@@ -41,6 +41,7 @@ from roslan.sensors.base import (
 )
 from roslan.sensors.beams.base import BeamConfig, measure
 from roslan.sensors.beams.rays import rays_in_world
+from roslan.sensors.measurements import LaserScan
 
 if TYPE_CHECKING:
     from roslan.render.base import BeamCaster
@@ -166,7 +167,10 @@ class Laser:
         c = self.config
         caster = ctx.raycaster()
         rng = ctx.rng(c.name)
-        self._fh = ctx.path(f"laser_{c.name}.txt").open("w", encoding="utf-8", newline="\n")
+        if ctx.files is not None:  # (no file sink: a run that records nothing)
+            self._fh = ctx.files.path(f"laser_{c.name}.txt").open(
+                "w", encoding="utf-8", newline="\n"
+            )
         # t r_0 .. r_n: no header line (columns and angles in OUTDIR/README.md)
         angle_max = float(self.angles[-1])
         # a scan sweeps over [t0, t0 + 1/rate): only whole scans within the trajectory
@@ -180,9 +184,10 @@ class Laser:
             seq, t0 = item[0], int(item[1][0])
             last[0] = t0
             ranges, inten = self.scan(ctx.trajectory, caster, t0, rng)
-            ctx.clock.tap(c.name, t=t0, ranges=ranges, intensities=inten)
-            txt = " ".join(np.char.mod("%.6f", ranges.astype(np.float64)).tolist())
-            self._fh.write(f"{format_seconds([t0])[0]} {txt}\n")
+            ctx.clock.tap(c.name, LaserScan(t0, ranges, inten))
+            if self._fh is not None:
+                txt = " ".join(np.char.mod("%.6f", ranges.astype(np.float64)).tolist())
+                self._fh.write(f"{format_seconds([t0])[0]} {txt}\n")
             stamp = ctx.stamp(t0)
 
             def build(

@@ -42,6 +42,7 @@ from roslan.sensors.base import (
     sample_times_ns,
 )
 from roslan.sensors.beams.rays import rays_in_world
+from roslan.sensors.measurements import RangeSamples
 
 if TYPE_CHECKING:
     from roslan.render.base import BeamCaster
@@ -217,7 +218,10 @@ class RangeSensor:
         grid = ctx.clock.grid(lambda end: sample_times_ns(rate, end))
         caster = ctx.raycaster()
         rng = ctx.rng(c.name)
-        self._fh = ctx.path(f"range_{c.name}.txt").open("w", encoding="utf-8", newline="\n")
+        if ctx.files is not None:  # (no file sink: a run that records nothing)
+            self._fh = ctx.files.path(f"range_{c.name}.txt").open(
+                "w", encoding="utf-8", newline="\n"
+            )
         chunk = max(1, round(c.rate))  # one second of readings per batch of draws
         # A batch's noise and dropout draws are made whole when its first reading comes, so
         # a reading's draws do not depend on where the horizon or the run's end cuts its
@@ -238,8 +242,9 @@ class RangeSensor:
                 keep = np.asarray(rng.random(chunk) >= c.dropout)
             span = slice(at, at + t.size)
             r = self.readings(ctx.trajectory, caster, t, noise[span], keep[span])
-            write_columns(self._fh, t, r, fmt="%.6f", allow_nonfinite=True)
-            ctx.clock.tap(c.name, t=t, range=r)
+            if self._fh is not None:
+                write_columns(self._fh, t, r, fmt="%.6f", allow_nonfinite=True)
+            ctx.clock.tap(c.name, RangeSamples(t, r))
             last[0] = int(t[-1])
             for k, (tk, rk) in enumerate(zip(t.tolist(), r.tolist(), strict=True)):
                 yield Message(tk, c.topic, RANGE, self._builder(ctx.stamp(tk), rk, i0 + k))

@@ -39,6 +39,7 @@ from roslan.sensors.base import (
 from roslan.sensors.cameras.model import CameraModel, RenderPlan
 from roslan.sensors.cameras.shutter import shutter_plan
 from roslan.sensors.clock import Grid
+from roslan.sensors.measurements import Frame
 
 __all__ = ["CAMERA_INFO", "IMAGE", "RAW_ROWS_FACTOR", "CameraBase", "Eye", "Shot", "pose_matrices"]
 
@@ -249,7 +250,7 @@ class CameraBase:
                 for s in shots:
                     if s.png:
                         self._listed(s.eye, i, t)
-                    ctx.clock.tap(self.config.name, t=t, image=s.data, eye=s.eye.suffix)
+                    ctx.clock.tap(self.config.name, Frame(t, s.data, s.eye.suffix))
                     yield from self._messages(ctx, t, i, s.eye, s.data, s.encoding)
 
         last = [-1]

@@ -100,12 +100,12 @@ class CameraIntrinsics(StrictModel):
             CalibCamera(
                 name=str(getattr(self, "name", "camera")),
                 model=model,
-                T_base_optical=self.base_T_optical(),
+                T_base_optical=self.T_base_optical(),
                 rostopic=f"{getattr(self, 'topic', '')}/image_raw",
             )
         ]
 
-    def base_T_optical(self) -> F64:
+    def T_base_optical(self) -> F64:
         """(4, 4) ``T_base_link_optical`` of the (first) camera."""
         pose = getattr(self, "pose", None)
         T = pose.matrix() if pose is not None else np.eye(4)

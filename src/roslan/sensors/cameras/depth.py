@@ -178,7 +178,8 @@ class DepthCamera(CameraBase):
         rng = ctx.rng(f"depth_camera/{c.name}")
         renderer = self._plans(ctx)
         e = self._eyes[0]
-        if c.write_images:
+        writes = c.write_images and ctx.files is not None  # (None: a run recording nothing)
+        if writes:
             self._open_index(ctx, e, "depth")
 
         def render(inline: bool, i: int, t: int) -> Callable[[], F32]:
@@ -195,9 +196,9 @@ class DepthCamera(CameraBase):
             if c.max_range is not None:
                 bad |= z > c.max_range
             z[bad] = np.nan
-            if c.write_images:
+            if writes:
                 mm = np.where(bad, 0.0, np.round(np.clip(z, 0.0, 65.535) * 1000.0))
                 self._png(ctx, e, i, np.nan_to_num(mm).astype(np.uint16))
-            return [Shot(e, z.astype("<f4"), "32FC1", c.write_images)]
+            return [Shot(e, z.astype("<f4"), "32FC1", writes)]
 
         yield from self._frames(ctx, self._grid(ctx), render, post)

@@ -190,7 +190,7 @@ class EventCamera:
     @property
     def T_body_cam(self) -> F64:
         """(4, 4) pose of the optical frame in base_link."""
-        return self.config.base_T_optical()
+        return self.config.T_base_optical()
 
     def _prefix(self, ctx: SimContext) -> str:
         """'' for the OUTDIR-root camera (the first event camera), else '<name>/'."""
@@ -330,9 +330,14 @@ class EventCamera:
         )
 
     def _open_files(self, ctx: SimContext, end_ns: int | None) -> None:
-        """Open the dataset files: events, APS listing, ground truth."""
+        """Open the dataset files: events, APS listing, ground truth (none in a run
+        that records no files)."""
         c, W, H = self.config, self.camera.width, self.camera.height
         prefix = self._folder = self._prefix(ctx)
+        if ctx.files is None:
+            self._flow_file = self._depth_file = None
+            self.flow_truth = None
+            return
         stem = "events" if not prefix else f"{prefix}events"
         if c.write_txt:
             self._writers.append(EventTextWriter(ctx.path(f"{stem}.txt")))

@@ -38,11 +38,9 @@ import importlib
 import math
 import pickle
 import queue
-import subprocess
 import threading
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
-from multiprocessing.connection import Connection
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, NamedTuple, Protocol
 
@@ -50,16 +48,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from roslan.events.sampling import AdaptiveSampler
-from roslan.io.child import (
-    JOIN_TIMEOUT_S,
-    ChildError,
-    child_connection,
-    death_message,
-    error_record,
-    raise_error_record,
-    spawn,
-    stop_child,
-)
+from roslan.io import child
 from roslan.sensors.base import SimContext
 
 if TYPE_CHECKING:
@@ -267,7 +256,7 @@ def helper_main(argv: Sequence[str] | None = None) -> None:
     import sys
 
     args = list(sys.argv[1:] if argv is None else argv)
-    conn = child_connection(args)
+    conn = child.child_connection(args)
     code = 0
     try:
         _warm_helper(args[2:])
@@ -289,10 +278,8 @@ def helper_main(argv: Sequence[str] | None = None) -> None:
     except BaseException as err:
         code = 1
         with contextlib.suppress(BaseException):
-            conn.send_bytes(pickle.dumps(error_record(err), protocol=pickle.HIGHEST_PROTOCOL))
-    with contextlib.suppress(BaseException):
-        conn.close()
-    os._exit(code)  # skip interpreter teardown (EGL exit handlers add nothing)
+            conn.send_bytes(child.error_blob(err))
+    child.end_child(conn, code)
 
 
 _PRESTARTED: list[_Helper] = []
@@ -321,13 +308,11 @@ def _take_helpers(n: int) -> list[_Helper]:
     return out
 
 
-class _Helper:
+class _Helper(child.ChildProcess):
     """One render helper process (owner side) and the thread reading its answers."""
 
     def __init__(self, warm: Sequence[str] = ()) -> None:
-        self.proc: subprocess.Popen[bytes]
-        self.conn: Connection
-        self.proc, self.conn = spawn(_HELPER_CODE, "a render helper process", tuple(warm))
+        super().__init__(_HELPER_CODE, "a render helper process", tuple(warm))
         self.name = "?"
         self.index = 0
         self.ready = False
@@ -349,14 +334,11 @@ class _Helper:
 
     def send(self, obj: Any) -> None:
         try:
-            self.conn.send_bytes(pickle.dumps(obj, protocol=pickle.HIGHEST_PROTOCOL))
+            super().send(obj)
         except OSError:
             # it is gone: its reader thread puts its last record (its error, or eof) in
             # the inbox, which says more than a broken pipe; send it nothing more
             self.ready = False
-
-    def died(self) -> ChildError:
-        return ChildError(death_message(self.proc, self.describe(), "while rendering"))
 
     def _read(self) -> None:
         assert self.inbox is not None
@@ -373,18 +355,10 @@ class _Helper:
         """Ask it to stop and reap it (ChildError if it fails to exit cleanly)."""
         self.send(("stop",))
         try:
-            code = self.proc.wait(JOIN_TIMEOUT_S)
-        except subprocess.TimeoutExpired:
-            self.kill()
-            code = 0  # its chains were all delivered; only the exit hung
-        if self.reader is not None:
-            self.reader.join(JOIN_TIMEOUT_S)
-        self.conn.close()
-        if code != 0:
-            raise ChildError(f"{self.describe()} exited with status {code} after finishing")
-
-    def kill(self) -> None:
-        stop_child(self.proc, self.conn)
+            self.join()
+        finally:
+            if self.reader is not None:
+                self.reader.join(child.JOIN_TIMEOUT_S)
 
 
 class ChainFarm:
@@ -494,9 +468,9 @@ class ChainFarm:
                 self.results[j] = chain
                 h.in_flight -= 1
             elif kind == "error":
-                raise_error_record(rec, h.describe(), "the render helper process")
+                child.raise_error_record(rec, h.describe(), "the render helper process")
             else:  # eof: it died
-                raise h.died()
+                raise h.died("while rendering")
 
     # ------------------------------------------------------------------ the end
     def close(self) -> None:

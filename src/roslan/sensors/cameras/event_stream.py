@@ -25,6 +25,7 @@ from roslan.io.messages import Flavor, MessageStore
 from roslan.sensors.base import Message, SimContext
 from roslan.sensors.cameras.encoding import srgb_curve
 from roslan.sensors.cameras.event_image import RecentEvents
+from roslan.sensors.measurements import EventSamples
 
 if TYPE_CHECKING:
     from roslan.io.background import BackgroundSink
@@ -145,7 +146,7 @@ class AfterRender:
             batch.t[:] *= self.tick
         if batch.size:
             self.n_events += batch.size
-            ctx.clock.tap(c.name, x=batch.x, y=batch.y, t=batch.t, p=batch.p)
+            ctx.clock.tap(c.name, EventSamples(batch.x, batch.y, batch.t, batch.p))
             if s._writers:
                 sink.submit(s._write_events, batch)
             self.buf.append(batch)
@@ -160,7 +161,8 @@ class AfterRender:
             if c.has_aps:
                 aps = _srgb8(lum)
                 out.append(s._image_msg(ctx, t, aps, "mono8"))
-                sink.submit(s._write_image, ctx, t, aps, self.image_index)
+                if ctx.files is not None:  # (None: a run that records no files)
+                    sink.submit(s._write_image, ctx, t, aps, self.image_index)
                 self.image_index += 1
         if t in self.gt_set:
             out += s._truth_msgs(ctx, t, flow, depth, self.gt_times, self.gt_rate)

@@ -204,7 +204,7 @@ class StereoCameraConfig(_ImagingConfig):
         except SensorError as err:
             raise ValueError(str(err)) from None
         left = _renamed(left, f"{self.name}_left")
-        T_left = self.base_T_optical()
+        T_left = self.T_base_optical()
         T_lr = np.eye(4)
         T_lr[0, 3] = self.baseline
         topic = self.topic
@@ -482,7 +482,8 @@ class _ImagingCamera(CameraBase):
         renderer = self._plans(ctx)
         grid = self._grid(ctx)
         exposure_of = self._exposure_source(ctx)
-        if c.write_images:
+        writes = c.write_images and ctx.files is not None  # (None: a run recording nothing)
+        if writes:
             for e in self._eyes:
                 self._open_index(ctx, e, "image")
 
@@ -509,9 +510,9 @@ class _ImagingCamera(CameraBase):
             shots = []
             for e, (lin, gain) in zip(self._eyes, noisy, strict=True):
                 img = self.encode(lin, gain)
-                if c.write_images:
+                if writes:
                     self._png(ctx, e, i, img)
-                shots.append(Shot(e, img, c.encoding, c.write_images))
+                shots.append(Shot(e, img, c.encoding, writes))
             return shots
 
         yield from self._frames(ctx, grid, render, post)

@@ -25,7 +25,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from roslan.errors import SensorError
-from roslan.frames import OPTICAL_FROM_BODY
+from roslan.frames import T_LINK_OPTICAL
 
 if TYPE_CHECKING:
     from roslan.io.messages import MessageStore
@@ -56,10 +56,6 @@ _CANONICAL = {
 _N_COEFFS = {"plumb_bob": (4, 5), "equidistant": (4,), "none": (0,)}
 _KALIBR_NAME = {"plumb_bob": "radtan", "equidistant": "equidistant", "none": "none"}
 
-T_LINK_OPTICAL: F64 = np.eye(4)
-T_LINK_OPTICAL[:3, :3] = OPTICAL_FROM_BODY.T
-"""Pose of a camera's optical frame (z forward, x right, y down) in its link frame
-(x forward, y left, z up)."""
 
 DEFAULT_RESOLUTION = (640, 480)
 DEFAULT_HFOV_DEG = 90.0
