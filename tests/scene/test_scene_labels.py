@@ -262,3 +262,21 @@ def test_export_of_a_user_scene_keeps_its_classes(tmp_path: Path) -> None:
     assert scene_labels(back).instances == scene_labels(scene).instances
     assert scene_labels(back).classes == scene_labels(scene).classes
     assert back.object("e").labels is None
+
+
+def test_scene_info_lists_classes_and_instance_counts(capsys: pytest.CaptureFixture[str]) -> None:
+    import json
+
+    from roslan.cli.app import main
+
+    labels = scene_labels(load_scene("refinery"))
+    assert main(["scene", "info", "refinery"]) == 0
+    text = capsys.readouterr().out
+    in_use = len(labels.instance_counts())
+    assert f"classes: {in_use} in use, {len(labels.instances)} instances" in text
+    rows = dict(re.findall(r"^\s*\d+\s+([a-z_]+)\s+(\d+)\s+\d+$", text, flags=re.MULTILINE))
+    assert {k: int(v) for k, v in rows.items()} == labels.instance_counts()
+    assert main(["scene", "info", "refinery", "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc == json.loads(json.dumps(labels_document(load_scene("refinery"))))
+    assert len(doc["instances"]) == len(labels.instances)
