@@ -27,6 +27,13 @@ def _export(args: argparse.Namespace) -> int:
 
 
 def _info(args: argparse.Namespace) -> int:
+    if args.json:
+        import json
+
+        from roslan.scene.instances import labels_document
+
+        print(json.dumps(labels_document(_load(args)), indent=1))
+        return 0
     from roslan.plots.scene import scene_info
 
     print(scene_info(_load(args)))
@@ -63,8 +70,13 @@ def register(subparsers: Any) -> None:
     common(e)
     e.add_argument("-o", "--output", required=True, metavar="DIR", help="new (or empty) folder")
     e.set_defaults(func=_export)
-    i = sub.add_parser("info", help="objects, triangles, bounds, goal")
+    i = sub.add_parser("info", help="objects, triangles, bounds, goal, classes and instances")
     common(i)
+    i.add_argument(
+        "--json",
+        action="store_true",
+        help="print the classes and instances (with their 3-D boxes) as JSON instead",
+    )
     i.set_defaults(func=_info)
     v = sub.add_parser(
         "preview", help="PNG: top view with outlines and the goal, and two rendered views"

@@ -6,7 +6,8 @@ the flavour being written. Sensors describe a message once, as a function of a
 :class:`MessageStore`; the pipeline calls it for each flavour it writes.
 
 Extra types roslan publishes that are not in the stock stores (``dvs_msgs`` of
-rpg_dvs_ros) are registered here, with definitions identical to the originals so
+rpg_dvs_ros; ``vision_msgs``, whose ROS 1 and ROS 2 definitions differ, from
+:mod:`roslan.io.vision_msgdefs`) are registered here, with definitions identical to the originals so
 their ROS 1 md5sums match and every ROS tool decodes them.
 """
 
@@ -48,6 +49,24 @@ _NO_BYTES = np.zeros(0, dtype=np.uint8)
 _STORES = {Flavor.ROS1: Stores.ROS1_NOETIC, Flavor.ROS2: Stores.ROS2_HUMBLE}
 
 
+def _vision_types(flavor: Flavor, have: Any) -> dict[str, Any]:
+    """The flavour's vision_msgs types (:mod:`roslan.io.vision_msgdefs`) not in ``have``."""
+    from roslan.io.vision_msgdefs import ROS1_VISION_MSG_TEXTS, ROS2_VISION_MSGDEFS
+
+    out: dict[str, Any] = {}
+    if flavor is Flavor.ROS1:
+        for short, text in ROS1_VISION_MSG_TEXTS.items():
+            pkg, typ = short.split("/")
+            name = f"{pkg}/msg/{typ}"
+            if name not in have:
+                out.update(get_types_from_msg(text, name))
+    else:
+        for name, text in ROS2_VISION_MSGDEFS.items():
+            if name not in have:
+                out.update(get_types_from_msg(text, name))
+    return out
+
+
 class MessageStore:
     """Typestore of one flavour plus small constructors for common pieces."""
 
@@ -63,6 +82,7 @@ class MessageStore:
                     "time ts", "builtin_interfaces/Time ts"
                 )
             extra.update(get_types_from_msg(text, name))
+        extra.update(_vision_types(flavor, ts.types))
         ts.register(extra)
         self.typestore: Typestore = ts
         self.types = ts.types

@@ -7,7 +7,8 @@ order, each once) a line of 80 ``=``, ``MSG: pkg/Type`` and that type's text.
 ``rosbag check`` compares that text with the installed definitions, so a stripped
 definition (same md5 sum) is reported as needing a migration. Texts below are the
 public ROS 1 Noetic definitions (std_msgs, geometry_msgs, sensor_msgs, nav_msgs,
-tf2_msgs, visualization_msgs in :mod:`roslan.io.ros1_visualization_msgdefs`) and
+tf2_msgs, visualization_msgs in :mod:`roslan.io.ros1_visualization_msgdefs`, vision_msgs
+in :mod:`roslan.io.vision_msgdefs`) and
 rpg_dvs_ros' dvs_msgs; md5 sums are still computed by rosbags from the
 fields, and tests check both against Debian's ROS 1 packages where installed.
 """
@@ -15,6 +16,7 @@ fields, and tests check both against Debian's ROS 1 packages where installed.
 from __future__ import annotations
 
 from roslan.io.ros1_visualization_msgdefs import VISUALIZATION_MSG_TEXTS
+from roslan.io.vision_msgdefs import ROS1_VISION_MSG_TEXTS
 
 __all__ = ["ROS1_MSG_TEXTS", "ros1_full_text"]
 
@@ -529,6 +531,7 @@ ROS1_MSG_TEXTS: dict[str, str] = {
     "std_msgs/String": ("string data\n"),
     "tf2_msgs/TFMessage": ("geometry_msgs/TransformStamped[] transforms\n"),
     **VISUALIZATION_MSG_TEXTS,
+    **ROS1_VISION_MSG_TEXTS,
 }
 
 

@@ -44,7 +44,27 @@ def scene_info(scene: Scene) -> str:
             f"{o.name:<{w}}  {o.n_triangles:>9}  {o.material.name + tex:<16} "
             f"[{a[0]:.1f} {a[1]:.1f} {a[2]:.1f}] .. [{b[0]:.1f} {b[1]:.1f} {b[2]:.1f}]"
         )
+    lines += _class_lines(scene)
     return "\n".join(lines)
+
+
+def _class_lines(scene: Scene) -> list[str]:
+    """The scene's classes in use (id, name, instances, triangles) and the unlabelled rest."""
+    from roslan.scene.instances import scene_labels
+
+    labels = scene_labels(scene)
+    counts = labels.instance_counts()
+    tris = np.bincount(labels.triangle_class, minlength=len(labels.classes))
+    used = [c for c in labels.classes if c.name in counts]
+    lines = [
+        f"classes: {len(used)} in use, {len(labels.instances)} instances"
+        f"{'' if tris[0] == 0 else f', {tris[0]} triangles unlabelled (class 0)'}"
+    ]
+    w = max([len(c.name) for c in used] + [5])
+    lines.append(f"{'id':>3}  {'class':<{w}}  {'instances':>9}  {'triangles':>9}")
+    for c in used:
+        lines.append(f"{c.id:>3}  {c.name:<{w}}  {counts[c.name]:>9}  {int(tris[c.id]):>9}")
+    return lines
 
 
 def look_at(

@@ -4,11 +4,13 @@
 ``refinery``, ``empty``) or a scene YAML file (see :mod:`roslan.scene.spec`);
 ``check_clearance`` tests a trajectory against it; ``export_scene`` writes GLB models,
 ``poses.yaml`` and a reloadable ``scene.yaml``; ``add_perch`` puts a bar, branch or
-pipe perch at a goal.
+pipe perch at a goal; ``scene_labels`` gives the classes and instances of a scene
+(:mod:`roslan.scene.instances`).
 """
 
 from roslan.scene.clearance import check_clearance
 from roslan.scene.export import export_scene
+from roslan.scene.instances import scene_labels
 from roslan.scene.loader import BUILTIN_SCENES, load_scene
 from roslan.scene.model import Lights, Material, Scene, SceneObject
 from roslan.scene.perch import PERCH_TYPES, add_perch
@@ -28,4 +30,5 @@ __all__ = [
     "check_clearance",
     "export_scene",
     "load_scene",
+    "scene_labels",
 ]

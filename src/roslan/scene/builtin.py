@@ -19,11 +19,13 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from dataclasses import replace
 
 import numpy as np
 from numpy.typing import NDArray
 
 from roslan.scene import textures as tx
+from roslan.scene.classes import PartLabels
 from roslan.scene.mesh import LocalMesh, box, place, plane, pose_matrix, transformed
 from roslan.scene.model import DAYLIGHT_SKY, Lights, Material, Scene, SceneObject
 
@@ -32,6 +34,7 @@ __all__ = [
     "SceneBuilder",
     "at",
     "box_at",
+    "each_part",
     "empty",
     "material",
 ]
@@ -61,9 +64,16 @@ class SceneBuilder:
         yaw: float = 0.0,
         *,
         check: bool = True,
+        labels: PartLabels | str | None = None,
     ) -> None:
+        """Place ``mesh`` as object ``name``; ``labels``: its parts' classes and instances
+        (a class name: one instance of that class)."""
         T = pose_matrix(position, (0.0, 0.0, yaw))
         obj = place(name, mesh, material, T, source=f"builtin:{name}")
+        if labels is not None:
+            lab = PartLabels.whole(labels, mesh.n_triangles) if isinstance(labels, str) else labels
+            assert lab.n_triangles == mesh.n_triangles, name
+            obj = replace(obj, labels=lab)
         if check and self.blocks_approach(obj.vertices.astype(np.float64), faces=obj.faces):
             msg = f"built-in scene object {name!r} intrudes into the approach zone"
             raise AssertionError(msg)
@@ -146,6 +156,14 @@ def box_at(size: Sequence[float], x: float, y: float, z0: float) -> LocalMesh:
     return box(size, (x, y, z0 + size[2] / 2.0))
 
 
+def each_part(
+    name: str, parts: Sequence[LocalMesh], keys: Sequence[str] | None = None
+) -> PartLabels:
+    """Labels of ``merge(parts)``: one instance of class ``name`` per mesh of ``parts``
+    (optional instance ``keys``, one per mesh)."""
+    return PartLabels.each(name, [p.n_triangles for p in parts], keys)
+
+
 def material(
     name: str, color: Sequence[float], tex: NDArray[np.uint8] | None, scale: float, refl: float
 ) -> Material:
@@ -160,6 +178,7 @@ def empty(seed: int = 0) -> Scene:
     """A 200 x 200 m textured ground: the plane z = 0 (1 m checker squares with grain)."""
     ground = material("checker", (1, 1, 1), tx.checker(seed, 512, 8), 1.0 / 8.0, 0.5)
     obj = place("ground", plane((200.0, 200.0)), ground, source="builtin:ground")
+    obj = replace(obj, labels=PartLabels.whole("ground", obj.n_triangles))
     return Scene(
         name="empty",
         objects=(obj,),

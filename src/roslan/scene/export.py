@@ -94,6 +94,27 @@ def _encode_glb(obj: SceneObject, texture: NDArray[np.uint8] | None) -> bytes:
     return data
 
 
+def _label_keys(obj: SceneObject) -> dict[str, Any]:
+    """The scene-file keys of ``obj``'s labels: ``class`` (+ ``instance``) for one part,
+    ``parts`` for several; none for an unlabelled object."""
+    lab = obj.labels
+    if lab is None:
+        return {}
+    keys = lab.keys(obj.name)
+    if len(lab.classes) == 1:
+        one: dict[str, Any] = {"class": lab.classes[0]}
+        if keys[0] != obj.name:
+            one["instance"] = keys[0]
+        return one
+    parts = []
+    for k, (cname, n, key) in enumerate(zip(lab.classes, lab.triangles, keys, strict=True)):
+        part: dict[str, Any] = {"class": cname, "triangles": int(n)}
+        if key != f"{obj.name}#{k}":
+            part["instance"] = key
+        parts.append(part)
+    return {"parts": parts}
+
+
 def export_scene(scene: Scene, outdir: Path) -> None:
     """Write ``scene`` as GLB models, textures, ``poses.yaml`` and ``scene.yaml`` into ``outdir``.
 
@@ -166,15 +187,14 @@ def _write(scene: Scene, out: Path) -> None:
         }
         if tex_rel is not None:
             material["texture"] = tex_rel
-        objects.append(
-            {
-                "name": obj.name,
-                "mesh": model,
-                "pose": {"position": pos, "rpy": rpy},
-                "scale": scale,
-                "material": material,
-            }
-        )
+        entry: dict[str, Any] = {
+            "name": obj.name,
+            "mesh": model,
+            "pose": {"position": pos, "rpy": rpy},
+            "scale": scale,
+            "material": material,
+        }
+        objects.append(entry | _label_keys(obj))
     lights = scene.lights
     doc = {
         "name": scene.name,

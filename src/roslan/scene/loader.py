@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import re
 import threading
 import warnings
@@ -18,6 +19,7 @@ from roslan.config.base import UnitWarning, did_you_mean, format_validation_erro
 from roslan.config.units import unit_slips
 from roslan.errors import ConfigError, SceneError
 from roslan.scene import mesh as m
+from roslan.scene.classes import PartLabels
 from roslan.scene.model import Lights, Material, Scene, SceneObject
 from roslan.scene.perch import perch_object
 from roslan.scene.spec import MaterialSpec, ObjectSpec, SceneFile
@@ -284,8 +286,33 @@ def _material(
     )
 
 
+def _labelled(obj: SceneObject, spec: ObjectSpec, where: str) -> SceneObject:
+    """``obj`` with the labels of ``spec``'s ``class``/``instance`` or ``parts``."""
+    if spec.parts is not None:
+        lab = PartLabels(
+            tuple(p.class_ for p in spec.parts),
+            tuple(p.triangles for p in spec.parts),
+            tuple(p.instance for p in spec.parts),
+        )
+        if lab.n_triangles != obj.n_triangles:
+            msg = (
+                f"{where}.parts: the parts' triangles add up to {lab.n_triangles}, the object "
+                f"has {obj.n_triangles}; allowed: counts adding up to exactly {obj.n_triangles}"
+            )
+            raise SceneError(msg)
+    elif spec.class_ is not None:
+        lab = PartLabels.whole(spec.class_, obj.n_triangles, spec.instance)
+    else:
+        return obj
+    return dataclasses.replace(obj, labels=lab)
+
+
 def _object(spec: ObjectSpec, i: int, base: Path, allow: bool, src: str) -> SceneObject:
     where = f"{src}objects[{i}] (name {spec.name!r})"
+    return _labelled(_shaped(spec, where, base, allow), spec, where)
+
+
+def _shaped(spec: ObjectSpec, where: str, base: Path, allow: bool) -> SceneObject:
     T = spec.pose.matrix()
     if spec.mesh is not None:
         path = _resolve(spec.mesh, base, allow, f"{where}.mesh")

@@ -14,6 +14,8 @@ from functools import cached_property
 import numpy as np
 from numpy.typing import NDArray
 
+from roslan.scene.classes import PartLabels
+
 __all__ = ["Lights", "Material", "Scene", "SceneObject"]
 
 F32 = NDArray[np.float32]
@@ -57,6 +59,8 @@ class SceneObject:
             (``vertices = R (scale * local_vertices) + t``), or None; kept so that an export
             reloads to bit-identical world triangles.
         local_normals: (V, 3) float32 object-frame normals matching ``local_vertices``, or None.
+        labels: class and instance of its triangles (:class:`~roslan.scene.classes.PartLabels`),
+            or None (unlabelled: class 0); see :mod:`roslan.scene.instances`.
     """
 
     name: str
@@ -70,6 +74,7 @@ class SceneObject:
     source: str = ""
     local_vertices: F32 | None = None
     local_normals: F32 | None = None
+    labels: PartLabels | None = None
 
     @property
     def n_triangles(self) -> int:

@@ -15,6 +15,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from roslan.scene import textures as tx
+from roslan.scene.classes import PartLabels
 from roslan.scene.mesh import (
     LocalMesh,
     box,
@@ -106,7 +107,9 @@ def perch_object(
         post = max(r, 0.03)
         for y in (-half + post, half - post):
             parts.append(box((2 * post, 2 * post, height), (0.0, y, -2 * r - height / 2.0)))
-    return place(name, merge(parts), mat, pose, source=f"builtin:perch:{kind}")
+    mesh = merge(parts)
+    obj = place(name, mesh, mat, pose, source=f"builtin:perch:{kind}")
+    return replace(obj, labels=PartLabels.whole("perch", mesh.n_triangles))
 
 
 def add_perch(

@@ -16,7 +16,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from roslan.scene import textures as tx
-from roslan.scene.builtin import SceneBuilder, at, box_at, material
+from roslan.scene.builtin import SceneBuilder, at, box_at, each_part, material
+from roslan.scene.classes import PartLabels
 from roslan.scene.mesh import (
     LocalMesh,
     box,
@@ -87,8 +88,9 @@ def _ladder(height: float, z0: float = 0.0) -> LocalMesh:
 
 def _column(
     radius: float, height: float, platforms: Sequence[float]
-) -> tuple[LocalMesh, LocalMesh]:
-    """(shell, steelwork) of a distillation column standing on z = 0 at the origin."""
+) -> tuple[LocalMesh, LocalMesh, PartLabels]:
+    """(shell, steelwork, the steelwork's labels: its ladder, then each platform with its
+    railing) of a distillation column standing on z = 0 at the origin."""
     shell = merge(
         [
             at(cylinder(radius + 0.2, 2.0, 32), (0.0, 0.0, 1.0)),  # skirt
@@ -97,7 +99,9 @@ def _column(
         ]
     )
     steel = [at(_ladder(height), (radius + 0.25, 0.0, 0.0))]
+    labels = PartLabels.whole("ladder", steel[0].n_triangles)
     for z in platforms:
+        start = len(steel)
         steel.append(at(ring(radius, radius + 1.2, 0.08, 32), (0.0, 0.0, z)))
         steel.append(
             at(ring(radius + 1.15, radius + 1.2, 0.05, 32), (0.0, 0.0, z + 1.05))
@@ -105,7 +109,8 @@ def _column(
         for a in np.linspace(0.0, 2 * math.pi, 10, endpoint=False):
             r = radius + 1.17
             steel.append(box((0.04, 0.04, 1.0), (r * math.cos(a), r * math.sin(a), z + 0.55)))
-    return shell, merge(steel)
+        labels += PartLabels.whole("platform", sum(p.n_triangles for p in steel[start:]))
+    return shell, merge(steel), labels
 
 
 def _tanks(b: SceneBuilder, m: _Materials) -> None:
@@ -123,7 +128,7 @@ def _tanks(b: SceneBuilder, m: _Materials) -> None:
                 at(cylinder(r * 0.9, 0.8, 64), (0.0, 0.0, h + 0.4)),
             ]
         )
-        b.add(f"tank_{i:02d}", shell, m.white, (x, y, 0.0))
+        b.add(f"tank_{i:02d}", shell, m.white, (x, y, 0.0), labels="tank")
         steps = []
         for j in range(int(h / 0.25)):
             a = j * 0.035
@@ -135,8 +140,12 @@ def _tanks(b: SceneBuilder, m: _Materials) -> None:
                     (0.0, 0.0, a),
                 )
             )
+        n_steps = sum(p.n_triangles for p in steps)
         steps.append(at(ring(r, r + 1.0, 0.08, 64), (0.0, 0.0, h - 0.1)))  # roof walkway
-        b.add(f"tank_{i:02d}_stairs", merge(steps), m.steel, (x, y, 0.0))
+        stairs = PartLabels.whole("stairs", n_steps) + PartLabels.whole(
+            "platform", steps[-1].n_triangles
+        )
+        b.add(f"tank_{i:02d}_stairs", merge(steps), m.steel, (x, y, 0.0), labels=stairs)
         b.add(
             f"tank_{i:02d}_bund",
             merge(
@@ -145,6 +154,7 @@ def _tanks(b: SceneBuilder, m: _Materials) -> None:
             ),
             m.concrete,
             (x, y, 0.0),
+            labels="bund",
         )
 
 
@@ -152,9 +162,9 @@ def _columns(b: SceneBuilder, m: _Materials) -> None:
     """Three distillation columns with platforms and caged ladders."""
     cols = [((22.0, -6.0), 1.6, 32.0), ((26.0, 4.0), 1.2, 26.0), ((18.0, 12.0), 2.0, 22.0)]
     for i, ((x, y), r, h) in enumerate(cols):
-        shell, steelwork = _column(r, h, [z for z in np.arange(6.0, h - 2.0, 6.0)])
-        b.add(f"column_{i:02d}", shell, m.grey, (x, y, 0.0))
-        b.add(f"column_{i:02d}_platforms", steelwork, m.steel, (x, y, 0.0))
+        shell, steelwork, labels = _column(r, h, [z for z in np.arange(6.0, h - 2.0, 6.0)])
+        b.add(f"column_{i:02d}", shell, m.grey, (x, y, 0.0), labels="distillation_column")
+        b.add(f"column_{i:02d}_platforms", steelwork, m.steel, (x, y, 0.0), labels=labels)
 
 
 def _pipe_rack(b: SceneBuilder, m: _Materials) -> Callable[[float], float]:
@@ -176,13 +186,14 @@ def _pipe_rack(b: SceneBuilder, m: _Materials) -> Callable[[float], float]:
         t = (y - rack_pos[1]) / rc
         return rack_pos[0] - t * rs
 
-    b.add("pipe_rack", merge(bents), m.steel, rack_pos, ryaw)
+    b.add("pipe_rack", merge(bents), m.steel, rack_pos, ryaw, labels="pipe_rack")
     for lvl, z in enumerate((5.15, 7.3)):
         xs = np.linspace(-1.2, 1.2, 5)
         for k, xk in enumerate(xs):
             r = (0.08, 0.2, 0.12, 0.15, 0.1)[(k + lvl) % 5]
             pipe = cylinder_between((xk, -42.0, z + r), (xk, 42.0, z + r), r, 24)
-            b.add(f"rack_pipe_{lvl}{k}", pipe, m.pipes[(k + 2 * lvl) % 5], rack_pos, ryaw)
+            mat = m.pipes[(k + 2 * lvl) % 5]
+            b.add(f"rack_pipe_{lvl}{k}", pipe, mat, rack_pos, ryaw, labels="pipe")
     return rack_x
 
 
@@ -207,9 +218,14 @@ def _pipe_runs(b: SceneBuilder, m: _Materials, rack_x: Callable[[float], float])
                 for j in range(1, n_sup + 1):
                     c = np.add(p, seg * j / (n_sup + 1))
                     supports.append(box_at((0.2, 0.2, c[2] - rr), c[0], c[1], 0.0))
-        b.add(f"pipe_run_{i:02d}", merge(parts), m.pipes[i % 5])
+        b.add(f"pipe_run_{i:02d}", merge(parts), m.pipes[i % 5], labels="pipe")
         if supports:
-            b.add(f"pipe_run_{i:02d}_supports", merge(supports), m.steel)
+            b.add(
+                f"pipe_run_{i:02d}_supports",
+                merge(supports),
+                m.steel,
+                labels=each_part("pipe_support", supports),
+            )
 
 
 def _flare_and_buildings(b: SceneBuilder, m: _Materials) -> None:
@@ -222,7 +238,7 @@ def _flare_and_buildings(b: SceneBuilder, m: _Materials) -> None:
             at(cylinder(1.2, 1.0, 32), (0.0, 0.0, 0.5)),
         ]
     )
-    b.add("flare_stack", flare, m.red_white, (fx, fy, 0.0))
+    b.add("flare_stack", flare, m.red_white, (fx, fy, 0.0), labels="flare_stack")
     guys = []
     for a in (0.3, 0.3 + 2 * math.pi / 3, 0.3 + 4 * math.pi / 3):
         for z in (15.0, 30.0):
@@ -231,19 +247,26 @@ def _flare_and_buildings(b: SceneBuilder, m: _Materials) -> None:
                     (0.0, 0.0, z), (20.0 * math.cos(a), 20.0 * math.sin(a), 0.0), 0.03, 6
                 )
             )
-    b.add("flare_guy_wires", merge(guys), m.pipes[0], (fx, fy, 0.0))
+    b.add(
+        "flare_guy_wires",
+        merge(guys),
+        m.pipes[0],
+        (fx, fy, 0.0),
+        labels=each_part("guy_wire", guys),
+    )
     b.add(
         "control_building",
         merge([box_at((12.0, 8.0, 4.0), 0.0, 0.0, 0.0), box_at((12.6, 8.6, 0.3), 0.0, 0.0, 4.0)]),
         m.concrete,
         (-5.0, -35.0, 0.0),
+        labels="building",
     )
     for i, (x, y) in enumerate(((8.0, -30.0), (8.0, -25.0))):
         bullet = merge(
             [at(capsule(1.5, 12.0, 32), (0.0, 0.0, 2.0), (0.0, math.pi / 2, 0.0))]
             + [box_at((0.8, 2.4, 1.0), sx, 0.0, 0.0) for sx in (-3.0, 3.0)]
         )
-        b.add(f"bullet_tank_{i}", bullet, m.white, (x, y, 0.0))
+        b.add(f"bullet_tank_{i}", bullet, m.white, (x, y, 0.0), labels="tank")
 
 
 def _clutter(b: SceneBuilder, rng: np.random.Generator, m: _Materials) -> None:
@@ -258,8 +281,10 @@ def _clutter(b: SceneBuilder, rng: np.random.Generator, m: _Materials) -> None:
         if spot is None:
             continue
         x, y, yaw = spot
+        labels: PartLabels | str
         if i % 3 == 0:
-            mesh = merge([at(cylinder(0.29, 0.88, 24), (dx, 0.0, 0.44)) for dx in (-0.3, 0.3)])
+            drums = [at(cylinder(0.29, 0.88, 24), (dx, 0.0, 0.44)) for dx in (-0.3, 0.3)]
+            mesh, labels = merge(drums), each_part("barrel", drums)
         elif i % 3 == 1:
             mesh = merge(
                 [
@@ -268,10 +293,12 @@ def _clutter(b: SceneBuilder, rng: np.random.Generator, m: _Materials) -> None:
                     at(cylinder(0.4, 0.05, 24), (0.0, 0.0, 1.55)),
                 ]
             )
+            labels = "valve"
         else:
             s = rng.uniform(0.6, 1.2)
-            mesh = box_at((s, s, s * 0.8), 0.0, 0.0, 0.0)
-        b.add(f"clutter_{i:02d}", mesh, m.pipes[int(rng.integers(0, 5))], (x, y, 0.0), yaw)
+            mesh, labels = box_at((s, s, s * 0.8), 0.0, 0.0, 0.0), "crate"
+        mat = m.pipes[int(rng.integers(0, 5))]
+        b.add(f"clutter_{i:02d}", mesh, mat, (x, y, 0.0), yaw, labels=labels)
 
 
 def refinery(seed: int = 0) -> Scene:
@@ -281,7 +308,9 @@ def refinery(seed: int = 0) -> Scene:
     rng = tx.rng_for(seed, "refinery")
     b = SceneBuilder(REFINERY_GOAL)
     m = _materials(seed)
-    b.add("ground", box((240.0, 240.0, 0.2), (0.0, 0.0, -0.1)), m.ground, check=False)
+    b.add(
+        "ground", box((240.0, 240.0, 0.2), (0.0, 0.0, -0.1)), m.ground, check=False, labels="ground"
+    )
     _tanks(b, m)
     _columns(b, m)
     rack_x = _pipe_rack(b, m)

@@ -11,6 +11,7 @@
         mesh: models/rack.glb            # relative to this file: OBJ, glTF/GLB, STL, PLY
         pose: {position: [4.0, 2.0, 0.0], rpy: [0.0, 0.0, 1.57]}
         scale: [1.0, 1.0, 1.0]
+        class: rack                      # optional: its class (an object without one is class 0)
       - name: floor
         primitive: {type: box, size: [60.0, 40.0, 0.1]}  # box|plane|cylinder|sphere|capsule
         pose: {position: [0, 0, -0.05], rpy: [0, 0, 0]}
@@ -20,6 +21,12 @@
 Primitives are centred at their pose origin (cylinder/capsule along local z); a plane
 lies in local z = 0 facing +z. UVs of primitives are in metres, so ``texture_scale``
 is texture repeats per metre.
+
+Labels (see :mod:`roslan.scene.classes`): ``class`` names the object's class and makes it
+one instance; ``instance`` names that instance (objects with the same ``instance`` are one,
+e.g. a vehicle's body and wheels); ``parts`` instead cuts the object's triangles, in the
+model's face order, into consecutive runs, each ``{class, triangles, instance}`` its own
+instance (what ``roslan scene export`` writes for the built-ins' merged meshes).
 """
 
 from __future__ import annotations
@@ -38,6 +45,7 @@ __all__ = [
     "LightsSpec",
     "MaterialSpec",
     "ObjectSpec",
+    "PartSpec",
     "PerchSpec",
     "PlaneSpec",
     "PrimitiveSpec",
@@ -133,8 +141,18 @@ PrimitiveSpec = Annotated[
 PRIMITIVE_TYPES = ("box", "plane", "cylinder", "sphere", "capsule")
 
 
+class PartSpec(StrictModel):
+    """A run of ``triangles`` consecutive triangles of an object: one instance of ``class``
+    (named ``instance``; default ``<object>#<index>``)."""
+
+    class_: Name = Field(alias="class")
+    triangles: Annotated[int, Field(ge=1)]
+    instance: Name | None = None
+
+
 class ObjectSpec(StrictModel):
-    """One object: exactly one of ``mesh`` (file) or ``primitive``."""
+    """One object: exactly one of ``mesh`` (file) or ``primitive``; at most one of
+    ``class`` or ``parts``."""
 
     name: Name
     mesh: str | None = None
@@ -142,6 +160,9 @@ class ObjectSpec(StrictModel):
     pose: Pose = Pose()
     scale: tuple[Pos, Pos, Pos] = (1.0, 1.0, 1.0)
     material: MaterialSpec = MaterialSpec()
+    class_: Name | None = Field(default=None, alias="class")
+    instance: Name | None = None
+    parts: tuple[PartSpec, ...] | None = None
 
     @model_validator(mode="after")
     def _one_shape(self) -> ObjectSpec:
@@ -150,6 +171,15 @@ class ObjectSpec(StrictModel):
                 "give exactly one of 'mesh' (a model file) or "
                 "'primitive' ({type: box|plane|cylinder|sphere|capsule, ...})"
             )
+            raise ValueError(msg)
+        if self.parts is not None and (self.class_ is not None or self.instance is not None):
+            msg = "give either 'class' (and 'instance') or 'parts', not both"
+            raise ValueError(msg)
+        if self.parts is not None and not self.parts:
+            msg = "parts: an empty list; give at least one {class, triangles} or leave it out"
+            raise ValueError(msg)
+        if self.instance is not None and self.class_ is None:
+            msg = f"instance {self.instance!r} without a 'class'; give the object's class too"
             raise ValueError(msg)
         return self
 

@@ -13,7 +13,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from roslan.scene import textures as tx
-from roslan.scene.builtin import SceneBuilder, at, box_at, material
+from roslan.scene.builtin import SceneBuilder, at, box_at, each_part, material
+from roslan.scene.classes import PartLabels
 from roslan.scene.mesh import LocalMesh, box, cylinder, cylinder_between, merge
 from roslan.scene.model import DAYLIGHT_SKY, Lights, Material, Scene
 
@@ -107,16 +108,15 @@ def _forklift() -> tuple[LocalMesh, LocalMesh]:
 def _hall(b: SceneBuilder, m: _Materials) -> None:
     """Floor, walls, roof with skylights, roof trusses, lamps and steel columns."""
     L, W, H = HALL_SIZE
-    b.add("floor", box((L, W, 0.2), (0.0, 0.0, -0.1)), m.concrete, check=False)
-    walls = merge(
-        [
-            box((L, 0.3, H), (0.0, W / 2 + 0.15, H / 2)),
-            box((L, 0.3, H), (0.0, -W / 2 - 0.15, H / 2)),
-            box((0.3, W, H), (L / 2 + 0.15, 0.0, H / 2)),
-            box((0.3, W, H), (-L / 2 - 0.15, 0.0, H / 2)),
-        ]
-    )
-    b.add("walls", walls, m.cladding, check=False)
+    b.add("floor", box((L, W, 0.2), (0.0, 0.0, -0.1)), m.concrete, check=False, labels="ground")
+    wall_parts = [
+        box((L, 0.3, H), (0.0, W / 2 + 0.15, H / 2)),
+        box((L, 0.3, H), (0.0, -W / 2 - 0.15, H / 2)),
+        box((0.3, W, H), (L / 2 + 0.15, 0.0, H / 2)),
+        box((0.3, W, H), (-L / 2 - 0.15, 0.0, H / 2)),
+    ]
+    walls = merge(wall_parts)
+    b.add("walls", walls, m.cladding, check=False, labels=each_part("wall", wall_parts))
     # roof with two open skylight bands along x (y = -7..-5 and 5..7): the sun reaches the
     # floor in stripes crossed by the trusses' shadows (a closed roof would leave the
     # whole hall in shadow, lit by the ambient term alone)
@@ -125,7 +125,7 @@ def _hall(b: SceneBuilder, m: _Materials) -> None:
         box((L + 0.6, y1 - y0, 0.2), (0.0, (y0 + y1) / 2, H + 0.1))
         for y0, y1 in zip(edges[0::2], edges[1::2], strict=True)
     ]
-    b.add("roof", merge(slabs), m.roof, check=False)
+    b.add("roof", merge(slabs), m.roof, check=False, labels="roof")
     # roof trusses across y every 6 m: top and bottom chords plus diagonals
     truss_parts = []
     for x in np.arange(-27.0, 27.1, 6.0):
@@ -136,22 +136,29 @@ def _hall(b: SceneBuilder, m: _Materials) -> None:
             truss_parts.append(cylinder_between((x, y + 2.0, 9.75), (x, y + 4.0, 8.7), 0.05, 8))
     for y in (-12.0, 0.0, 12.0):
         truss_parts.append(box((L, 0.2, 0.2), (0.0, y, 9.6)))  # purlins
-    b.add("roof_beams", merge(truss_parts), m.steel, check=False)
+    b.add("roof_beams", merge(truss_parts), m.steel, check=False, labels="roof_beam")
     # lamps under the beams (bright boxes: texture for cameras looking up)
     lamps = [
         box((1.2, 0.3, 0.1), (x, y, 8.4))
         for x in np.arange(-24.0, 24.1, 12.0)
         for y in (-10.0, 0.0, 10.0)
     ]
-    b.add("lamps", merge(lamps), material("lamp", (0.98, 0.98, 0.95), None, 1.0, 0.9), check=False)
+    b.add(
+        "lamps",
+        merge(lamps),
+        material("lamp", (0.98, 0.98, 0.95), None, 1.0, 0.9),
+        check=False,
+        labels=each_part("lamp", lamps),
+    )
     # steel columns, hazard-striped feet
     cols, feet = [], []
     for x in (-24.0, -12.0, 12.0, 24.0):
         for y in (-14.5, 14.5):
             cols.append(box_at((0.4, 0.4, H - 1.2), x, y, 1.2))
             feet.append(box_at((0.42, 0.42, 1.2), x, y, 0.0))
-    b.add("columns", merge(cols), m.steel)
-    b.add("column_guards", merge(feet), m.hazard)
+    keys = [f"column_{k:02d}" for k in range(len(cols))]  # a column and its foot: one
+    b.add("columns", merge(cols), m.steel, labels=each_part("column", cols, keys))
+    b.add("column_guards", merge(feet), m.hazard, labels=each_part("column", feet, keys))
 
 
 def _rack_structure() -> tuple[LocalMesh, LocalMesh]:
@@ -208,20 +215,36 @@ def _racks(b: SceneBuilder, rng: np.random.Generator, m: _Materials) -> None:
     ]
     for k, ((rx, ry), yaw) in enumerate(racks, start=1):
         frame, beams = _rack_structure()
-        b.add(f"rack_{k:02d}_frame", frame, m.steel, (rx, ry, 0.0), yaw)
-        b.add(f"rack_{k:02d}_beams", beams, m.orange, (rx, ry, 0.0), yaw)
+        rack = PartLabels.whole("rack", frame.n_triangles, f"rack_{k:02d}")
+        b.add(f"rack_{k:02d}_frame", frame, m.steel, (rx, ry, 0.0), yaw, labels=rack)
+        rack = PartLabels.whole("rack", beams.n_triangles, f"rack_{k:02d}")
+        b.add(f"rack_{k:02d}_beams", beams, m.orange, (rx, ry, 0.0), yaw, labels=rack)
         goods, pallets = _rack_load(rng)
         if goods:
-            b.add(f"rack_{k:02d}_boxes", merge(goods), m.cardboard, (rx, ry, 0.0), yaw)
+            b.add(
+                f"rack_{k:02d}_boxes",
+                merge(goods),
+                m.cardboard,
+                (rx, ry, 0.0),
+                yaw,
+                labels=each_part("box", goods),
+            )
         if pallets:
-            b.add(f"rack_{k:02d}_pallets", merge(pallets), m.wood, (rx, ry, 0.0), yaw)
+            b.add(
+                f"rack_{k:02d}_pallets",
+                merge(pallets),
+                m.wood,
+                (rx, ry, 0.0),
+                yaw,
+                labels=each_part("pallet", pallets),
+            )
 
 
 def _markings(b: SceneBuilder, m: _Materials) -> None:
     """Floor markings: aisle lines, the landing marker and a walkway frame around it."""
     lines = [box((40.0, 0.12, 0.004), (0.0, y, 0.002)) for y in (-15.5, 15.5)]
     lines += [box((0.12, 28.0, 0.004), (x, 0.0, 0.002)) for x in (-27.0, 16.5)]
-    b.add("floor_lines", merge(lines), m.yellow, check=False)
+    b.add("floor_lines", merge(lines), m.yellow, check=False, labels="floor_marking")
     gx, gy, gz = WAREHOUSE_GOAL[0]
     gyaw = WAREHOUSE_GOAL[1][2]
     b.add(
@@ -231,10 +254,19 @@ def _markings(b: SceneBuilder, m: _Materials) -> None:
         (gx, gy, 0.0),
         gyaw,
         check=False,
+        labels="landing_marker",
     )
     pad = [box((3.2, 0.08, 0.004), (0.0, s * 1.6, 0.002)) for s in (-1, 1)]
     pad += [box((0.08, 3.2, 0.004), (s * 1.6, 0.0, 0.002)) for s in (-1, 1)]
-    b.add("landing_area_lines", merge(pad), m.yellow, (gx, gy, 0.0), gyaw, check=False)
+    b.add(
+        "landing_area_lines",
+        merge(pad),
+        m.yellow,
+        (gx, gy, 0.0),
+        gyaw,
+        check=False,
+        labels="floor_marking",
+    )
 
 
 def _clutter(b: SceneBuilder, rng: np.random.Generator, seed: int, m: _Materials) -> None:
@@ -250,21 +282,27 @@ def _clutter(b: SceneBuilder, rng: np.random.Generator, seed: int, m: _Materials
             continue
         x, y, yaw = spot
         n = int(rng.integers(1, 6))
-        stack = merge([at(_pallet(), (0.0, 0.0, 0.144 * j)) for j in range(n)])
-        b.add(f"pallet_stack_{i:02d}", stack, m.wood, (x, y, 0.0), yaw)
+        layers = [at(_pallet(), (0.0, 0.0, 0.144 * j)) for j in range(n)]
+        b.add(
+            f"pallet_stack_{i:02d}",
+            merge(layers),
+            m.wood,
+            (x, y, 0.0),
+            yaw,
+            labels=each_part("pallet", layers),
+        )
     for i in range(10):
         spot = b.free_spot(rng, *zones[i % 3], (0.6, 0.6))
         if spot is None:
             continue
         x, y, yaw = spot
         if i % 2:
-            bar = merge(
-                [
-                    at(cylinder(0.29, 0.88, 24), (dx, dy, 0.44))
-                    for dx in (-0.3, 0.3)
-                    for dy in (-0.3, 0.3)
-                ]
-            )
+            drums = [
+                at(cylinder(0.29, 0.88, 24), (dx, dy, 0.44))
+                for dx in (-0.3, 0.3)
+                for dy in (-0.3, 0.3)
+            ]
+            bar = merge(drums)
             color = (0.1, 0.25, 0.7) if rng.random() < 0.5 else (0.7, 0.12, 0.1)
             b.add(
                 f"clutter_barrels_{i:02d}",
@@ -272,27 +310,35 @@ def _clutter(b: SceneBuilder, rng: np.random.Generator, seed: int, m: _Materials
                 material(f"barrel{i}", (1, 1, 1), tx.painted_metal(seed, color), 2.0, 0.5),
                 (x, y, 0.0),
                 yaw,
+                labels=each_part("barrel", drums),
             )
         else:
             sx, sy, sz = rng.uniform(0.6, 1.2, 3)
-            crate = merge(
-                [
-                    box_at((sx, sy, sz), 0.0, 0.0, 0.0),
-                    box_at((sx * 0.8, sy * 0.8, sz * 0.7), 0.0, 0.0, sz),
-                ]
+            crates = [
+                box_at((sx, sy, sz), 0.0, 0.0, 0.0),
+                box_at((sx * 0.8, sy * 0.8, sz * 0.7), 0.0, 0.0, sz),
+            ]
+            b.add(
+                f"clutter_crates_{i:02d}",
+                merge(crates),
+                m.cardboard,
+                (x, y, 0.0),
+                yaw,
+                labels=each_part("crate", crates),
             )
-            b.add(f"clutter_crates_{i:02d}", crate, m.cardboard, (x, y, 0.0), yaw)
     spot = b.free_spot(rng, (-28.0, -16.0), (-12.0, 12.0), (1.5, 0.7))
     if spot is not None:
         x, y, yaw = spot
         body, wheels = _forklift()
-        b.add("forklift_body", body, m.yellow, (x, y, 0.0), yaw)
+        fork = PartLabels.whole("forklift", body.n_triangles, "forklift")
+        b.add("forklift_body", body, m.yellow, (x, y, 0.0), yaw, labels=fork)
         b.add(
             "forklift_wheels_mast",
             wheels,
             material("rubber", (0.08, 0.08, 0.08), None, 1.0, 0.1),
             (x, y, 0.0),
             yaw,
+            labels=PartLabels.whole("forklift", wheels.n_triangles, "forklift"),
         )
 
 
