@@ -17,13 +17,13 @@ tested: their surfaces are still hit by the path casts, but a point inside a lea
 that never crosses its surface is not reported.
 
 Each point is first tested against the object's bounding box (vectorised), so only the
-few points near a closed object reach the ray test.
+few points near a closed object reach the ray test, and an object is meshed (and checked
+watertight) only when some point lies in its box.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from functools import lru_cache
+from functools import cached_property, lru_cache
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -50,18 +50,29 @@ CONTACT_DEPTH = 1e-3
 its surface: at touchdown it lies on the surface itself."""
 
 
-@dataclass(frozen=True, eq=False)
 class ClosedObject:
-    """A watertight object of a scene (:func:`closed_objects`)."""
+    """A scene object that may close a volume: its bounding box at once, its merged
+    :class:`trimesh.Trimesh` (None when not watertight) when first needed."""
 
-    index: int
-    """Its index in :attr:`Scene.objects`."""
-    name: str
-    lo: F64
-    """(3,) bounding box corner, m."""
-    hi: F64
-    mesh: Any
-    """The :class:`trimesh.Trimesh` (vertices merged)."""
+    def __init__(self, index: int, obj: Any) -> None:
+        self.index = index
+        """Its index in :attr:`Scene.objects`."""
+        self.name: str = obj.name
+        v = np.asarray(obj.vertices, dtype=np.float64)
+        self.lo: F64 = v.min(axis=0)
+        self.hi: F64 = v.max(axis=0)
+        self._obj = obj
+
+    @cached_property
+    def mesh(self) -> Any:
+        """The object's triangles with coincident vertices merged, if watertight."""
+        import trimesh
+
+        obj = self._obj
+        mesh = trimesh.Trimesh(
+            np.asarray(obj.vertices, dtype=np.float64), np.asarray(obj.faces), process=True
+        )
+        return mesh if mesh.is_watertight else None
 
 
 class Inside(NamedTuple):
@@ -78,22 +89,14 @@ class Inside(NamedTuple):
 
 
 @lru_cache(maxsize=8)
+def _candidates(scene: Scene) -> tuple[ClosedObject, ...]:
+    # fewer than a tetrahedron's four faces cannot close a volume
+    return tuple(ClosedObject(i, o) for i, o in enumerate(scene.objects) if o.n_triangles >= 4)
+
+
 def closed_objects(scene: Scene) -> tuple[ClosedObject, ...]:
     """The watertight objects of ``scene`` (see the module docstring), in scene order."""
-    import trimesh
-
-    out = []
-    for i, obj in enumerate(scene.objects):
-        if obj.n_triangles < 4:  # fewer than a tetrahedron's faces cannot close a volume
-            continue
-        mesh = trimesh.Trimesh(
-            np.asarray(obj.vertices, dtype=np.float64), np.asarray(obj.faces), process=True
-        )
-        if not mesh.is_watertight:
-            continue
-        lo, hi = mesh.bounds
-        out.append(ClosedObject(i, obj.name, lo.copy(), hi.copy(), mesh))
-    return tuple(out)
+    return tuple(c for c in _candidates(scene) if c.mesh is not None)
 
 
 def inside(scene: Scene, points: F64, depth: float = 0.0) -> NDArray[np.int64]:
@@ -105,11 +108,11 @@ def inside(scene: Scene, points: F64, depth: float = 0.0) -> NDArray[np.int64]:
     """
     p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
     owner = np.full(p.shape[0], -1, dtype=np.int64)
-    for obj in closed_objects(scene):
+    for obj in _candidates(scene):  # meshes built (and checked closed) only when needed
         near = np.flatnonzero(
             (owner < 0) & np.all(p >= obj.lo - depth, axis=1) & np.all(p <= obj.hi + depth, axis=1)
         )
-        if not near.size:
+        if not near.size or obj.mesh is None:
             continue
         within = near[np.asarray(obj.mesh.contains(p[near]), dtype=bool)]
         if depth > 0.0 and within.size:
@@ -135,7 +138,7 @@ def first_inside(scene: Scene, world: F64, depth: float = 0.0) -> Inside | None:
     """The earliest (then lowest-numbered) point of ``world`` (n instants, K points, 3;
     m) inside a closed object of ``scene``, or None."""
     w = np.asarray(world, dtype=np.float64)
-    if w.size == 0 or not closed_objects(scene):
+    if w.size == 0 or not _candidates(scene):
         return None
     n, k = w.shape[0], w.shape[1]
     owner = inside(scene, w.reshape(-1, 3), depth)
