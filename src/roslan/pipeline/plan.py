@@ -170,7 +170,8 @@ def make_plan(
     source = str(config_path) if config_path is not None else "<config>"
     check_limits(config, traj.duration, fmts, source)
     preflight(config, traj)
-    check_free_space(outdir, estimate_run(config, fmts).bytes, "this run")
+    est = estimate_run(config, fmts, duration=traj.duration)
+    check_free_space(outdir, est.bytes, "this run")
     sensors = _sensors(config)
     check_namespace(sensors, source)
     gt = GroundTruth(
