@@ -167,3 +167,40 @@ def test_the_env_ends_an_episode_started_inside_a_box_with_a_collision(tmp_path:
     assert ep["reason"] == "collision"
     assert "inside object 'crate'" in ep["detail"]
     assert json.dumps(ep)  # episode.json-ready
+
+
+def test_feet_may_sink_into_a_floor_markings_paint_on_landing(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Only the start counts for the contact points: a landing whose feet end 3 mm deep
+    in a 6 mm painted marking (a thin closed box, as the warehouse's landing lines) runs."""
+    (tmp_path / "room.yaml").write_text(
+        yaml.safe_dump(
+            {
+                "name": "painted",
+                "objects": [
+                    {
+                        "name": "paint",
+                        "primitive": {"type": "box", "size": [1.0, 1.0, 0.006]},
+                        "pose": {"position": [0.0, 0.0, 0.003]},
+                    }
+                ],
+            }
+        )
+    )
+    t = np.arange(0.0, 1.0 + 1e-9, 0.01)
+    z = 0.08 + 0.003 + 0.05 * (1.0 - t)  # the feet (8 cm below) from 5 cm above to 3 mm in
+    rows = np.column_stack([t, 0 * t, 0 * t, z, np.tile([0, 0, 0, 1.0], (t.size, 1))])
+    np.savetxt(tmp_path / "landing.txt", rows, "%.9f")
+    job = tmp_path / "job.yaml"
+    job.write_text(
+        yaml.safe_dump(
+            {
+                "trajectory": {"file": "landing.txt"},
+                "scene": "room.yaml",
+                "sensors": [{"type": "imu", "name": "imu", "rate": 200.0}],
+            }
+        )
+    )
+    assert main(["simulate", str(job), "-o", str(tmp_path / "out"), "--dry-run"]) == 0
+    assert "1 valid, 0 invalid" in capsys.readouterr().out

@@ -10,7 +10,8 @@ base_link to every point (nothing may lie between base_link and its own sensors)
 hit is a collision: unlike the contact points (feet, grasp point), none of these points
 may touch a surface, so no tolerance around the goal is needed. A point held inside a
 closed object without crossing its surface (a body wholly inside a box), and a contact
-point more than 1 mm inside one, is a collision too (:mod:`roslan.scene.containment`).
+point more than 1 mm inside one at the start, is a collision too
+(:mod:`roslan.scene.containment`).
 """
 
 from __future__ import annotations
@@ -198,20 +199,25 @@ def check_clearance(
         hit = path_hit(scene, P, tb, sb.position, sb.R_world_body)
         if hit is not None:
             return message(vp.labels[hit.point], hit.triangle, hit.where, hit.time)
-    return _inside(scene, st, vp, vehicle, slice(None, None, 20)) or static(T_end)
+    # later on, a contact point may sink into what it lands on (a floor marking's paint)
+    return _inside(scene, st, vp, vehicle, slice(None, None, 20), feet=False) or static(T_end)
 
 
-def _inside(scene: Scene, st: Any, vp: VehiclePoints, vehicle: Any, pick: slice) -> str | None:
-    """A body, sensor or contact point inside a closed object at the instants ``pick`` of
-    the states ``st`` (:mod:`roslan.scene.containment`): a point that never crosses a
-    surface (the path casts find every one crossed) but is held inside."""
+def _inside(
+    scene: Scene, st: Any, vp: VehiclePoints, vehicle: Any, pick: slice, *, feet: bool = True
+) -> str | None:
+    """A body, sensor or (``feet``) contact point inside a closed object at the instants
+    ``pick`` of the states ``st`` (:mod:`roslan.scene.containment`): a point that never
+    crosses a surface (the path casts find every one crossed) but is held inside."""
     from roslan.scene.containment import vehicle_contacts, vehicle_inside
     from roslan.vehicle import VehicleConfig
 
-    feet, names = vehicle_contacts(vehicle if vehicle is not None else VehicleConfig())
+    contacts, names = vehicle_contacts(vehicle if vehicle is not None else VehicleConfig())
+    if not feet:
+        contacts, names = contacts[:0], ()
     found = vehicle_inside(
         scene, st.t[pick], st.position[pick], st.R_world_body[pick], vp.points, vp.labels,
-        feet, names,
+        contacts, names,
     )  # fmt: skip
     if found is None:
         return None
