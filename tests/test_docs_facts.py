@@ -280,3 +280,44 @@ def test_no_stale_figure_is_left() -> None:
         flat = " ".join(text.split())
         for stale in ("35,358", "6.7 GB", "4.8 min", "3.0-3.3", "about 7 real-time", "-o out/"):
             assert stale not in flat, f"{path.name}: {stale}"
+
+
+def _readme_yaml(name: str, folder: Path) -> Path:
+    m = re.search(rf"```yaml\n# {name}\.yaml\n(.*?)```", README, re.S)
+    assert m is not None, name
+    path = folder / f"{name}.yaml"
+    path.write_text(m.group(1), encoding="utf-8")
+    return path
+
+
+def test_run_time_figures_are_the_estimators_on_two_cores(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The demo's time in the README and the guide (measured on the quiet machine, and
+    the dry run's estimate) and the estimate column of docs/performance.md's table are
+    what the estimator gives for those configs on an idle 2-core machine."""
+    from roslan.config.base import load_yaml_model
+    from roslan.config.sim import SimConfig
+    from roslan.pipeline.estimate import estimate_run, format_seconds
+
+    monkeypatch.setattr(os, "cpu_count", lambda: 2)
+    flat = " ".join(README.split())
+    rtf = re.search(r"was (\d\.\d)–(\d\.\d) on a quiet 2-core .*?: ([\d.]+)–([\d.]+) s;", flat)
+    assert rtf is not None
+    # the measured seconds are the real-time factors times the 5.1 s landing
+    assert float(rtf.group(3)) == pytest.approx(float(rtf.group(1)) * 5.1, abs=0.05)
+    assert float(rtf.group(4)) == pytest.approx(float(rtf.group(2)) * 5.1, abs=0.05)
+    default = ROOT / "src" / "roslan" / "data" / "default.yaml"
+    est = estimate_run(load_yaml_model(SimConfig, default))
+    quoted = f"`--dry-run` estimates {format_seconds(est.seconds)}"
+    assert quoted in flat
+    assert quoted in " ".join(_guide("performance.md").split())
+    assert f"{rtf.group(3)}-{rtf.group(4)} s" in " ".join(_guide("performance.md").split())
+    table = PERFORMANCE.split("## Run-time estimates", 1)[1].split("\n## ", 1)[0]
+    rows = re.findall(r"^\| `?(\w+)`? \| [^|]+ \| ([\d.]+) s \| ([\d.]+) \|", table, re.M)
+    assert [r[0] for r in rows] == ["job", "perch", "vision", "ranges", "default"]
+    for name, seconds, cpu in rows:
+        path = default if name == "default" else _readme_yaml(name, tmp_path)
+        e = estimate_run(load_yaml_model(SimConfig, path), base_dir=path.parent)
+        assert f"{e.seconds:.1f}" == seconds, name
+        assert f"{e.cpu:.1f}" == cpu, name

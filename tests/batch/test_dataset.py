@@ -7,6 +7,7 @@ import itertools
 import json
 import math
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -210,3 +211,37 @@ def test_tiny_dataset_end_to_end(tmp_path: Path, capsys: pytest.CaptureFixture[s
     # the default sensor suite into the same folder: the run would refuse every task
     assert main(["dataset", "-o", str(out), "--scenes", "empty", "--dry-run"]) == 1
     assert "0 valid, 6 invalid" in capsys.readouterr().out
+
+
+def test_the_dry_run_builds_each_landings_scene_once(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The plan's clearance check and the run's checks share the scene each landing is
+    built with (its own seed): one build per landing, even with more scenes than the scene
+    cache holds (two scenes: 14 scenes, 8 kept); main built each twice."""
+    import roslan.scene.builtin as builtin
+    import roslan.scene.loader as loader
+    from roslan.cli import main
+
+    built: list[int] = []
+    real = builtin.empty
+
+    def counted(seed: int = 0) -> Any:
+        built.append(seed)
+        return real(seed)
+
+    monkeypatch.setattr(builtin, "empty", counted)
+    loader._builtin.cache_clear()
+    try:
+        out = tmp_path / "ds"
+        args = ["dataset", "-o", str(out), "--scenes", "empty", "refinery", "--dry-run"]
+        assert main(args) == 0
+    finally:
+        loader._builtin.cache_clear()
+    plan = dataset_plan(["empty", "refinery"], check_clearance=False)
+    seeds = [r.seed for r in plan if r.scene == "empty"]
+    assert len(seeds) == 6
+    assert [built.count(s) for s in seeds] == [1] * 6  # each landing's scene built once
+    assert set(built) == {0, *seeds}  # and the goal's (seed 0)
+    assert "12 valid, 0 invalid" in capsys.readouterr().out
+    assert not out.exists()

@@ -14,7 +14,7 @@ from roslan.cli import main
 from roslan.config.sim import SimConfig
 from roslan.errors import OutputError
 from roslan.pipeline import run_simulation
-from roslan.pipeline.estimate import estimate_run, format_bytes, format_seconds
+from roslan.pipeline.estimate import IDLE_CPU_RATIO, estimate_run, format_bytes, format_seconds
 
 
 def _config() -> SimConfig:
@@ -188,3 +188,44 @@ def test_estimate_counts_the_flow_maps_of_their_interval() -> None:
     for i, nbytes in parts.items():
         assert nbytes == pytest.approx(maps[i] * per_map)
     assert "flow" not in estimate_run(_flow_config()).parts
+
+
+def test_a_pose_file_is_estimated_over_its_own_duration(tmp_path: Path) -> None:
+    """A ``trajectory.file`` run is estimated over the file's poses (0.25 s here), not over
+    the default tau landing's 5.1 s."""
+    t = np.arange(0.0, 0.25 + 1e-9, 0.01)
+    rows = np.column_stack([t, np.tile([0.0, 0.0, 1.5, 0.0, 0.0, 0.0, 1.0], (t.size, 1))])
+    np.savetxt(tmp_path / "hover.txt", rows, "%.9f")
+    cfg = SimConfig.model_validate(
+        {
+            "trajectory": {"file": "hover.txt"},
+            "scene": "warehouse",
+            "sensors": [{"type": "lidar", "name": "v", "preset": "hdl32e", "rate": 10}],
+        }
+    )
+    est = estimate_run(cfg, base_dir=tmp_path)
+    assert est.bytes == estimate_run(cfg, duration=0.25).bytes
+    # 2.5 turns of 69,440 beams (all return in the enclosed warehouse), 14 bytes each
+    assert est.parts["lidar"] == pytest.approx(2.5 * 69_440 * 14.0)
+    assert est.bytes < estimate_run(cfg, duration=5.1).bytes / 5
+
+
+def test_the_dry_run_names_its_assumption(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    import os
+
+    job = tmp_path / "job.yaml"
+    job.write_text(yaml.safe_dump(_config().model_dump(mode="json")))
+    assert main(["simulate", str(job), "-o", str(tmp_path / "out"), "--dry-run"]) == 0
+    out = " ".join(capsys.readouterr().out.split())
+    est = estimate_run(_config())
+    cores = os.cpu_count() or 1
+    assert f"{format_seconds(est.seconds)} of run time (on an idle machine with {cores} core" in out
+    assert "of it set-up" in out
+    assert "kernel compilation" in out  # it has an event camera
+    # the set-up and the sensors' work add up to the CPU seconds; the wall time lies
+    # between the CPU time shared over the cores and all of it on one
+    assert 0 < est.setup_seconds < est.seconds
+    assert sum(est.sensor_cpu.values()) < est.cpu
+    assert est.cpu * IDLE_CPU_RATIO / cores <= est.seconds <= est.cpu * IDLE_CPU_RATIO

@@ -512,14 +512,22 @@ def test_byte_queue_is_bounded() -> None:
         q.put(b"y", timeout=0.05)  # full: a producer would wait here
     assert q.nbytes == 100
     assert q.get() == b"x" * 60
+    with pytest.raises(TimeoutError):
+        q.put(b"y" * 50, timeout=0.05)  # the blob being sent still counts
+    q.sent()
     q.put(b"y" * 50)
     assert q.nbytes == 90
     assert q.get() == b"x" * 40
+    q.sent()
     assert q.get() == b"y" * 50
-    q.put(b"z" * 500)  # one larger message still passes when the queue is empty
+    with pytest.raises(TimeoutError):
+        q.put(b"z" * 500, timeout=0.05)  # too large beside the one being sent
+    q.sent()
+    q.put(b"z" * 500)  # one larger message passes when nothing waits or is being sent
     with pytest.raises(TimeoutError):
         q.put(b"w", timeout=0.05)
     assert q.get() == b"z" * 500
+    q.sent()
     assert q.peak_bytes == 500
     q.put(None)
     assert q.get() is None

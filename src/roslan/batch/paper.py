@@ -35,7 +35,7 @@ import csv
 import io
 import json
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -61,6 +61,7 @@ __all__ = [
     "build_dataset",
     "dataset_plan",
     "default_sensor_suite",
+    "iter_dataset_plan",
     "write_index",
 ]
 
@@ -231,7 +232,27 @@ def dataset_plan(
     formats: Sequence[str] | None = None,
     check_clearance: bool = True,
 ) -> list[DatasetRun]:
-    """The dataset's simulations, in order (scene by scene, trajectories 1..6).
+    """The dataset's simulations, in order (scene by scene, trajectories 1..6); the
+    arguments are :func:`iter_dataset_plan`'s."""
+    return list(
+        iter_dataset_plan(
+            scenes, seed=seed, sensors=sensors, duration=duration, formats=formats,
+            check_clearance=check_clearance,
+        )
+    )  # fmt: skip
+
+
+def iter_dataset_plan(
+    scenes: Sequence[str] = PAPER_SCENES,
+    *,
+    seed: int = 0,
+    sensors: Sequence[Mapping[str, Any]] | None = None,
+    duration: float | None = None,
+    formats: Sequence[str] | None = None,
+    check_clearance: bool = True,
+) -> Iterator[DatasetRun]:
+    """The dataset's simulations one at a time, in order (scene by scene, trajectories
+    1..6): a caller that checks each one as it comes finds its scene still loaded.
 
     Args:
         scenes: built-in scene names or scene YAML paths.
@@ -256,7 +277,6 @@ def dataset_plan(
         msg = f"--duration = {duration}: must be a finite number of seconds > 0"
         raise ConfigError(msg)
     suite = [dict(s) for s in (sensors if sensors is not None else default_sensor_suite())]
-    runs = []
     for j, scene_name in enumerate(scenes):
         goal = _scene_goal(scene_name)
         label = Path(scene_name).stem if scene_name.endswith((".yaml", ".yml")) else scene_name
@@ -292,7 +312,7 @@ def dataset_plan(
             }
             if formats is not None:
                 config["output"] = {"formats": list(formats)}
-            runs.append(
+            yield (
                 DatasetRun(
                     folder=f"{label}_{i + 1:02d}",
                     scene=label,
@@ -306,7 +326,6 @@ def dataset_plan(
                     config=config,
                 )
             )
-    return runs
 
 
 # --------------------------------------------------------------------------- outputs

@@ -56,35 +56,31 @@ def _dataset(args: argparse.Namespace) -> int:
 def _dataset_dry_run(args: argparse.Namespace, sensors: list[dict[str, Any]] | None) -> int:
     import math
 
-    from roslan.batch.paper import dataset_plan
+    from roslan.batch.paper import iter_dataset_plan
     from roslan.batch.runner import dry_check
     from roslan.batch.tasks import make_tasks
     from roslan.cli.dryrun import PlanRow, print_plan
 
-    runs = dataset_plan(
+    rows = []
+    # each landing checked as soon as it is planned: its scene (built with its seed for
+    # the plan's clearance check) is still loaded for the run's checks
+    for r in iter_dataset_plan(
         args.scenes, seed=args.seed, sensors=sensors, duration=args.duration,
         formats=bag_formats(args.format),
-    )  # fmt: skip
-    tasks = make_tasks(
-        [r.config for r in runs], Path.cwd(), names=[r.folder for r in runs],
-        overrides=[{} for _ in runs], source="roslan dataset",
-    )  # fmt: skip
-    rows = [
-        PlanRow(
-            r.folder,
-            {
-                "kappa_x": f"{r.kappa_x:g}",
-                "kappa_y": f"{r.kappa_y:g}",
-                "speed m/s": f"{r.speed:.2f}",
-                "heading deg": f"{math.degrees(r.heading):.0f}",
-                "distance m": f"{r.distance:.2f}",
-                "seed": str(r.seed),
-            },
-            config=r.config,
-            error=dry_check(t, args.output, args.overwrite),
+    ):  # fmt: skip
+        (task,) = make_tasks(
+            [r.config], Path.cwd(), names=[r.folder], overrides=[{}], source="roslan dataset"
         )
-        for r, t in zip(runs, tasks, strict=True)
-    ]
+        values = {
+            "kappa_x": f"{r.kappa_x:g}",
+            "kappa_y": f"{r.kappa_y:g}",
+            "speed m/s": f"{r.speed:.2f}",
+            "heading deg": f"{math.degrees(r.heading):.0f}",
+            "distance m": f"{r.distance:.2f}",
+            "seed": str(r.seed),
+        }
+        error = dry_check(task, args.output, args.overwrite)
+        rows.append(PlanRow(r.folder, values, config=r.config, error=error))
     return print_plan("roslan dataset plan", rows, Path(args.output), args.workers)
 
 

@@ -100,7 +100,8 @@ def print_plan(
     )  # fmt: skip
     line = (
         f"{n_ok} valid, {n_bad} invalid; estimated {format_bytes(total_b)} of disk and "
-        f"{format_seconds(batch_seconds(ests, workers))} of run time in total ({how})"
+        f"{format_seconds(batch_seconds(ests, workers))} of run time in total ({how}, "
+        f"on an idle machine with {os.cpu_count() or 1} cores)"
     )
     if outdir is not None:
         line += f"; {format_bytes(_free(outdir))} free at {outdir}"
@@ -115,11 +116,14 @@ def _free(path: Path) -> float:
     return float(shutil.disk_usage(probe).free)
 
 
-def print_run_estimate(config: Any, outdir: Path, formats: tuple[str, ...] | None) -> int:
-    """``roslan simulate --dry-run``: the estimate of one run, output by output."""
+def print_run_estimate(
+    config: Any, outdir: Path, formats: tuple[str, ...] | None, *, duration: float | None = None
+) -> int:
+    """``roslan simulate --dry-run``: the estimate of one run, output by output
+    (``duration``: the trajectory's, s, as the checks built it)."""
     from rich.table import Table
 
-    est = estimate_run(config, formats)
+    est = estimate_run(config, formats, duration=duration)
     table = Table(title=f"roslan simulate plan: {outdir}")
     table.add_column("output")
     table.add_column("est. disk", justify="right")
@@ -130,7 +134,7 @@ def print_run_estimate(config: Any, outdir: Path, formats: tuple[str, ...] | Non
     con.print(table)
     con.print(
         f"1 valid, 0 invalid; estimated {format_bytes(est.bytes)} of disk and "
-        f"{format_seconds(est.seconds)} of run time; {format_bytes(_free(outdir))} free at "
-        f"{outdir}"
+        f"{format_seconds(est.seconds)} of run time ({est.assumption()}); "
+        f"{format_bytes(_free(outdir))} free at {outdir}"
     )
     return 0

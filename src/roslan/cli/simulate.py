@@ -74,7 +74,7 @@ def _run(args: argparse.Namespace, config: SimConfig, path: Path | None) -> int:
         from roslan.cli.dryrun import print_run_estimate
         from roslan.pipeline import check_run
 
-        check_run(
+        plan = check_run(
             config,
             args.outdir,
             overwrite=args.overwrite,
@@ -83,7 +83,7 @@ def _run(args: argparse.Namespace, config: SimConfig, path: Path | None) -> int:
             allow_collision=args.allow_collision,
             workers=args.workers,
         )
-        return print_run_estimate(config, args.outdir, formats)
+        return print_run_estimate(config, args.outdir, formats, duration=plan.traj.duration)
     run = run_simulation(
         config,
         args.outdir,

@@ -6,7 +6,9 @@ The rules are ``simulate``'s (:mod:`roslan.vehicle`, :mod:`roslan.scene.clearanc
   point on a perch) reaches the goal's surface plane, or a contact point (any foot, the
   grasp point) meets scene geometry: the first such instant, to the nanosecond;
 * **collision**: a point of the body or any sensor's origin or near plane meets scene
-  geometry (no tolerance; the contact points may touch).
+  geometry (no tolerance; the contact points may touch), or lies inside a closed object
+  at the step's start or end, as does a contact point more than 1 mm deep
+  (:mod:`roslan.scene.containment`).
 
 Inside each control step the vehicle's points are followed through ``SAMPLES`` instants
 (straight segments between them, cast with Embree); the goal-plane crossing is then
@@ -23,6 +25,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from roslan.scene.clearance import SegmentCaster, path_hit, vehicle_points
+from roslan.scene.containment import vehicle_contacts, vehicle_inside
 from roslan.vehicle import contact_point, resolve_contact
 
 if TYPE_CHECKING:
@@ -106,6 +109,7 @@ class ContactModel:
         self.body, self.labels = vp.points, vp.labels
         feet = np.asarray(config.vehicle.feet if which == "feet" else [config.vehicle.grasp])
         self.contacts = np.asarray(feet, dtype=np.float64).reshape(-1, 3)
+        self.all_contacts = vehicle_contacts(config.vehicle)  # feet and grasp: inside tests
 
     def height(self, t: F64) -> F64:
         """(n,) height of the contact point above the goal's plane at instants ``t`` (s)."""
@@ -149,6 +153,14 @@ class ContactModel:
             if hit is not None:
                 what = f"{self.labels[hit.point]} hit object {hit.obj!r}"
                 events.append(StepEvent("collision", _ns(hit.time, t0_ns, t1_ns), what))
+            ends = [0, -1]  # entering crosses a surface (above): inside without crossing
+            held = vehicle_inside(
+                self.scene, t[ends], st.position[ends], st.R_world_body[ends], self.body,
+                self.labels, *self.all_contacts,
+            )  # fmt: skip
+            if held is not None:  # inside a closed object at the step's start or end
+                what = f"{held[1]} inside object {held[2]!r}"
+                events.append(StepEvent("collision", _ns(held[0], t0_ns, t1_ns), what))
             foot = path_hit(self.scene, self.caster, self.contacts, t, st.position, st.R_world_body)
             if foot is not None:
                 what = f"object {foot.obj!r}"

@@ -10,8 +10,8 @@ of threads (the writers in :mod:`roslan.io.bag` are byte-identical to rosbags' o
 :class:`~roslan.io.ordered.OrderedPool` on the run's shared chunk pool.
 
 Memory stays bounded: each bag thread's queue holds at most :data:`QUEUE_BATCHES` batches
-of at most :data:`BATCH_BYTES` (plus one message), and at most ``depth`` chunks wait for
-their compression.
+and :data:`QUEUE_BYTES` (or one larger message alone), and at most ``depth`` chunks wait
+for their compression (one, when a chunk reaches :data:`BIG_CHUNK_BYTES`).
 """
 
 from __future__ import annotations
@@ -37,6 +37,14 @@ BATCH_MESSAGES = 512
 
 QUEUE_BATCHES = 8
 """Batches waiting for one bag thread at most (the merge blocks beyond)."""
+
+QUEUE_BYTES = QUEUE_BATCHES * BATCH_BYTES
+"""Message bytes waiting for one bag thread at most, unless its queue is empty (a single
+message larger than this, e.g. a 12.8 M-point cloud of 282 MB, waits alone)."""
+
+BIG_CHUNK_BYTES = 64 << 20
+"""A chunk at least this large is written before the next one is started (chunks this
+size hold one huge message each: several in flight would hold several scans)."""
 
 _STOP = object()
 
@@ -101,7 +109,7 @@ class OrderedChunks:
         """Compress ``data`` (the chunk's uncompressed bytes) and write ``payload`` out once
         every earlier chunk is written; ``now``: before returning."""
         self._write(self._ordered.submit(self._compress, payload, data))
-        if now:
+        if now or len(data) >= BIG_CHUNK_BYTES:
             self.drain()
 
     def drain(self) -> None:
@@ -133,6 +141,8 @@ class BagThread:
         self._q: queue.Queue[Any] = queue.Queue(maxsize=QUEUE_BATCHES)
         self._batch: list[tuple[str, int, Any]] = []
         self._bytes = 0
+        self._queued = 0  # bytes of the batches handed over and not yet written
+        self._room = threading.Condition()
         self.error: BaseException | None = None
         self.cpu_s = 0.0
         """CPU time of this thread (its share of writing, compression excluded)."""
@@ -149,6 +159,7 @@ class BagThread:
             if self.error is not None or self._aborted:
                 if item is _STOP:
                     break
+                self._release(item)
                 continue  # drain without writing: the first error is reported
             try:
                 if item is _STOP:
@@ -160,7 +171,15 @@ class BagThread:
                 self.error = err
                 if item is _STOP:
                     break
+            finally:
+                if item is not _STOP:
+                    self._release(item)
         self.cpu_s = time.thread_time() - c0
+
+    def _release(self, batch: list[tuple[str, int, Any]]) -> None:
+        with self._room:
+            self._queued -= sum(len(d) for _, _, d in batch)
+            self._room.notify_all()
 
     def put(self, topic: str, stamp_ns: int, data: Any) -> None:
         """Queue one message (in merge order)."""
@@ -173,7 +192,17 @@ class BagThread:
         """Hand the collected messages to the thread (raises its first error)."""
         self._raise()
         if self._batch:
-            batch, self._batch, self._bytes = self._batch, [], 0
+            batch, self._batch, size, self._bytes = self._batch, [], self._bytes, 0
+            while True:  # at most QUEUE_BYTES waiting (or this batch alone)
+                with self._room:
+                    if not self._queued or self._queued + size <= QUEUE_BYTES:
+                        self._queued += size
+                        break
+                    self._room.wait(0.5)
+                self._raise()
+                if not self._thread.is_alive():  # pragma: no cover - defensive
+                    msg = "a bag writer thread stopped"
+                    raise RuntimeError(msg) from None
             while True:
                 try:
                     self._q.put(batch, timeout=0.5)

@@ -127,10 +127,14 @@ default job's LiDAR scans level 1 is within 1.5 % of its size for a third less C
 def save_npz(fh: IO[bytes], arrays: dict[str, Any], level: int = NPZ_DEFLATE_LEVEL) -> None:
     """``np.savez_compressed(fh, **arrays)`` at deflate ``level``: the same zip layout (one
     ``NAME.npy`` member per array, in the order given, fixed 1980 timestamps, zip64), read
-    by ``np.load`` as any ``.npz``."""
+    by ``np.load`` as any ``.npz``. A callable value is called for its array when its
+    member is written (one array of a large file in memory at a time)."""
     import zipfile
 
     with zipfile.ZipFile(fh, "w", compression=zipfile.ZIP_DEFLATED, compresslevel=level) as zf:
         for name, value in arrays.items():
+            if callable(value):  # made when its member is written (one array in memory)
+                value = value()
             with zf.open(f"{name}.npy", "w", force_zip64=True) as member:
                 np.lib.format.write_array(member, np.asanyarray(value), allow_pickle=False)
+            del value

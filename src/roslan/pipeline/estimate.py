@@ -1,5 +1,12 @@
 """Disk use and run time of a simulation, known before it runs.
 
+Run time: the CPU seconds of the set-up (imports, checks, the scene and its BVH), of each
+sensor's work, the ground truth, the writing and the plots, as measured on the dev
+machine (:data:`IDLE_CPU_RATIO`); the wall time of an idle machine with this machine's
+cores runs the set-up, then the main process beside one worker per heavy sensor (the
+slowest of them, or all of them shared over the cores), then the plots. The first run on
+a machine also compiles the event camera's kernels (:attr:`RunEstimate.first_run_seconds`).
+
 Every output is (number of messages or rows) x (bytes each) x (compression ratio): the
 numbers of messages come from the sensors' rates and the trajectory's duration (closed
 form, cheap); the bytes per message and per file row are those of the wire formats
@@ -75,16 +82,33 @@ _FIXED = 0.7e6  # overview.png, trajectory.png, calib/, run.json...
 _SCENE_EXPORT = {"warehouse": 7.0e6, "refinery": 3.0e6, "empty": 0.05e6, None: 0.0}
 _SCENE_DEFAULT = 7.0e6
 
-# CPU seconds per unit of work (2-core machine of docs/performance.md)
-_CPU_PER_MPIX_FRAME = 0.28  # a rendered (software, distorted) camera frame, per megapixel
-_CPU_PER_MPIX_SAMPLE = 0.045  # an event camera render + pixel update, per megapixel
+# CPU seconds per unit of work, as measured on the shared 2-core dev machine under load
+# (benchmarks/bench_estimates.py, docs/performance.md "Run-time estimates")
+_CPU_PER_MPIX_FRAME = 0.18  # a rendered (software, distorted) camera frame, per megapixel
+_CPU_PER_MPIX_SAMPLE = 0.30  # an event camera render + pixel update, per megapixel
 _CPU_PER_EVENT = 0.8e-6  # pixel model, packing and files, per event
 _CPU_PER_MRAY = 1.5  # ray casting, per million rays
+_CPU_PER_SCAN = 0.045  # rays, range model, packing and the .npz file of one scan
 _CPU_PER_MB = 0.004  # serializing, compressing and writing, per MB written
-_CPU_FIXED = 4.0  # start-up (worker processes), scene, overview
+_CPU_PER_GT_TICK = 0.5e-3  # ground truth: /tf, pose, odometry, accel, tau per tick
+_CPU_START = 3.0  # imports, the config and the checks (clearance), the trajectory files
+_CPU_SCENE = {"warehouse": 1.5, "refinery": 2.0, "empty": 0.2, None: 0.0}
+"""The scene: building it (textures), its BVH, its export and its marker message."""
+_CPU_SCENE_FILE = 1.0
+_CPU_PLOTS = 2.0  # overview.png, trajectory.png, run.json, README
+_HEAVY = ("camera", "stereo_camera", "depth_camera", "event_camera", "lidar", "solid_state_lidar")
+"""Sensors a run gives a worker process of their own (pipeline.worker)."""
+_KERNEL_COMPILE_S = 2.0
+"""Seconds the first run on a machine adds to compile the event camera's numba kernels
+(cached after; docs/performance.md)."""
+IDLE_CPU_RATIO = 0.5
+"""Seconds of an idle core per CPU second as the constants above were measured (the shared
+2-core dev machine at load average 9-12, 2026-12-01): the default job's estimated 67 CPU-s
+(61.7 measured there), run as its processes run, against its wall time on the quiet
+2-core machine, 18.4-19.9 s (real-time factor 3.6-3.9, 2026-11-28)."""
 PARALLEL_EFFICIENCY = 0.7
-"""Measured CPU use per core a run or a batch gets (139 % on 2 cores for one run; 185 %
-for the paper dataset on 2 workers)."""
+"""Measured CPU use per core a batch gets (185 % for the paper dataset on 2 workers;
+:func:`batch_seconds`)."""
 
 
 @dataclass
@@ -96,6 +120,25 @@ class RunEstimate:
     cpu: float
     """CPU seconds (a batch's wall time is their sum over its cores)."""
     parts: dict[str, float] = field(default_factory=dict)
+    cores: int = 1
+    """The cores the wall time assumes (an idle machine with this many)."""
+    setup_seconds: float = 0.0
+    """Of ``seconds``: the fixed set-up (imports, checks, the scene and its BVH)."""
+    first_run_seconds: float = 0.0
+    """Added on the first run on a machine (compiling the event camera's kernels)."""
+    sensor_cpu: dict[str, float] = field(default_factory=dict)
+    """Of ``cpu``: each sensor's own work (the rest: set-up, ground truth, writing, plots)."""
+
+    def assumption(self) -> str:
+        """What ``seconds`` assumes, for the dry run's summary line."""
+        text = (
+            f"on an idle machine with {self.cores} core{'s' if self.cores != 1 else ''}, "
+            f"{math.ceil(self.setup_seconds):d} s of it set-up"
+        )
+        if self.first_run_seconds:
+            first = self.first_run_seconds
+            text += f"; the first run on a machine adds ~{first:.0f} s of kernel compilation"
+        return text
 
 
 def _scene_key(scene: Any) -> str | None:
@@ -109,21 +152,38 @@ def _flow_maps(s: Any, duration: float) -> int:
     return max(0, math.floor((duration - float(s.flow_interval)) * rate + 1e-9))
 
 
-def estimate_run(config: SimConfig, formats: tuple[str, ...] | None = None) -> RunEstimate:
-    """Estimated disk use and wall time of ``run_simulation(config)``."""
-    from roslan.trajectory import TauTrajectory
-
+def estimate_run(
+    config: SimConfig,
+    formats: tuple[str, ...] | None = None,
+    *,
+    base_dir: Path | None = None,
+    duration: float | None = None,
+) -> RunEstimate:
+    """Estimated disk use and wall time of ``run_simulation(config)`` on an idle machine
+    with this machine's cores. ``duration``: the trajectory's (s), when known; else built
+    from the config (a pose file read from ``base_dir``)."""
     fmts = tuple(formats or config.output.formats)
-    duration = float(TauTrajectory(config.trajectory, warn=False).duration)
+    if duration is None:
+        from roslan.trajectory import TauTrajectory
+        from roslan.trajectory.spline import make_trajectory
+
+        try:
+            duration = make_trajectory(config.trajectory, base_dir=base_dir, warn=False).duration
+        except Exception:  # an unreadable pose file is the run's error to report, not ours
+            duration = TauTrajectory(config.trajectory, warn=False).duration
+    duration = float(duration)
     codec = {"ros1": config.output.compression, "ros2": config.output.ros2_compression}
     key = _scene_key(config.scene)
     ev_rate = EVENTS_PER_PIXEL_S.get(key, EVENTS_DEFAULT) if key != "other" else EVENTS_DEFAULT
     hit = LIDAR_HIT_FRACTION.get(key, 1.0) if key != "other" else 1.0
     parts: dict[str, float] = {}
-    cpu = _CPU_FIXED
+    work: dict[str, float] = {}  # CPU seconds of each sensor's own work
 
     def add(name: str, nbytes: float) -> None:
         parts[name] = parts.get(name, 0.0) + nbytes
+
+    def spend(s: Any, seconds: float) -> None:
+        work[s.name] = work.get(s.name, 0.0) + seconds
 
     def bag(kind: str, raw: float) -> None:
         for f in fmts:
@@ -158,13 +218,13 @@ def estimate_run(config: SimConfig, formats: tuple[str, ...] | None = None) -> R
                 if getattr(s, "aps", None) is not False:
                     bag("mono", n * w * h)
                     add("images", n * w * h * _PNG_RATIO["mono"])
-                samples = duration * 0.5 * (float(s.min_rate) + float(s.max_rate))  # type: ignore[attr-defined]
-                cpu += samples * mpix * _CPU_PER_MPIX_SAMPLE
-                cpu += events * _CPU_PER_EVENT
+                # adaptive sampling runs near max_rate through most of a landing
+                samples = duration * (0.2 * float(s.min_rate) + 0.8 * float(s.max_rate))  # type: ignore[attr-defined]
+                spend(s, samples * mpix * _CPU_PER_MPIX_SAMPLE + events * _CPU_PER_EVENT)
             elif t == "depth_camera":
                 bag("mono", n * w * h * 4)
                 add("images", n * w * h * 2 * _PNG_RATIO["depth"])
-                cpu += n * mpix * _CPU_PER_MPIX_FRAME
+                spend(s, n * mpix * _CPU_PER_MPIX_FRAME)
             else:
                 eyes = 2 if t == "stereo_camera" else 1
                 ch = 1 if getattr(s, "encoding", "rgb8") == "mono8" else 3
@@ -175,36 +235,57 @@ def estimate_run(config: SimConfig, formats: tuple[str, ...] | None = None) -> R
                 sub = (
                     int(getattr(s, "exposure_samples", 1)) if getattr(s, "exposure_time", 0) else 1
                 )
-                cpu += eyes * n * mpix * _CPU_PER_MPIX_FRAME * max(1, sub)
+                spend(s, eyes * n * mpix * _CPU_PER_MPIX_FRAME * max(1, sub))
         elif t in ("lidar", "solid_state_lidar"):
             rays = _rays_per_scan(s)
             points = rays * hit
             bag("cloud", n * (points * _POINT + 200.0))
             add("lidar", n * points * _NPZ_POINT)
-            cpu += n * rays / 1e6 * _CPU_PER_MRAY
+            spend(s, n * (rays / 1e6 * _CPU_PER_MRAY + _CPU_PER_SCAN))
         elif t == "laser":
             beams = round((s.angle_max - s.angle_min) / s.angle_increment) + 1  # type: ignore[attr-defined]
             bag("small", n * (beams * 8.0 + 120.0))
             add("files", n * beams * 10.0)
-            cpu += n * beams / 1e6 * _CPU_PER_MRAY
+            spend(s, n * beams / 1e6 * _CPU_PER_MRAY)
         elif t == "imu":
             bag("small", n * 315.0)
             add("imu.txt", n * 90.0)
         else:  # sonar, altimeter and other range-like sensors
             bag("small", n * 40.0)
             add("files", n * 25.0)
-            cpu += n * 64 / 1e6 * _CPU_PER_MRAY
+            spend(s, n * 64 / 1e6 * _CPU_PER_MRAY)
     add("scene", _SCENE_EXPORT.get(key, _SCENE_DEFAULT) if key != "other" else _SCENE_DEFAULT)
     add("other", _FIXED)
     total = sum(parts.values())
-    cpu += total / 1e6 * _CPU_PER_MB
-    heavy = sum(
-        s.type in ("camera", "stereo_camera", "depth_camera", "event_camera", "lidar")
-        for s in config.sensors
+    est = _timing(config, key, work, total, n_gt)
+    est.bytes, est.parts = total, parts
+    return est
+
+
+def _timing(
+    config: SimConfig, key: str | None, work: dict[str, float], total: float, n_gt: float
+) -> RunEstimate:
+    """The CPU and idle wall seconds of a run whose sensors do ``work`` (CPU seconds per
+    sensor) and which writes ``total`` bytes and ``n_gt`` ground-truth ticks."""
+    scene_cpu = _CPU_SCENE.get(key, _CPU_SCENE_FILE) if key != "other" else _CPU_SCENE_FILE
+    setup = _CPU_START + scene_cpu
+    # the main process's own stream: ground truth, the bags' writing, the light sensors
+    main = n_gt * _CPU_PER_GT_TICK + total / 1e6 * _CPU_PER_MB
+    heavy = [work.get(s.name, 0.0) for s in config.sensors if s.type in _HEAVY]
+    main += sum(work.values()) - sum(heavy)
+    cores = max(1, os.cpu_count() or 1)
+    lanes = min(cores, 1 + len(heavy))  # the main process and one worker per heavy sensor
+    stream = max([main, *heavy, (main + sum(heavy)) / lanes])
+    events = any(s.type == "event_camera" for s in config.sensors)
+    return RunEstimate(
+        bytes=total,
+        seconds=IDLE_CPU_RATIO * (setup + stream + _CPU_PLOTS),
+        cpu=setup + _CPU_PLOTS + main + sum(heavy),
+        cores=cores,
+        setup_seconds=IDLE_CPU_RATIO * setup,
+        first_run_seconds=_KERNEL_COMPILE_S if events else 0.0,
+        sensor_cpu=work,
     )
-    cores = max(1, min(os.cpu_count() or 1, 1 + heavy))  # one worker per heavy sensor
-    seconds = cpu / max(1.0, cores * PARALLEL_EFFICIENCY)
-    return RunEstimate(bytes=total, seconds=seconds, cpu=cpu, parts=parts)
 
 
 def batch_seconds(estimates: list[RunEstimate], workers: int | None) -> float:
@@ -218,7 +299,7 @@ def batch_seconds(estimates: list[RunEstimate], workers: int | None) -> float:
     par = min(cores, workers or cores, len(estimates))
     if par <= 1:
         return sum(e.seconds for e in estimates)
-    return sum(e.cpu for e in estimates) / (par * 0.93)
+    return IDLE_CPU_RATIO * sum(e.cpu for e in estimates) / (par * 0.93)
 
 
 def _resolution(s: Any) -> tuple[int, int]:

@@ -211,7 +211,8 @@ def make_plan(
     check_limits(config, traj.duration, fmts, source)
     preflight(config, traj)
     if outdir is not None:
-        check_free_space(outdir, estimate_run(config, fmts).bytes, "this run")
+        est = estimate_run(config, fmts, duration=traj.duration)
+        check_free_space(outdir, est.bytes, "this run")
     sensors = _sensors(config)
     check_namespace(sensors, source)
     gt = GroundTruth(

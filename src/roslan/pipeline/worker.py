@@ -206,14 +206,16 @@ class WorkerJob:
 
 
 class ByteQueue:
-    """A FIFO of byte blobs holding at most ``limit`` bytes (one larger blob is let in
-    when the queue is empty). ``put`` blocks while full; ``fail`` wakes everybody up and
+    """A FIFO of byte blobs holding at most ``limit`` bytes, the blob being sent included
+    (one larger blob is let in when nothing waits and nothing is being sent: a 282 MB
+    cloud is never held twice). ``put`` blocks while full; ``fail`` wakes everybody up and
     makes ``put`` raise (the consumer is gone)."""
 
     def __init__(self, limit: int) -> None:
         self.limit = int(limit)
         self._items: deque[bytes | None] = deque()
         self._bytes = 0
+        self._sending = 0  # bytes of the blob taken by get() and not yet sent()
         self._cond = threading.Condition()
         self.error: BaseException | None = None
         self.peak_bytes = 0
@@ -233,7 +235,9 @@ class ByteQueue:
         with self._cond:
             ok = self._cond.wait_for(
                 lambda: (
-                    self.error is not None or not self._items or self._bytes + size <= self.limit
+                    self.error is not None
+                    or not (self._items or self._sending)
+                    or self._bytes + self._sending + size <= self.limit
                 ),
                 timeout,
             )
@@ -251,15 +255,23 @@ class ByteQueue:
         with self._cond:
             self._cond.wait_for(lambda: bool(self._items))
             blob = self._items.popleft()
-            self._bytes -= 0 if blob is None else len(blob)
+            size = 0 if blob is None else len(blob)
+            self._bytes -= size
+            self._sending = size
             self._cond.notify_all()
             return blob
+
+    def sent(self) -> None:
+        """The blob of the last :meth:`get` is sent: its bytes leave the queue's count."""
+        with self._cond:
+            self._sending = 0
+            self._cond.notify_all()
 
     def fail(self, err: BaseException) -> None:
         with self._cond:
             self.error = err
             self._items.clear()
-            self._bytes = 0
+            self._bytes = self._sending = 0
             self._cond.notify_all()
 
 
@@ -271,6 +283,8 @@ def _sender(conn: Connection, queue: ByteQueue) -> None:
             if blob is None:
                 return
             conn.send_bytes(blob)
+            del blob
+            queue.sent()
     except BaseException as err:  # parent gone (EPIPE): stop the producer
         queue.fail(err)
 
@@ -318,6 +332,7 @@ def _run_job(job: WorkerJob, put: Callable[[Any], None]) -> None:
         record = ("m", t_ns, order, msg.topic, msg.msgtype, datas)
         build_s[index[order]] += perf() - t0
         put(dumps(record, protocol=pickle.HIGHEST_PROTOCOL))
+        del msg, datas, record  # not held while the next message is made (a big scan)
     close_s = []
     for s in sensors:
         t0 = perf()
@@ -430,6 +445,7 @@ class _Worker(ChildProcess):
                 raise self.died("before finishing its sensors") from err
             self.wait_s += perf() - t0
             rec = loads(blob)
+            del blob  # not held while the message waits for the merge (a big scan)
             kind = rec[0]
             if kind == "m":
                 _, t_ns, order, topic, msgtype, datas = rec

@@ -25,6 +25,7 @@ from roslan.rundir.readers import ImuData, load_imu, load_run, resolved_config
 
 __all__ = [
     "EVENT_WINDOW_NS",
+    "OVERVIEW_SCAN_POINTS",
     "overview_figure",
     "overview_title",
     "warm_up",
@@ -34,6 +35,8 @@ __all__ = [
 COMMAND = "roslan plot overview"
 EVENT_WINDOW_NS = 20_000_000
 """Event frame accumulation window (20 ms)."""
+OVERVIEW_SCAN_POINTS = 300_000
+"""Most LiDAR returns the overview's scan panel draws (every k-th of a denser scan)."""
 
 
 def _placeholder(ax: Any, title: str, text: str) -> None:
@@ -308,7 +311,9 @@ def _lidar_panel(ax: Any, media: RunMedia, t_ns: int) -> None:
     seq = media.lidar
     try:
         i = seq.index_at(t_ns)
-        scan = seq.read(i)
+        # every k-th return of a dense scan: the panel cannot show more points (a 12.8 M
+        # point scan read whole and drawn took 1.5 GB)
+        scan = seq.read(i, max_points=OVERVIEW_SCAN_POINTS)
     except PlotError as err:
         _placeholder(ax, "LiDAR", f"cannot read: {err}")
         return

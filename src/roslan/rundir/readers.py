@@ -396,8 +396,10 @@ class LidarSequence:
         """Index of the latest scan stamped at or before ``t_ns``."""
         return max(int(np.searchsorted(self.t_ns, t_ns, side="right")) - 1, 0)
 
-    def read(self, i: int) -> LidarScan:
-        return _read_scan(self.paths[i], int(self.t_ns[i]))
+    def read(self, i: int, max_points: int | None = None) -> LidarScan:
+        """Scan ``i``; with ``max_points``, every k-th point of a denser scan (k the
+        smallest stride that leaves at most that many), thinned before any conversion."""
+        return _read_scan(self.paths[i], int(self.t_ns[i]), max_points)
 
 
 def _npz_stamp(path: Path) -> int | None:
@@ -418,13 +420,17 @@ def _npz_stamp(path: Path) -> int | None:
     return None
 
 
-def _read_scan(path: Path, t_ns: int) -> LidarScan:
+def _read_scan(path: Path, t_ns: int, max_points: int | None = None) -> LidarScan:
     try:
         with np.load(path) as z:
             arrays = {k: np.asarray(z[k]) for k in z.files}
     except (OSError, ValueError) as err:
         msg = f"{path}: cannot read LiDAR scan: {err}"
         raise PlotError(msg) from err
+    n = arrays["x"].size if "x" in arrays else 0
+    if max_points is not None and n > max_points > 0:
+        step = -(-n // max_points)
+        arrays = {k: a.reshape(-1)[::step] if a.size == n else a for k, a in arrays.items()}
     if all(k in arrays for k in "xyz"):
         xyz = np.stack([arrays[k].reshape(-1) for k in "xyz"], axis=1)
     elif "points" in arrays and arrays["points"].ndim == 2 and arrays["points"].shape[1] >= 3:

@@ -11,7 +11,10 @@ caller, :class:`roslan.render.backends.SceneBackends`, so that clearance, contac
 sensors see the same hits); at the first and the last instant a segment also joins
 base_link to every point (nothing may lie between base_link and its own sensors). Any
 hit is a collision: unlike the contact points (feet, grasp point), none of these points
-may touch a surface, so no tolerance around the goal is needed.
+may touch a surface, so no tolerance around the goal is needed. A point held inside a
+closed object without crossing its surface (a body wholly inside a box), and a contact
+point more than 1 mm inside one at the start, is a collision too
+(:mod:`roslan.scene.containment`).
 """
 
 from __future__ import annotations
@@ -192,7 +195,7 @@ def check_clearance(
         where = s1.position[0] + frac[k] * (pw[k] - s1.position[0])
         return message(vp.labels[k], int(prim[k]), where, when)
 
-    first = static(0.0)
+    first = _inside(scene, st, vp, vehicle, slice(0, 1)) or static(0.0)
     if first is not None:
         return first
     # every point's path, in blocks of instants
@@ -203,7 +206,33 @@ def check_clearance(
         hit = path_hit(scene, caster, P, tb, sb.position, sb.R_world_body)
         if hit is not None:
             return message(vp.labels[hit.point], hit.triangle, hit.where, hit.time)
-    return static(T_end)
+    # later on, a contact point may sink into what it lands on (a floor marking's paint)
+    return _inside(scene, st, vp, vehicle, slice(None, None, 20), feet=False) or static(T_end)
+
+
+def _inside(
+    scene: Scene, st: Any, vp: VehiclePoints, vehicle: Any, pick: slice, *, feet: bool = True
+) -> str | None:
+    """A body, sensor or (``feet``) contact point inside a closed object at the instants
+    ``pick`` of the states ``st`` (:mod:`roslan.scene.containment`): a point that never
+    crosses a surface (the path casts find every one crossed) but is held inside."""
+    from roslan.scene.containment import vehicle_contacts, vehicle_inside
+    from roslan.vehicle import VehicleConfig
+
+    contacts, names = vehicle_contacts(vehicle if vehicle is not None else VehicleConfig())
+    if not feet:
+        contacts, names = contacts[:0], ()
+    found = vehicle_inside(
+        scene, st.t[pick], st.position[pick], st.R_world_body[pick], vp.points, vp.labels,
+        contacts, names,
+    )  # fmt: skip
+    if found is None:
+        return None
+    when, label, name, (x, y, z) = found
+    return (
+        f"{label} lies inside object {name!r} at t = {when:.3f} s "
+        f"(position [{x:.3f} {y:.3f} {z:.3f}] m): inside a closed object is a collision"
+    )
 
 
 class PathHit(NamedTuple):

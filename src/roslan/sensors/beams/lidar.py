@@ -52,6 +52,7 @@ if TYPE_CHECKING:
 __all__ = [
     "HDL32E_ELEVATIONS_DEG",
     "LIDAR_PRESETS",
+    "SCAN_CHUNK_BEAMS",
     "Lidar",
     "LidarConfig",
     "LidarPreset",
@@ -245,6 +246,12 @@ class LidarConfig(BeamConfig):
         )
 
 
+SCAN_CHUNK_BEAMS = 1 << 20
+"""Beams a scan casts and packs at a time (whole columns): a scan's working memory (rays,
+hits, the range model) stays within a few hundred MB however many points it has; only its
+packed cloud (22 bytes a point) is whole. A scan of at most this many beams is one chunk."""
+
+
 class Lidar(PointCloudSensor):
     """Spinning LiDAR sensor (see module docstring for timing and output conventions)."""
 
@@ -252,27 +259,37 @@ class Lidar(PointCloudSensor):
         self.config = config
         self.spec = config.spec()
         s = self.spec
-        self.offsets = s.firing_offsets()  # (steps, L) s
-        az = -2.0 * math.pi * s.rate * self.offsets  # clockwise from +x
-        el = s.elevations[None, :]
-        ce = np.cos(el)
-        # (steps, L, 3) unit beam directions in the sensor frame
-        self.directions = np.stack(
-            [ce * np.cos(az), ce * np.sin(az), np.broadcast_to(np.sin(el), az.shape)], axis=-1
-        )
         self.ring = s.rings
         self.frac = np.arange(s.n_lasers, dtype=np.float64) * (s.firing_interval / s.column_period)
-        # per-beam constants of the packed cloud, in firing order
-        n = s.azimuth_steps * s.n_lasers
-        self._d32 = self.directions.reshape(n, 3).astype(np.float32)
-        self._off32 = self.offsets.reshape(n).astype(np.float32)
-        self._ring_flat = np.tile(self.ring, s.azimuth_steps)
-        # organized: rows = rings (lowest first), columns = azimuth steps
-        laser_of_ring = np.argsort(self.ring)
-        self._organized_order = (
-            laser_of_ring[:, None] + s.n_lasers * np.arange(s.azimuth_steps)[None, :]
-        ).reshape(-1)
+        self._laser_of_ring = np.argsort(self.ring)
+        self.chunk_columns = max(1, SCAN_CHUNK_BEAMS // s.n_lasers)
+        """Columns per chunk of :meth:`scan`."""
         self.T_body_sensor = config.pose.matrix()
+
+    def columns(self, c0: int, c1: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Firing offsets (cols, L) after the turn start (s) and unit sensor-frame beam
+        directions (cols, L, 3) of columns ``c0 .. c1 - 1``."""
+        s = self.spec
+        c = np.arange(c0, c1, dtype=np.float64)[:, None]
+        lz = np.arange(s.n_lasers, dtype=np.float64)[None, :]
+        offsets: NDArray[np.float64] = c * s.column_period + lz * s.firing_interval
+        az = -2.0 * math.pi * s.rate * offsets  # clockwise from +x
+        el = s.elevations[None, :]
+        ce = np.cos(el)
+        d = np.stack(
+            [ce * np.cos(az), ce * np.sin(az), np.broadcast_to(np.sin(el), az.shape)], axis=-1
+        )
+        return offsets, d
+
+    @property
+    def offsets(self) -> NDArray[np.float64]:
+        """(steps, L) firing instant of each beam after the turn start, s."""
+        return self.columns(0, self.spec.azimuth_steps)[0]
+
+    @property
+    def directions(self) -> NDArray[np.float64]:
+        """(steps, L, 3) unit beam directions in the sensor frame."""
+        return self.columns(0, self.spec.azimuth_steps)[1]
 
     # ------------------------------------------------------------------ interface
     def cloud_layout(self) -> tuple[int, bool]:
@@ -281,7 +298,7 @@ class Lidar(PointCloudSensor):
 
     def draw(self, rng: np.random.Generator) -> BeamDraws:
         """The random draws of one scan's beams (:func:`~.base.draw_beams`)."""
-        n = self.offsets.shape[0] * self.spec.n_lasers
+        n = self.spec.azimuth_steps * self.spec.n_lasers
         return draw_beams(rng, n, self.spec.noise_sigma, self.config)
 
     def scan(
@@ -290,44 +307,74 @@ class Lidar(PointCloudSensor):
         """One turn starting at ``t0_ns``: structured :data:`XYZIRT` points.
 
         Returns (n_returns,) in firing order, or (rings * steps,) row-major by ring
-        when ``organized`` (NaN x/y/z, zero intensity where there is no return).
+        when ``organized`` (NaN x/y/z, zero intensity where there is no return). The
+        turn is cast and packed :data:`SCAN_CHUNK_BEAMS` beams (whole columns) at a time.
         """
         s = self.spec
-        steps = self.offsets.shape[0]
+        steps, n_l = s.azimuth_steps, s.n_lasers
+        draws = rng if isinstance(rng, BeamDraws) else self.draw(rng)
         t_knots = t0_ns * 1e-9 + np.arange(steps, dtype=np.float64) * s.column_period
-        origins, dirs = rays_in_world(
-            trajectory,
-            self.T_body_sensor,
-            t_knots,
-            self.frac,
-            self.directions,
-            mode=self.config.firing_poses,
-        )
-        origins = origins.reshape(-1, 3)
-        dirs = dirs.reshape(-1, 3)
-        m = measure(
-            caster,
-            origins,
-            dirs,
-            min_range=s.min_range,
-            max_range=s.max_range,
-            noise_sigma=s.noise_sigma,
-            returns=self.config,
-            rng=rng,
-        )
-        sel: Any
-        if self.config.organized:
-            sel = self._organized_order
-            r = np.where(m.valid, m.range, np.nan)[sel].astype(np.float32)
-        else:
-            sel = slice(None) if bool(m.valid.all()) else np.flatnonzero(m.valid)
+        organized = bool(self.config.organized)
+        pts = np.empty(steps * n_l, XYZIRT)  # pages are only committed as they are written
+        grid = pts.reshape(n_l, steps)  # organized: rows = rings (lowest first)
+        ring = self.ring
+        filled = 0
+        # chunks use the whole turn's knot spacing (one chunk: rays_in_world's own)
+        spacing = float(t_knots[1] - t_knots[0]) if steps > self.chunk_columns else None
+        for c0 in range(0, steps, self.chunk_columns):
+            c1 = min(steps, c0 + self.chunk_columns)
+            offsets, d_sensor = self.columns(c0, c1)
+            origins, dirs = rays_in_world(
+                trajectory,
+                self.T_body_sensor,
+                t_knots[c0:c1],
+                self.frac,
+                d_sensor,
+                mode=self.config.firing_poses,
+                spacing=spacing,
+            )
+            b0, b1 = c0 * n_l, c1 * n_l
+            m = measure(
+                caster,
+                origins.reshape(-1, 3),
+                dirs.reshape(-1, 3),
+                min_range=s.min_range,
+                max_range=s.max_range,
+                noise_sigma=s.noise_sigma,
+                returns=self.config,
+                rng=BeamDraws(*(None if a is None else a[b0:b1] for a in draws)),
+            )
+            del origins, dirs
+            d32 = d_sensor.reshape(-1, 3).astype(np.float32)
+            off32 = offsets.reshape(-1).astype(np.float32)
+            rings = np.tile(ring, c1 - c0)
+            if organized:
+                r = np.where(m.valid, m.range, np.nan).astype(np.float32)
+                block = np.empty(b1 - b0, XYZIRT)
+                _pack(block, d32, r, m.intensity, rings, off32)
+                lor = self._laser_of_ring
+                grid[:, c0:c1] = block.reshape(c1 - c0, n_l)[:, lor].T
+                continue
+            sel: Any = slice(None) if bool(m.valid.all()) else np.flatnonzero(m.valid)
             r = m.range[sel].astype(np.float32)
-        d32 = self._d32[sel]
-        pts = np.empty(d32.shape[0], XYZIRT)
-        pts["x"] = d32[:, 0] * r
-        pts["y"] = d32[:, 1] * r
-        pts["z"] = d32[:, 2] * r
-        pts["intensity"] = m.intensity[sel]
-        pts["ring"] = self._ring_flat[sel]
-        pts["time"] = self._off32[sel]
-        return pts
+            k = r.shape[0]
+            _pack(pts[filled : filled + k], d32[sel], r, m.intensity[sel], rings[sel], off32[sel])
+            filled += k
+        return pts if organized else pts[:filled]
+
+
+def _pack(
+    out: NDArray[Any],
+    d32: NDArray[np.float32],
+    r: NDArray[np.float32],
+    intensity: NDArray[np.float32],
+    ring: NDArray[np.uint16],
+    time: NDArray[np.float32],
+) -> None:
+    """Fill the :data:`XYZIRT` points ``out`` (a view): sensor-frame xyz = direction x range."""
+    out["x"] = d32[:, 0] * r
+    out["y"] = d32[:, 1] * r
+    out["z"] = d32[:, 2] * r
+    out["intensity"] = intensity
+    out["ring"] = ring
+    out["time"] = time

@@ -70,6 +70,7 @@ def rays_in_world(
     frac: F64,
     d_sensor: NDArray[np.floating[Any]],
     mode: Literal["interpolated", "exact"] = "interpolated",
+    spacing: float | None = None,
 ) -> tuple[NDArray[np.floating[Any]], NDArray[np.floating[Any]]]:
     """World rays of beams fired on a knots x fractions time grid.
 
@@ -85,6 +86,9 @@ def rays_in_world(
         d_sensor: (K, J, 3) unit beam directions in the sensor frame.
         mode: ``interpolated`` (exact state at the knots + cubic Hermite between them, see
             the module docstring) or ``exact`` (``state`` at every firing instant).
+        spacing: the knot spacing ``h`` (default ``t_knots[1] - t_knots[0]``): given for
+            a run of knots cut from a longer grid (a scan cast in chunks), which may be a
+            single knot.
 
     Returns:
         origins and unit directions, each (K, J, 3), world frame; float32 (float64 in
@@ -93,7 +97,10 @@ def rays_in_world(
     R_bs = T_body_sensor[:3, :3]
     t_bs = T_body_sensor[:3, 3]
     n_k, n_j = d_sensor.shape[:2]
-    h = float(t_knots[1] - t_knots[0]) if n_k > 1 else 0.0
+    if spacing is not None:
+        h = float(spacing)
+    else:
+        h = float(t_knots[1] - t_knots[0]) if n_k > 1 else 0.0
     if mode == "exact":
         t = (t_knots[:, None] + frac[None, :] * h).reshape(-1)
         st = trajectory.state(t)
