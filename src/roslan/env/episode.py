@@ -26,24 +26,15 @@ def fly(
     episode from ``config`` (None: the default landing) with ``seed``; with ``record``,
     write OUTDIR (``simulate``'s files plus episode.json). ``on_step(obs, info)`` sees
     every step. Returns episode.json's content."""
+    from roslan.env.knowledge import policy_context
     from roslan.env.landing import LandingEnv
-    from roslan.env.policies import PolicyContext, make_policy
+    from roslan.env.policies import make_policy
 
     pol = make_policy(policy)  # an unknown name fails before anything is built
     env = LandingEnv(config, record=record, overwrite=overwrite, policy_name=policy)
     try:
         obs, info = env.reset(seed=seed)
-        assert env._traj is not None
-        dyn = env.closed_loop.dynamics
-        pol.reset(
-            PolicyContext(
-                env.config,
-                env.dt,
-                env._traj.R_world_goal,
-                dyn.max_acceleration,
-                dyn.max_body_rate,
-            )
-        )
+        pol.reset(policy_context(env))
         if on_step is not None:
             on_step(obs, info)
         while True:

@@ -25,7 +25,7 @@ import numpy as np
 from gymnasium import spaces
 from numpy.typing import NDArray
 
-from roslan.env.policies import PolicyContext, TauStatePolicy
+from roslan.env.policies import TauStatePolicy
 from roslan.errors import ActionError, ConfigError
 
 __all__ = ["ACTION_NAMES", "ReducedAction", "VerticalAction"]
@@ -75,17 +75,9 @@ class ReducedAction(gym.Wrapper[Any, Any, Any, Any]):
     ) -> tuple[Any, dict[str, Any]]:
         obs, info = self.env.reset(seed=seed, options=options)
         if self._policy is not None:
-            base: Any = self.env.unwrapped
-            dyn = base.closed_loop.dynamics
-            self._policy.reset(
-                PolicyContext(
-                    base.config,
-                    base.dt,
-                    np.asarray(info["R_world_goal"], dtype=np.float64),
-                    dyn.max_acceleration,
-                    dyn.max_body_rate,
-                )
-            )
+            from roslan.env.knowledge import policy_context
+
+            self._policy.reset(policy_context(self.env.unwrapped))  # type: ignore[arg-type]
         self._obs, self._info = obs, info
         return obs, info
 
