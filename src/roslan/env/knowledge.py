@@ -30,7 +30,6 @@ from roslan.frames import matrix_to_rpy
 if TYPE_CHECKING:
     from roslan.config.closed_loop import StartEstimateConfig
     from roslan.env.dynamics import DynamicsTrajectory
-    from roslan.env.landing import LandingEnv
     from roslan.env.policies import PolicyContext
 
 __all__ = [
@@ -117,8 +116,9 @@ def constant_observation(estimate: StartEstimate, goal: Any) -> dict[str, NDArra
     return {"start_estimate": estimate.as_observation(), "goal": g}
 
 
-def policy_context(env: LandingEnv) -> PolicyContext:
-    """The :class:`~roslan.env.policies.PolicyContext` of ``env``'s episode (after
+def policy_context(env: Any) -> PolicyContext:
+    """The :class:`~roslan.env.policies.PolicyContext` of ``env``'s episode (a
+    :class:`~roslan.env.landing.LandingEnv`, after
     ``reset``): the nominal config (``trajectory.initial`` as written, the episode's
     seed), the control period, the goal, the action bounds and the start estimate."""
     from roslan.env.policies import PolicyContext

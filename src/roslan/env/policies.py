@@ -27,7 +27,6 @@ from roslan.trajectory.tau import exponent
 
 if TYPE_CHECKING:
     from roslan.config.sim import SimConfig
-    from roslan.env.knowledge import StartEstimate
 
 __all__ = [
     "POLICIES",
@@ -63,7 +62,7 @@ class PolicyContext:
     R_world_goal: F64
     max_acceleration: float
     max_body_rate: float
-    start_estimate: StartEstimate | None = None
+    start_estimate: Any = None  # roslan.env.knowledge.StartEstimate (no import: no cycle)
     goal_position: F64 | None = None
     base_link_goal: F64 | None = None
 

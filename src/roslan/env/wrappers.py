@@ -77,7 +77,7 @@ class ReducedAction(gym.Wrapper[Any, Any, Any, Any]):
         if self._policy is not None:
             from roslan.env.knowledge import policy_context
 
-            self._policy.reset(policy_context(self.env.unwrapped))  # type: ignore[arg-type]
+            self._policy.reset(policy_context(self.env.unwrapped))
         self._obs, self._info = obs, info
         return obs, info
 
