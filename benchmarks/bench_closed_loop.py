@@ -162,7 +162,24 @@ def figure(results: dict[str, list[dict[str, Any]]], path: Path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(11, 4.2), width_ratios=(1.6, 1))
+    has_att = any(
+        _attitude_stat(e) is not None for eps in results.values() for e in eps[:1] if e["series"]
+    )
+    if has_att:
+        fig, (ax1, ax3, ax2) = plt.subplots(1, 3, figsize=(15, 4.2), width_ratios=(1.6, 1.2, 1))
+        for j, (name, eps) in enumerate(results.items()):
+            for i, ep in enumerate(eps[:5]):
+                s = np.asarray(ep["series"], dtype=np.float64)
+                if s.ndim == 2 and s.shape[1] >= 4 and not np.all(np.isnan(s[:, 3])):
+                    label = f"{name} (seeds of the first 5)" if i == 0 else None
+                    ax3.plot(s[:, 0], 1000 * s[:, 3], color=f"C{j}", lw=0.8, label=label)
+        ax3.set_xlabel("time, s")
+        ax3.set_ylabel("attitude-estimate error, mrad")
+        ax3.set_title("attitude estimate vs true (flapping included)")
+        ax3.set_ylim(bottom=0)
+        ax3.legend(fontsize=8)
+    else:
+        fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(11, 4.2), width_ratios=(1.6, 1))
     drew = False
     for j, (name, eps) in enumerate(results.items()):
         for i, ep in enumerate(eps[:5]):
