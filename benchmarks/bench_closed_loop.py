@@ -54,14 +54,26 @@ def _estimate_ttc(policy: Any) -> float | None:
     return value if math.isfinite(value) else None
 
 
+def _attitude_error(policy: Any, env: Any, t: float) -> float:
+    """Angle (rad) between the policy's attitude estimate and the true attitude (flapping
+    included) at ``t``; nan when the policy reports none."""
+    est = getattr(policy, "estimate", None)
+    R = getattr(est, "R_world_body", None)
+    if R is None:
+        return math.nan
+    true = env._traj.state([t]).R_world_body[0]
+    c = (float(np.trace(true.T @ np.asarray(R))) - 1.0) / 2.0
+    return math.acos(max(-1.0, min(1.0, c)))
+
+
 def fly_one(config: Any, name: str, seed: int) -> dict[str, Any]:
     """One episode: episode.json's content plus the time series (t, true and estimated
-    time to contact of the height gap)."""
+    time to contact of the height gap, attitude-estimate error rad)."""
     from roslan.env import LandingEnv, make_policy
 
     policy = make_policy(name)
     env = LandingEnv(config, policy_name=name)
-    series: list[tuple[float, float, float]] = []
+    series: list[tuple[float, float, float, float]] = []
     try:
         obs, info = env.reset(seed=seed)
         policy.reset(env.policy_context())
@@ -71,7 +83,9 @@ def fly_one(config: Any, name: str, seed: int) -> dict[str, Any]:
             z, vz = float(st["gaps"][2]), float(st["rates"][2])
             true_ttc = -z / vz if vz < 0 else math.nan
             est = _estimate_ttc(policy)
-            series.append((float(info["t"]), true_ttc, math.nan if est is None else est))
+            t = float(info["t"])
+            att = _attitude_error(policy, env, t)
+            series.append((t, true_ttc, math.nan if est is None else est, att))
             obs, _, term, trunc, info = env.step(action)
             if term or trunc:
                 ep = dict(info["episode"])
@@ -112,8 +126,9 @@ def table(results: dict[str, list[dict[str, Any]]]) -> str:
     """The markdown results table."""
     rows = [
         "| policy | landed (v_z <= 0.5 m/s, no collision) | success | touchdown v_z m/s "
-        "median [min, max] | horizontal m/s | position error m | median tau error, last 70 % |",
-        "|---|---|---|---|---|---|---|",
+        "median [min, max] | horizontal m/s | position error m | median tau error, last 70 % "
+        "| attitude-estimate error mrad |",
+        "|---|---|---|---|---|---|---|---|",
     ]
     for name, eps in results.items():
         n = len(eps)
@@ -130,9 +145,11 @@ def table(results: dict[str, list[dict[str, Any]]]) -> str:
         pos = [e["position_error"] for e in eps if e["position_error"] is not None]
         errs = [x for x in (_tau_error(e) for e in eps) if x is not None]
         err = f"{100 * np.median(errs):.1f} %" if errs else "-"
+        att = [x for x in (_attitude_stat(e) for e in eps) if x is not None]
+        att_s = f"{1000 * np.median(att):.1f}" if att else "-"
         rows.append(
             f"| `{name}` | {landed}/{n} | {ok}/{n} | {_stats(vz)} | {_stats(vh)} | {_stats(pos)} "
-            f"| {err} |"
+            f"| {err} | {att_s} |"
         )
     return "\n".join(rows)
 
@@ -144,7 +161,24 @@ def figure(results: dict[str, list[dict[str, Any]]], path: Path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(11, 4.2), width_ratios=(1.6, 1))
+    has_att = any(
+        _attitude_stat(e) is not None for eps in results.values() for e in eps[:1] if e["series"]
+    )
+    if has_att:
+        fig, (ax1, ax3, ax2) = plt.subplots(1, 3, figsize=(15, 4.2), width_ratios=(1.6, 1.2, 1))
+        for j, (name, eps) in enumerate(results.items()):
+            for i, ep in enumerate(eps[:5]):
+                s = np.asarray(ep["series"], dtype=np.float64)
+                if s.ndim == 2 and s.shape[1] >= 4 and not np.all(np.isnan(s[:, 3])):
+                    label = f"{name} (seeds of the first 5)" if i == 0 else None
+                    ax3.plot(s[:, 0], 1000 * s[:, 3], color=f"C{j}", lw=0.8, label=label)
+        ax3.set_xlabel("time, s")
+        ax3.set_ylabel("attitude-estimate error, mrad")
+        ax3.set_title("attitude estimate vs true (flapping included)")
+        ax3.set_ylim(bottom=0)
+        ax3.legend(fontsize=8)
+    else:
+        fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(11, 4.2), width_ratios=(1.6, 1))
     drew = False
     for j, (name, eps) in enumerate(results.items()):
         for i, ep in enumerate(eps[:5]):
@@ -273,6 +307,110 @@ def _report(args: argparse.Namespace, results: dict[str, list[dict[str, Any]]]) 
         print(f"wrote {GUIDE} and {FIGURE}")
 
 
+ABLATION_SOURCES = (
+    ("start-estimate position", "position_sigma"),
+    ("start-estimate velocity", "velocity_sigma"),
+    ("start-estimate attitude", "attitude_sigma"),
+    ("accelerometer turn-on bias", "accelerometer_turn_on_bias_sigma"),
+    ("gyroscope turn-on bias", "gyroscope_turn_on_bias_sigma"),
+    ("start spread", "start_spread"),
+)
+"""The error sources of ``ablation``: (label, key in landing.yaml)."""
+
+
+def ablation_config(key: str | None, scale: float) -> dict[str, Any]:
+    """``roslan/Landing-v0``'s config with every error source at zero but ``key`` (at
+    ``scale`` times its default; None: all zero)."""
+    import yaml
+
+    from roslan.env.landing import DEFAULT_CONFIG
+
+    cfg: dict[str, Any] = yaml.safe_load(Path(DEFAULT_CONFIG).read_text())
+    cl = cfg["closed_loop"]
+    se = dict(cl["start_estimate"])
+    imu = next(s for s in cfg["sensors"] if s["type"] == "imu")
+    spread = dict(cl["start_spread"])
+    zero_spread = {"position": [0.0, 0.0, 0.0], "rpy": [0.0, 0.0, 0.0], "descent_rate": 0.0}
+    cl["start_estimate"] = dict.fromkeys(se, 0.0)
+    cl["start_spread"] = zero_spread
+    defaults = {k: imu[k] for k in ABLATION_SOURCES_IMU}
+    for k in ABLATION_SOURCES_IMU:
+        imu[k] = 0.0
+    if key in se:
+        cl["start_estimate"][key] = scale * se[key]
+    elif key in defaults:
+        imu[key] = scale * defaults[key]
+    elif key == "start_spread":
+        cl["start_spread"] = {
+            "position": [scale * v for v in spread["position"]],
+            "rpy": [scale * v for v in spread["rpy"]],
+            "descent_rate": scale * spread["descent_rate"],
+        }
+    cfg["scene"] = "warehouse"
+    return cfg
+
+
+ABLATION_SOURCES_IMU = ("accelerometer_turn_on_bias_sigma", "gyroscope_turn_on_bias_sigma")
+
+
+def ablation(args: argparse.Namespace) -> None:
+    """Each error source alone at 1x and 2x its default (``--seeds`` seeds each)."""
+    out: dict[str, list[dict[str, Any]]] = {}
+    if Path(args.json).exists():
+        out = json.loads(Path(args.json).read_text())
+    rows = [("none (all zero)", None, 0.0)]
+    rows += [(f"{label} {m:g}x", key, m) for label, key in ABLATION_SOURCES for m in (1.0, 2.0)]
+    for label, key, m in rows:
+        if label in out:
+            continue
+        cfg = ablation_config(key, m)
+        out[label] = []
+        for seed in range(args.seeds):
+            ep = fly_one(cfg, "tau-events", seed)
+            out[label].append(ep)
+            print(f"{label} seed {seed}: {ep['reason']} success={ep['success']}", flush=True)
+        Path(args.json).write_text(json.dumps(out))
+    print(ablation_table(out))
+
+
+def ablation_table(results: dict[str, list[dict[str, Any]]]) -> str:
+    """The markdown ablation table."""
+    rows = [
+        "| error source (alone) | seeds | success | touchdown v_z m/s median [min, max] "
+        "| horizontal m/s | position error m | median tau error | attitude error mrad |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for name, eps in results.items():
+        rows.append(f"| {name} | {len(eps)} | " + _summary_cells(eps) + " |")
+    return "\n".join(rows)
+
+
+def _summary_cells(eps: list[dict[str, Any]]) -> str:
+    n = len(eps)
+    ok = sum(bool(e["success"]) for e in eps)
+
+    def col(key: str) -> list[float]:
+        return [e[key] for e in eps if e.get(key) is not None]
+
+    errs = [x for x in (_tau_error(e) for e in eps) if x is not None]
+    err = f"{100 * np.median(errs):.1f} %" if errs else "-"
+    att = [x for x in (_attitude_stat(e) for e in eps) if x is not None]
+    att_s = f"{1000 * np.median(att):.1f}" if att else "-"
+    return (
+        f"{ok}/{n} | {_stats(col('touchdown_vertical_speed'))} | "
+        f"{_stats(col('touchdown_horizontal_speed'))} | {_stats(col('position_error'))} | "
+        f"{err} | {att_s}"
+    )
+
+
+def _attitude_stat(ep: dict[str, Any]) -> float | None:
+    """Median attitude-estimate error of an episode (rad; None: no estimate)."""
+    s = np.asarray(ep["series"], dtype=np.float64)
+    if s.ndim != 2 or s.shape[1] < 4 or np.all(np.isnan(s[:, 3])):
+        return None
+    return float(np.nanmedian(s[:, 3]))
+
+
 def _cpu_of(cmd: list[str]) -> float:
     before = os.times()
     subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL)
@@ -335,6 +473,10 @@ def main() -> None:
     a.add_argument("--no-docs", action="store_true", help="print only")
     a.add_argument("--combine", default=None, help="comma-separated --json files: report only")
     a.set_defaults(func=landings)
+    c = sub.add_parser("ablation")
+    c.add_argument("--seeds", type=int, default=3)
+    c.add_argument("--json", default=str(Path(tempfile.gettempdir()) / "ablation.json"))
+    c.set_defaults(func=ablation)
     b = sub.add_parser("speed")
     b.add_argument("--config", default=None)
     b.set_defaults(func=speed)

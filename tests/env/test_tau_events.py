@@ -91,8 +91,13 @@ def test_lands_softly_on_tau_from_events(episode: tuple[dict[str, Any], np.ndarr
 def test_a_landing_from_far_off_ends_slow_sideways(seed: int) -> None:
     """From 2.9 m off the marker: the horizontal gaps close with the height gap, and near
     contact (|tau| < COUPLING_TAU_MIN) the residual gap is centred gently instead of at a
-    speed growing as 1 / tau (it reached 0.6-1.1 m/s sideways on these seeds)."""
-    cfg = short_landing()
+    speed growing as 1 / tau (it reached 0.6-1.1 m/s sideways on these seeds). Told the
+    true start (``start_estimate`` zero): this tests the coupling, not the estimators."""
+    cfg = short_landing(
+        closed_loop={
+            "start_estimate": {"position_sigma": 0, "velocity_sigma": 0, "attitude_sigma": 0}
+        }
+    )
     cfg["trajectory"]["initial"] = {
         "position": [-2.6, 1.2, 2.3],
         "rpy": [0.05, 0.1, 0.3],

@@ -54,7 +54,10 @@ def register(subparsers: Any) -> None:
         "--policy",
         required=True,
         choices=POLICY_NAMES,
-        help="tau-state (true state), tau-events (event camera only), constant-descent",
+        help=(
+            "tau-events (event camera, IMU and the start estimate only); tau-state and "
+            "constant-descent are oracles by design (they read the true state)"
+        ),
     )
     p.add_argument(
         "-o",

@@ -19,6 +19,7 @@ __all__ = [
     "Dynamics",
     "ObservationConfig",
     "RewardConfig",
+    "StartEstimateConfig",
     "StartSpread",
     "SuccessConfig",
 ]
@@ -100,6 +101,21 @@ class StartSpread(StrictModel):
         return not (any(self.position) or any(self.rpy) or self.descent_rate)
 
 
+class StartEstimateConfig(StrictModel):
+    """``closed_loop.start_estimate``: the error of the start state a policy is told (its
+    onboard navigation filter's estimate when the landing begins): the true start plus
+    Gaussian errors drawn per episode (per axis, from the episode's seed on a generator of
+    its own). 0 gives the truth. The defaults are a visual-inertial odometry filter's
+    typical accuracy (docs/guide/closed-loop.md "What a policy knows")."""
+
+    position_sigma: NonNegative = 0.3
+    """Per axis, m (world frame)."""
+    velocity_sigma: NonNegative = 0.1
+    """Per axis, m/s (world frame)."""
+    attitude_sigma: NonNegative = 0.02
+    """Per body axis (a small rotation applied to the true attitude), rad."""
+
+
 class ClosedLoopConfig(StrictModel):
     """``closed_loop:`` block (every key optional)."""
 
@@ -113,3 +129,4 @@ class ClosedLoopConfig(StrictModel):
     reward: RewardConfig = RewardConfig()
     success: SuccessConfig = SuccessConfig()
     start_spread: StartSpread = StartSpread()
+    start_estimate: StartEstimateConfig = StartEstimateConfig()

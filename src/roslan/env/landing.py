@@ -21,10 +21,17 @@ import numpy as np
 from gymnasium import spaces
 from numpy.typing import NDArray
 
+from roslan.config.base import Pose
 from roslan.config.closed_loop import ClosedLoopConfig
 from roslan.config.sim import SimConfig
 from roslan.env.contact import ContactModel, Outcome, StepEvent, is_success, reward_terms
 from roslan.env.dynamics import MAX_PITCH, DynamicsTrajectory
+from roslan.env.knowledge import (
+    StartEstimate,
+    constant_observation,
+    constant_spaces,
+    draw_start_estimate,
+)
 from roslan.env.observe import EventPacket, ObservationBuilder
 from roslan.errors import ActionError, ConfigError
 
@@ -129,7 +136,15 @@ class LandingEnv(gym.Env[dict[str, NDArray[Any]], F32]):
         self._box = spaces.Box(-hi, hi, dtype=np.float32)
         self.action_space = self._box
         self._obs = ObservationBuilder(cfg.sensors, self.closed_loop)
-        self.observation_space = self._obs.space  # type: ignore[assignment]
+        # the constant entries (start estimate, goal): what a policy knows (env.knowledge)
+        self.observation_space = spaces.Dict(  # type: ignore[assignment]
+            {**self._obs.space.spaces, **constant_spaces()}
+        )
+        self.start_estimate: StartEstimate | None = None
+        """The episode's start estimate (``closed_loop.start_estimate``), after ``reset``."""
+        self.goal: Pose | None = None
+        """The goal's pose in the world (where the contact point lands), after ``reset``."""
+        self._constant: dict[str, NDArray[np.float32]] = {}
         self._scenes: dict[int, Any] = {}
         self._session: Any = None
         self._traj: DynamicsTrajectory | None = None
@@ -177,6 +192,10 @@ class LandingEnv(gym.Env[dict[str, NDArray[Any]], F32]):
         self._traj = traj = DynamicsTrajectory(traj_cfg, self.closed_loop.dynamics, self.step_ns)
         caster = backends.caster() if backends is not None else None
         self._contact = ContactModel(cfg, scene, traj, caster)
+        goal = cfg.trajectory.goal
+        self.goal = goal if isinstance(goal, Pose) else Pose(position=tuple(traj.p_world_goal))
+        self.start_estimate = draw_start_estimate(traj, self.closed_loop.start_estimate, ep_seed)
+        self._constant = constant_observation(self.start_estimate, self.goal)
         limit = self.closed_loop.time_limit
         self.time_limit_ns = round(
             1e9 * (limit if limit is not None else 4.0 * traj.reference_T + 1.0)
@@ -204,9 +223,13 @@ class LandingEnv(gym.Env[dict[str, NDArray[Any]], F32]):
             **Outcome().as_dict(),
         }
         out = self._session.advance(0)
-        obs = self._obs.build(out.taps, (0, 0))
+        obs = {**self._obs.build(out.taps, (0, 0)), **self._constant_copy()}
         self._last_events = self._obs.raw_events(out.taps)
         return obs, self._info(out, clipped=False)
+
+    def _constant_copy(self) -> dict[str, NDArray[np.float32]]:
+        """The constant entries, new arrays each step (Gymnasium's rule)."""
+        return {k: v.copy() for k, v in self._constant.items()}
 
     def _start(self, cfg: SimConfig, seed: int) -> SimConfig:
         """The episode's config: the start moved by ``closed_loop.start_spread``, drawn
@@ -313,7 +336,7 @@ class LandingEnv(gym.Env[dict[str, NDArray[Any]], F32]):
             self._close_session()
             raise
         span = (t0, out.horizon_ns)
-        obs = self._obs.build(out.taps, span)
+        obs = {**self._obs.build(out.taps, span), **self._constant_copy()}
         self._last_events = self._obs.raw_events(out.taps)
         self._return += reward
         info = self._info(out, clipped=clipped)
@@ -355,22 +378,16 @@ class LandingEnv(gym.Env[dict[str, NDArray[Any]], F32]):
         return out, reward
 
     def policy_context(self) -> PolicyContext:
-        """What a policy may know before this episode's first step (its config, the
-        control period, the goal frame's orientation, the action bounds); call after
+        """What a policy may know before this episode's first step
+        (:func:`roslan.env.knowledge.policy_context`: the nominal config, the control
+        period, the goal, the action bounds and the start estimate); call after
         :meth:`reset` (ActionError before the first one)."""
         if self._traj is None:
             msg = "policy_context() before reset(): the episode's goal frame is not known yet"
             raise ActionError(msg)
-        from roslan.env.policies import PolicyContext
+        from roslan.env.knowledge import policy_context
 
-        dyn = self.closed_loop.dynamics
-        return PolicyContext(
-            self.config,
-            self.dt,
-            self._traj.R_world_goal.copy(),
-            dyn.max_acceleration,
-            dyn.max_body_rate,
-        )
+        return policy_context(self)
 
     @property
     def episode(self) -> dict[str, Any]:

@@ -4,11 +4,11 @@ A policy is reset with a :class:`PolicyContext` at the start of each episode, th
 each step's observation and info to an action (6,): the world-frame acceleration command
 (m/s^2) and the body-rate command (rad/s) of :class:`roslan.env.LandingEnv`.
 
-* ``tau-state``: tau-dot guidance on every gap with tau coupling, from the true state
-  (``info["state"]``): the closed-form landing's own controller.
-* ``constant-descent``: a naive baseline, from the true state.
-* ``tau-events``: the height gap's tau estimated from the event camera only
-  (:mod:`roslan.env.tau_events`), landed with constant tau-dot.
+* ``tau-state`` (an oracle by design): tau-dot guidance on every gap with tau coupling,
+  from the true state (``info["state"]``): the closed-form landing's own controller.
+* ``constant-descent`` (an oracle by design): a naive baseline, from the true state.
+* ``tau-events``: from the observation and the context only (event camera, IMU, the start
+  estimate; :mod:`roslan.env.tau_events`), landed with constant tau-dot.
 """
 
 from __future__ import annotations
@@ -42,13 +42,19 @@ F64 = NDArray[np.float64]
 
 @dataclass(frozen=True)
 class PolicyContext:
-    """What a policy may know before the first step.
+    """What a policy may know before the first step (:mod:`roslan.env.knowledge`).
 
     Attributes:
-        config: the validated config of the episode (sensors, trajectory: ``k``, ``kappa``).
+        config: the validated config, nominal: the vehicle (sensors, calibration, body,
+            feet) and the trajectory block as written (``k``, ``kappa``, the nominal
+            ``initial``; not the start drawn by ``closed_loop.start_spread``).
         control_dt: control period, s.
         R_world_goal: (3, 3) orientation of the goal frame F in the world.
         max_acceleration, max_body_rate: the action bounds (m/s^2, rad/s).
+        start_estimate: the navigation filter's start state
+            (:class:`~roslan.env.knowledge.StartEstimate`; None: not told).
+        goal_position: (3,) the goal in the world (where the contact point lands), m.
+        base_link_goal: (3,) base_link's position at touchdown on the goal, world, m.
     """
 
     config: SimConfig
@@ -56,6 +62,9 @@ class PolicyContext:
     R_world_goal: F64
     max_acceleration: float
     max_body_rate: float
+    start_estimate: Any = None  # roslan.env.knowledge.StartEstimate (no import: no cycle)
+    goal_position: F64 | None = None
+    base_link_goal: F64 | None = None
 
 
 class Policy(Protocol):

@@ -40,6 +40,9 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
+from roslan.env.attitude import AttitudeFilter
+from roslan.env.marker_bearing import MarkerDetector
+from roslan.env.navigation import HorizontalFilter, VerticalEstimator
 from roslan.errors import ConfigError
 from roslan.events.divergence import DivergenceEstimate, DivergenceEstimator, DivergenceParams
 from roslan.frames import R_LINK_OPTICAL, euler_rates_to_body_rates, matrix_to_rpy, rpy_to_matrix
@@ -70,6 +73,9 @@ class TauEventsEstimate:
     tau_camera: float
     confidence: float
     measurements: int
+    gaps_xy: F64 | None = None
+    R_world_body: F64 | None = None
+    marker_fixes: int = 0
 
 
 @dataclass
@@ -94,12 +100,6 @@ class TauEventsPolicy:
     """Event estimates below this confidence are ignored."""
     MAX_TAU = 20.0
     """s: camera tau estimates longer than this (barely any expansion) are ignored."""
-    MEMORY = 40
-    """Ground-level measurements kept (the last ones; 0.8 s at 50 Hz)."""
-    MIN_HEIGHT = 0.3
-    """m: an estimate's weight is 1 / max(h_cam, MIN_HEIGHT) (its error grows with h)."""
-    INIT = 10
-    """Accepted estimates before the height is trusted (the launch velocity is held)."""
     HORIZONTAL_TIME = 0.4
     """s: velocity tracking time constant of the horizontal and attitude loops."""
     MAX_SPEED = 3.0
@@ -108,6 +108,12 @@ class TauEventsPolicy:
     """s: the tau coupling's tau is held at ``-COUPLING_TAU_MIN`` once closer to contact:
     the residual horizontal gap is then centred with time constant ``kappa *
     COUPLING_TAU_MIN`` instead of a speed that grows as ``1 / tau``."""
+
+    FIX_AGREEMENT = 0.1
+    """m per m of camera height: two consecutive marker candidates closer than this are
+    a fix."""
+    MAX_GOAL_HEIGHT = 0.5
+    """m: a goal farther from the world's ground plane than this is refused (a perch)."""
 
     def __init__(self, params: DivergenceParams | None = None) -> None:
         self.params = params
@@ -130,6 +136,22 @@ class TauEventsPolicy:
                 "configuration (roslan/Landing-v0) has both"
             )
             raise ConfigError(msg)
+        est = context.start_estimate
+        if est is None or context.goal_position is None or context.base_link_goal is None:
+            msg = (
+                "tau-events: the PolicyContext has no start estimate or goal; build it with "
+                "env.policy_context() after env.reset()"
+            )
+            raise ConfigError(msg)
+        goal_z = float(context.goal_position[2])
+        if abs(goal_z) > self.MAX_GOAL_HEIGHT:
+            msg = (
+                f"--policy tau-events: the goal is at z = {goal_z:.2f} m in the world, not on "
+                f"the ground plane (|z| <= {self.MAX_GOAL_HEIGHT} m): tau-events lands on the "
+                "surface its downward event camera sees (the ground and its marker), not on a "
+                "perch above it (roslan/Perching-v0); fly tau-state there"
+            )
+            raise ConfigError(msg)
         model = ev.calibration_cameras()[0].model  # type: ignore[attr-defined]
         self._ideal: tuple[F64, F64] | None = None
         self._width = int(model.width)
@@ -142,30 +164,55 @@ class TauEventsPolicy:
         self._R_body_cam = R_body_cam = rpy_to_matrix(np.asarray(ev.pose.rpy)) @ R_LINK_OPTICAL
         self._R_body_imu = rpy_to_matrix(np.asarray(imu.pose.rpy))
         K = np.asarray(model.K, dtype=np.float64)
+        self._K = K
         self._est = DivergenceEstimator(
             int(model.width), int(model.height), K[0, 0], K[1, 1], K[0, 2], K[1, 2],
             R_cam_imu=R_body_cam.T @ self._R_body_imu, params=self.params,
         )  # fmt: skip
+        self._marker = MarkerDetector(int(model.width), int(model.height), float(K[0, 0]))
         self._cam_pos = np.asarray(ev.pose.position, dtype=np.float64)
         feet = np.asarray(cfg.vehicle.feet, dtype=np.float64)
         self._contact_z = float(feet[:, 2].min())  # base_link above the ground at rest
         tr = cfg.trajectory
         self._k = float(tr.k)
         self._kappa = np.array([tr.kappa.x, tr.kappa.y])
-        # the launch state (what the vehicle is told at release): attitude and velocity
-        # (flapping included: the IMU measures the flapping body's motion from there)
-        s0 = TauTrajectory(tr, warn=False).state([0.0])
-        gaps, rates = s0.gaps[0], s0.rates[0]
         Rwg = np.asarray(context.R_world_goal, dtype=np.float64)
         self._R_world_goal = Rwg
-        self._imu = _Imu(Rwg @ rpy_to_matrix(gaps[3:6]), Rwg @ rates[:3], np.zeros(3), 0)
-        self._xy0 = gaps[:2].copy()  # horizontal gaps at launch (goal frame)
+        # the marker (the goal) relative to base_link's touchdown position, world
+        self._goal_offset = np.asarray(context.goal_position) - np.asarray(context.base_link_goal)
+        cl = cfg.closed_loop
+        se = cl.start_estimate if cl is not None else None
+        sp, sv, sa = (0.3, 0.1, 0.02) if se is None else (
+            se.position_sigma, se.velocity_sigma, se.attitude_sigma
+        )  # fmt: skip
+        sb = float(imu.accelerometer_turn_on_bias_sigma) + float(  # type: ignore[attr-defined]
+            np.linalg.norm(imu.accelerometer_bias)  # type: ignore[attr-defined]
+        )
+        self._lag = 0.0 if cl is None else float(cl.dynamics.acceleration_lag)
+        # the commanded acceleration the vehicle starts with: the nominal landing's
+        s0 = TauTrajectory(tr, warn=False).state([0.0])
+        self._a_model = Rwg @ s0.accels[0, :3]
+        self._a_cmd = self._a_model.copy()
+        gravity = float(imu.gravity)  # type: ignore[attr-defined]
+        self._att = AttitudeFilter(est.R_world_body, gravity=gravity)
+        self._g = np.array([0.0, 0.0, -gravity])
+        self._imu = _Imu(
+            self._att.R, np.asarray(est.velocity, dtype=np.float64).copy(), np.zeros(3), 0
+        )
+        self._tilt_sigma = 1.5 * sa + 0.005
+        self._vert = VerticalEstimator(float(est.gaps[2]), sp, sv, sb + 0.01)
+        self._horiz = HorizontalFilter(
+            np.asarray(est.gaps[:2]),
+            np.asarray(est.rates[:2]),
+            sp,
+            sv,
+            sb + 0.5 * 9.81 * sa,
+            heading_sigma=sa,
+        )
         self._hist_t: list[F64] = []
         self._hist_p: list[F64] = []
         self._hist_v: list[F64] = []
-        self._grounds: list[float] = []
-        self._weights: list[float] = []
-        self._ground = math.nan
+        self._candidate: F64 | None = None
         self._n_meas = 0
         self._steps = 0
         self._last: DivergenceEstimate | None = None
@@ -173,21 +220,30 @@ class TauEventsPolicy:
         self.history = []
 
     # ------------------------------------------------------------------ sensing
-    def _integrate(self, rows: F64, end_ns: int) -> tuple[NDArray[np.int64], F64]:
-        """Strapdown over the step's IMU rows (valid, t - end s, acc (3), gyro (3));
-        returns the samples' times (ns) and gyro (N, 3)."""
+    def _integrate(self, rows: F64, end_ns: int) -> tuple[NDArray[np.int64], F64, F64, float]:
+        """Strapdown over the step's IMU rows (valid, t - end s, acc (3), gyro (3)) with
+        the attitude filter; returns the samples' times (ns), gyro (N, 3), the world
+        velocity increment (3,) and the time covered (s)."""
         rows = rows[rows[:, 0] > 0.5]
         t = end_ns + np.round(rows[:, 1].astype(np.float64) * 1e9).astype(np.int64)
         acc = rows[:, 2:5].astype(np.float64) @ self._R_body_imu.T
         gyro = rows[:, 5:8].astype(np.float64)
+        gyro_b = gyro @ self._R_body_imu.T
         st = self._imu
+        v_before, t_before = st.v.copy(), st.t_ns
         ts, ps, vs = [], [], []
+        lag = self._lag
         # a sequential update per IMU sample (~20 per step): attitude is a product
         for i in range(t.shape[0]):
             dt = max(int(t[i]) - st.t_ns, 0) * 1e-9
-            w = (self._R_body_imu @ gyro[i]) * dt
-            st.R_wb = st.R_wb @ _expm_so3(w)
-            a = st.R_wb @ acc[i] + G_WORLD
+            if lag > 0.0:
+                self._a_model = self._a_model + (self._a_cmd - self._a_model) * (
+                    1.0 - math.exp(-dt / lag)
+                )
+            else:
+                self._a_model = self._a_cmd
+            st.R_wb = self._att.update(gyro_b[i], acc[i], dt, self._a_model)
+            a = st.R_wb @ acc[i] + self._g
             st.p = st.p + st.v * dt + 0.5 * a * dt * dt
             st.v = st.v + a * dt
             st.t_ns = int(t[i])
@@ -199,7 +255,7 @@ class TauEventsPolicy:
             self._hist_p.append(np.asarray(ps))
             self._hist_v.append(np.asarray(vs))
             del self._hist_t[:-20], self._hist_p[:-20], self._hist_v[:-20]
-        return t, gyro
+        return t, gyro, st.v - v_before, (st.t_ns - t_before) * 1e-9
 
     def _at(self, t_ns: int) -> tuple[float, float]:
         """Dead-reckoned vertical position and velocity of base_link at ``t_ns``."""
@@ -215,38 +271,72 @@ class TauEventsPolicy:
         """Height of the camera above base_link in the world now (m; negative below)."""
         return float((self._imu.R_wb @ self._cam_pos)[2])
 
-    def _height(self) -> float:
-        """The height gap now (base_link above its touchdown height), nan if unknown."""
-        if self._n_meas < self.INIT:
-            return math.nan
-        return float(self._imu.p[2] - self._ground + self._contact_z)
-
     def _measure(self, e: DivergenceEstimate) -> None:
-        p, vz = self._at(e.t_ns)
+        p, v = self._at(e.t_ns)
+        t = e.t_ns * 1e-9
+        vz = self._vert.velocity(t, v)
         ok = e.confidence >= self.MIN_CONFIDENCE and -self.MAX_TAU < e.tau < 0.0 and vz < -0.05
         if ok:
-            h_cam = e.tau * vz  # the camera's distance to the ground, m
-            # the ground's level in the dead-reckoned frame (the camera's offset from
-            # base_link with the attitude at the end of the step, a few ms later)
-            self._grounds.append(p + self._camera_offset_z() - h_cam)
-            self._weights.append(1.0 / max(h_cam, self.MIN_HEIGHT))
-            del self._grounds[: -self.MEMORY], self._weights[: -self.MEMORY]
-            self._ground = _weighted_median(np.array(self._grounds), np.array(self._weights))
-            self._n_meas += 1
-        self.history.append((e.t_ns * 1e-9, e.tau, e.confidence, ok))
+            # D h_cam = -vz, h_cam = the height gap + the camera's height above it
+            # a tilt error of the normal biases D by ~1.5 V tilt / h: D h_cam by 1.5 V tilt
+            extra = 1.5 * float(np.linalg.norm(self._horiz.rates)) * self._tilt_sigma
+            o = self._camera_offset_z() - self._contact_z
+            ok = self._vert.add(-1.0 / e.tau, t, p, v, o, extra)
+            self._n_meas += int(ok)
+        self.history.append((t, e.tau, e.confidence, ok))
+
+    def _look(self, x: Any, y: Any, h: float) -> None:
+        """Find the marker in the step's events; a fix corrects the horizontal filter."""
+        R_wc = self._imu.R_wb @ self._R_body_cam
+        Rwg = self._R_world_goal
+        h_cam = h + self._camera_offset_z() - self._contact_z
+        if not (math.isfinite(h_cam) and h_cam > 0.2):
+            return
+        hz = self._horiz
+        base = Rwg @ np.array([*hz.gaps, h])  # base_link relative to its touchdown position
+        rel = self._goal_offset - base - self._imu.R_wb @ self._cam_pos  # marker - camera
+        r = R_wc.T @ rel
+        if r[2] <= 0.1 * float(np.linalg.norm(r)):
+            return
+        K = self._K
+        u, v = K[0, 0] * r[0] / r[2] + K[0, 2], K[1, 1] * r[1] / r[2] + K[1, 2]
+        gate = 3.0 * hz.sigma * K[0, 0] / h_cam + 40.0
+        if not self._marker.visible(u, v, h_cam, gate):
+            return
+        fix = self._marker.find(x, y, h_cam, (u, v), gate)
+        if fix is None:
+            self._candidate = None
+            return
+        ray = R_wc @ np.array([(fix.u - K[0, 2]) / K[0, 0], (fix.v - K[1, 2]) / K[1, 1], 1.0])
+        if ray[2] > -0.1:
+            return
+        marker_rel = ray * (h_cam / -ray[2])  # marker - camera, world
+        base_rel = -marker_rel + self._goal_offset - self._imu.R_wb @ self._cam_pos
+        xy = (Rwg.T @ base_rel)[:2]
+        prev, self._candidate = self._candidate, xy
+        # fused only when the last step's candidate agrees (the gap moves ~v dt a step)
+        if prev is None or float(np.linalg.norm(xy - prev)) > self.FIX_AGREEMENT * h_cam:
+            return
+        sigma = 3.0 * h_cam / K[0, 0] + 0.02 + 0.1 * float(np.linalg.norm(xy))
+        hz.correct(xy, sigma)
 
     # ------------------------------------------------------------------ control
     def act(self, observation: Mapping[str, Any], info: Mapping[str, Any]) -> F64:
-        """(6,) action: world acceleration (m/s^2) and body rates (rad/s) (module docstring)."""
+        """(6,) action: world acceleration (m/s^2) and body rates (rad/s) (module docstring).
+
+        Reads ``observation["imu"]`` and ``info["events"]`` (the raw events) only."""
         ctx = self._ctx
         assert ctx is not None, "reset() first"
         step_ns = round(ctx.control_dt * 1e9)
         end_ns = self._steps * step_ns
         self._steps += 1
-        gyro_t, gyro = self._integrate(np.asarray(observation["imu"], dtype=np.float64), end_ns)
+        imu_rows = np.asarray(observation["imu"], dtype=np.float64)
+        gyro_t, gyro, dv, span = self._integrate(imu_rows, end_ns)
+        self._horiz.predict((self._R_world_goal.T @ dv)[:2], span)
         ev = info.get("events") or {}
+        t_now = self._imu.t_ns * 1e-9
+        x, y = ev.get("x", ()), ev.get("y", ())
         if end_ns > 0:
-            x, y = ev.get("x", ()), ev.get("y", ())
             if self._ideal is not None and len(x):
                 at = np.asarray(y, dtype=np.int64) * self._width + np.asarray(x, dtype=np.int64)
                 x, y = self._ideal[0][at], self._ideal[1][at]
@@ -258,9 +348,11 @@ class TauEventsPolicy:
             if e is not None:
                 self._last = e
                 self._measure(e)
-        h = self._height()
-        vz = float(self._imu.v[2])
-        tau = h / vz if math.isfinite(h) and vz < -1e-3 else math.nan
+        h = self._vert.height(t_now, float(self._imu.p[2]))
+        vz = self._vert.velocity(t_now, float(self._imu.v[2]))
+        if end_ns > 0 and len(x):
+            self._look(x, y, h)
+        tau = h / vz if vz < -1e-3 else math.nan
         last = self._last
         self.estimate = TauEventsEstimate(
             tau=tau,
@@ -269,31 +361,32 @@ class TauEventsPolicy:
             tau_camera=last.tau if last is not None else math.nan,
             confidence=last.confidence if last is not None else 0.0,
             measurements=self._n_meas,
+            gaps_xy=self._horiz.gaps,
+            R_world_body=self._imu.R_wb.copy(),
+            marker_fixes=self._horiz.fixes,
         )
-        return self._command(h, tau)
+        out = self._command(h, vz, tau)
+        self._a_cmd = out[:3].copy()
+        return out
 
-    def _command(self, h: float, tau: float) -> F64:
+    def _command(self, h: float, vz: float, tau: float) -> F64:
         assert self._ctx is not None
         st = self._imu
-        vz = float(st.v[2])
         k = self._k
-        if not math.isfinite(h):
-            az = 0.0  # no height yet: hold the launch velocity
-        elif h <= 0.02 or vz >= -0.1:
+        if h <= 0.02 or vz >= -0.1 or not math.isfinite(tau):
             az = (-0.25 - vz) / 0.2  # at (estimated) contact or hovering: settle down slowly
         else:
             az = (1.0 - k) * vz / tau  # constant tau-dot guide through the current state
-        # horizontal gaps (goal frame), dead-reckoned, tau-coupled: x' = x / (kappa tau)
+        # horizontal gaps (goal frame) from the filter, tau-coupled: x' = x / (kappa tau)
         Rgw = self._R_world_goal.T
-        v_goal = Rgw @ st.v
-        xy = self._xy0 + (Rgw @ st.p)[:2]
+        xy, v_xy = self._horiz.gaps, self._horiz.rates
         tc = self.HORIZONTAL_TIME
         if math.isfinite(tau) and tau < -0.05:
             tau_c = min(tau, -self.COUPLING_TAU_MIN)
             v_des = np.clip(xy / (self._kappa * tau_c), -self.MAX_SPEED, self.MAX_SPEED)
         else:
             v_des = -xy / (2.0 * tc)
-        a_goal = np.array([*((v_des - v_goal[:2]) / tc), 0.0])
+        a_goal = np.array([*((v_des - v_xy) / tc), 0.0])
         a_world = self._R_world_goal @ a_goal
         a_world[2] = az
         # attitude: level to the goal's attitude
@@ -302,20 +395,3 @@ class TauEventsPolicy:
         out = np.concatenate([a_world, rates])
         lim = np.array([self._ctx.max_acceleration] * 3 + [self._ctx.max_body_rate] * 3)
         return np.asarray(np.clip(out, -lim, lim), dtype=np.float64)
-
-
-def _weighted_median(values: F64, weights: F64) -> float:
-    """The weighted median of ``values``."""
-    order = np.argsort(values, kind="stable")
-    cum = np.cumsum(weights[order])
-    return float(values[order][np.searchsorted(cum, 0.5 * cum[-1])])
-
-
-def _expm_so3(w: F64) -> F64:
-    """Rotation matrix of the rotation vector ``w`` (Rodrigues)."""
-    th = float(np.linalg.norm(w))
-    k = np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
-    if th < 1e-9:
-        return np.asarray(np.eye(3) + k, dtype=np.float64)
-    out = np.eye(3) + math.sin(th) / th * k + (1.0 - math.cos(th)) / th**2 * (k @ k)
-    return np.asarray(out, dtype=np.float64)

@@ -14,8 +14,10 @@ and is removed with the gyroscope (each event's bearing is rotated back to the w
 reference time). The plane's divergence rate is ``D = n . T / d`` (1/s, > 0 while
 approaching) and ``tau = -1 / D`` the time to contact of the camera with the plane
 (``d`` over the closing speed along the normal), negative while approaching
-(``docs/design.md`` §1: ``tau = z / vz``). The normal comes from the attitude (the IMU's
-gravity direction); without it the camera is assumed to look along the normal, and a
+(``docs/design.md`` §1: ``tau = z / vz``). The normal is the caller's: ``update``'s
+``normal`` argument, the plane's unit normal in the camera's optical frame (``tau-events``
+passes the world's down direction rotated by its attitude estimate, a gyro and
+accelerometer filter); without it the camera is assumed to look along the normal, and a
 tilt ``a`` with a sideways speed ``V`` then biases ``D`` by about ``1.5 V sin(a) / d``.
 
 The three parameters ``(ux, uy, uz)`` are found by contrast maximisation (Gallego, Rebecq,
