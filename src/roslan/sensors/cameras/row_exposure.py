@@ -3,9 +3,10 @@
 A frame with exposure ``E`` and readout ``R`` on an ``H``-row sensor exposes row ``r``
 over ``[t_r, t_r + E]``, ``t_r = t_start + r * R / H`` (:mod:`.shutter`). Rendering the
 scene at enough instants to cover every row's window costs a render per instant; instead
-the frame takes ``exposure_samples`` renders (colour or luminance, and depth) spread
-evenly over the middles of the rows' windows (``t_r + E / 2``; a global shutter: one, at
-the stamp) and forms every row from them by the exact per-pixel motion:
+the frame takes ``exposure_samples`` renders (colour or luminance, and depth; at
+:data:`RENDER_SAMPLES` MSAA samples per pixel) spread evenly over the middles of the
+rows' windows (``t_r + E / 2``; a global shutter: one, at the stamp) and forms every row
+from them by the exact per-pixel motion:
 
 * row ``r`` is the mean of ``N_r`` sub-samples at ``t_rj = t_r + (j + 1/2) E / N_r`` (the
   midpoint rule over its own window; ``E = 0``: one, at ``t_r``), ``N_r`` chosen so that
