@@ -10,7 +10,10 @@ not depend on the shutter's sampling):
   it, the banded renders of ``exposure_samples``);
 * ``reference``: 64 renders spread over the shutter window, every row the average of the
   renders weighted by their overlap with its own exposure window
-  (:func:`roslan.sensors.cameras.shutter.render_rolling`: renders only, no warping).
+  (:func:`roslan.sensors.cameras.shutter.render_rolling`: renders only, no warping), at
+  the MSAA samples of the camera's own renders
+  (:data:`roslan.sensors.cameras.row_exposure.RENDER_SAMPLES`; ``--reference-samples``
+  overrides it, e.g. 1 for the renderer's one sample per pixel and edge filter).
 
 Both are encoded to 8 bits (no noise) and compared per 60-row band: the shift by phase
 correlation (``cv2.phaseCorrelate``, Hanning window; of the linear images, before the
@@ -22,7 +25,7 @@ writes a picture of the worst frame: default, reference and their difference, wi
 band lines.
 
     PYTHONPATH=src python benchmarks/bench_shutter_accuracy.py [--png docs/img/x.png]
-        [--frames N] [--pitch P ...]
+        [--frames N] [--pitch P ...] [--reference-samples N]
 """
 
 from __future__ import annotations
@@ -41,6 +44,11 @@ from roslan.sensors.cameras import Camera
 from roslan.sensors.cameras.shutter import render_rolling, shutter_plan
 from roslan.trajectory import TauTrajectory
 from roslan.vehicle import base_link_trajectory
+
+try:
+    from roslan.sensors.cameras.row_exposure import RENDER_SAMPLES as CAMERA_SAMPLES
+except ImportError:  # code without the row formation: the renderer's own samples
+    CAMERA_SAMPLES = None
 
 RATE = 10.0  # frames per trajectory second
 BAND = 60  # rows per band
@@ -75,14 +83,21 @@ def default_frame(cam: Camera, ctx: _Ctx, t: int, exposure: float) -> np.ndarray
     return np.array(cam.render_linear(ctx.renderer(), e, T_wb, plan))
 
 
-def reference_frame(cam: Camera, ctx: _Ctx, t: int, exposure: float) -> np.ndarray:
-    """64 renders over the window, rows weighted by their own exposure window."""
+def reference_frame(
+    cam: Camera, ctx: _Ctx, t: int, exposure: float, samples: int | None
+) -> np.ndarray:
+    """64 renders over the window (``samples`` MSAA samples each; None: the renderer's),
+    rows weighted by their own exposure window."""
     c, e = cam.config, cam._eyes[0]
     assert e.plan is not None
     plan = shutter_plan(t, exposure, c.readout_time, REFERENCE_SAMPLES, e.model.height)
     T_opt = _body_poses(ctx.trajectory, plan.instants_ns) @ cam._T_body_sensor @ e.T_sensor_optical
     out = np.empty((e.model.height, e.model.width), np.float32)
-    return render_rolling(ctx.renderer(), e.plan, T_opt, plan, out, True, c.near_clip)
+    if samples is None:
+        return render_rolling(ctx.renderer(), e.plan, T_opt, plan, out, True, c.near_clip)
+    return render_rolling(
+        ctx.renderer(), e.plan, T_opt, plan, out, True, c.near_clip, samples=samples
+    )
 
 
 def band_metrics(
@@ -110,7 +125,9 @@ def band_metrics(
     return np.array(shifts), np.array(grads), np.array(rms)
 
 
-def run(pitch: float, frames: int | None, png: str | None) -> dict[str, float]:
+def run(
+    pitch: float, frames: int | None, png: str | None, samples: int | None = CAMERA_SAMPLES
+) -> dict[str, float]:
     cfg, _ = load_config(None)
     tcfg = cfg.trajectory.model_copy(
         update={"flapping": cfg.trajectory.flapping.model_copy(update={"pitch": pitch})}
@@ -130,7 +147,7 @@ def run(pitch: float, frames: int | None, png: str | None) -> dict[str, float]:
     c0 = time.process_time()
     for t, x in zip(stamps.tolist(), ex.tolist(), strict=True):
         la = default_frame(cam, ctx, t, x)
-        lb = reference_frame(cam, ctx, t, x).copy()
+        lb = reference_frame(cam, ctx, t, x, samples).copy()
         a = cam.finish_image(la.copy(), rng, x)
         b = cam.finish_image(lb.copy(), rng, x)
         s, g, q = band_metrics(a, b, la, lb)
@@ -143,7 +160,9 @@ def run(pitch: float, frames: int | None, png: str | None) -> dict[str, float]:
     print(
         f"\nflapping pitch {pitch} rad at {tcfg.flapping.frequency} Hz: {len(stamps)} frames "
         f"at {RATE:g} Hz, exposures {ex.min() * 1e3:.2f}-{ex.max() * 1e3:.2f} ms "
-        f"(median {np.median(ex) * 1e3:.2f}); {time.process_time() - c0:.1f} CPU-s"
+        f"(median {np.median(ex) * 1e3:.2f}); reference MSAA samples "
+        f"{'renderer default' if samples is None else samples}; "
+        f"{time.process_time() - c0:.1f} CPU-s"
     )
     print("| band (rows) | shift p95 (px) | gradient energy median (p95) | RMS p95 (DN) |")
     print("|---|---|---|---|")
@@ -193,10 +212,16 @@ def main() -> None:
     ap.add_argument("--frames", type=int, default=None, help="frames per landing (default all)")
     ap.add_argument("--pitch", type=float, nargs="*", default=list(PITCHES))
     ap.add_argument("--png", default=None, help="picture of the strongest landing's worst frame")
+    ap.add_argument(
+        "--reference-samples",
+        type=int,
+        default=CAMERA_SAMPLES,
+        help="MSAA samples of the reference's renders (default: the camera's own)",
+    )
     args = ap.parse_args()
     for i, p in enumerate(args.pitch):
         last = i == len(args.pitch) - 1
-        run(p, args.frames, args.png if last else None)
+        run(p, args.frames, args.png if last else None, args.reference_samples)
 
 
 if __name__ == "__main__":

@@ -309,11 +309,13 @@ def render_bands(
     mono: bool,
     near: float,
     supersampling: int = 1,
+    samples: int | None = None,
 ) -> Iterator[Band]:
     """The renders of a rolling-shutter frame, one :class:`Band` each, in plan order:
     render ``k`` (optical pose ``T_world_optical[k]``) covers only the rows it serves, as
     a band of the virtual pinhole view (principal point moved up by the band's first
-    row). Only these renders touch the renderer; each array is fresh."""
+    row), with ``samples`` MSAA samples per pixel (None: the renderer's). Only these
+    renders touch the renderer; each array is fresh."""
     for k, r0, r1, a, b in band_extents(plan, shutter):
         K = plan.K.copy()
         K[1, 2] -= a
@@ -325,6 +327,7 @@ def render_bands(
             color=not mono,
             depth=False,
             luminance=mono,
+            samples=samples,
             near=near,
             supersampling=supersampling,
         )
@@ -362,10 +365,14 @@ def render_rolling(
     mono: bool,
     near: float,
     supersampling: int = 1,
+    samples: int | None = None,
 ) -> F32:
     """A rolling-shutter frame into ``out`` ((H, W) luminance or (H, W, 3) linear RGB at
-    the output size): each render of :func:`render_bands` remapped and added with its row
-    weights as soon as it is drawn (one band in memory at a time)."""
+    the output size): each render of :func:`render_bands` (``samples``: their MSAA
+    samples, None: the renderer's) remapped and added with its row weights as soon as it
+    is drawn (one band in memory at a time)."""
     assert shutter.weights is not None
-    bands = render_bands(renderer, plan, T_world_optical, shutter, mono, near, supersampling)
+    bands = render_bands(
+        renderer, plan, T_world_optical, shutter, mono, near, supersampling, samples
+    )
     return compose_bands(plan, shutter, bands, out, mono)
