@@ -208,3 +208,24 @@ def test_bad_laser_config_names_the_key(data: dict[str, object], key: str) -> No
     with pytest.raises(ConfigError) as err:
         validate_model(LaserConfig, {"type": "laser", "name": "l", **data}, "sim.yaml")
     assert key in str(err.value)
+
+
+def test_range_readings_ask_for_the_scene_at_their_instants(tmp_path: Path) -> None:
+    # every reading's rays carry its own trajectory time (Scene.at(t), roslan.scene.pose)
+    ctx = FakeContext(scene(plane()), LinearTrajectory((0.0, 0.0, 3.0)), tmp_path)
+    caster = ctx.raycaster()
+    seen: list[np.ndarray] = []
+
+    class Recording:
+        def cast(self, o: np.ndarray, d: np.ndarray, r: float, *, t: np.ndarray) -> object:
+            seen.append(np.asarray(t))
+            return caster.cast(o, d, r, t=t)
+
+    sonar = _sonar(axis=(0, 0, -1), noise_sigma=0.0, max_range=5.0)
+    t_ns = np.array([0, 250_000_000, 1_000_000_000], np.int64)
+    r = sonar.read(ctx.trajectory, Recording(), t_ns, ctx.rng("r"))  # type: ignore[arg-type]
+    np.testing.assert_allclose(r, 3.0, atol=1e-5)
+    (t,) = seen
+    n_r = t.shape[0] // 3
+    assert n_r >= 1
+    np.testing.assert_array_equal(t, np.repeat(t_ns * 1e-9, n_r))

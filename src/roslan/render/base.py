@@ -70,8 +70,10 @@ class FrameRenderer(Protocol):
         out: F32 | None = None,
         near: float | None = None,
         supersampling: int = 1,
+        t: float | None = None,
     ) -> RenderResult:
-        """Render the view of a pinhole camera (pose of the OPTICAL frame, OpenCV ``K``)."""
+        """Render the view of a pinhole camera (pose of the OPTICAL frame, OpenCV ``K``)
+        of the scene at trajectory time ``t`` (s; None: t = 0)."""
         ...
 
 
@@ -83,8 +85,11 @@ class BeamCaster(Protocol):
         origins: ArrayLike,
         directions: ArrayLike,
         max_range: float | ArrayLike = ...,
+        *,
+        t: float | ArrayLike | None = None,
     ) -> Hits:
-        """First hit of each of N rays."""
+        """First hit of each of N rays, against the scene at the rays' trajectory time
+        ``t`` (s, scalar or (N,); None: t = 0)."""
         ...
 
     def cast_incidence(
@@ -92,6 +97,8 @@ class BeamCaster(Protocol):
         origins: ArrayLike,
         directions: ArrayLike,
         max_range: float | ArrayLike = ...,
+        *,
+        t: float | ArrayLike | None = None,
     ) -> tuple[F32, F32]:
         """Distance (N,) and ``reflectivity * cos(incidence)`` (N,) of each of N rays."""
         ...

@@ -25,6 +25,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from roslan.errors import RenderError
+from roslan.scene.model import require_static
 
 if TYPE_CHECKING:
     from roslan.scene.model import Scene
@@ -146,7 +147,8 @@ class RayCaster:
     """
 
     def __init__(self, scene: Scene, *, threads: int | None = None) -> None:
-        verts, faces, owner = scene.triangles
+        require_static(scene, "the Embree ray caster")
+        verts, faces, owner = scene.at(0.0).triangles
         self.scene_name = scene.name
         self._owner = owner
         self.n_triangles = int(faces.shape[0])
@@ -219,6 +221,8 @@ class RayCaster:
         origins: ArrayLike,
         directions: ArrayLike,
         max_range: float | ArrayLike = np.inf,
+        *,
+        t: float | ArrayLike | None = None,
     ) -> Hits:
         """Cast N rays; first hit of each.
 
@@ -227,6 +231,9 @@ class RayCaster:
             directions: (N, 3) world unit directions (not renormalized: distances are in
                 units of their length).
             max_range: scalar or (N,) largest distance reported, m; farther hits are misses.
+            t: trajectory time (s) of the rays, scalar or (N,) (None: t = 0): the scene is
+                cast at that time (:meth:`Scene.at <roslan.scene.model.Scene.at>`); a
+                static scene, the only kind this caster builds, is the same at every time.
 
         Returns:
             :class:`Hits`, the hit record (float32/int32 arrays of length N; the hit
@@ -253,9 +260,12 @@ class RayCaster:
         origins: ArrayLike,
         directions: ArrayLike,
         max_range: float | ArrayLike = np.inf,
+        *,
+        t: float | ArrayLike | None = None,
     ) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
         """What a LiDAR needs, without the (N, 3) normals: ``distance`` (N,) float32 as in
-        :meth:`cast` and ``reflectivity * cos(incidence)`` (N,) float32 (0 for misses)."""
+        :meth:`cast` and ``reflectivity * cos(incidence)`` (N,) float32 (0 for misses);
+        ``t`` as in :meth:`cast`."""
         _o, d, dist, tri = self._trace(origins, directions, max_range)
         if self.n_triangles == 0:
             return dist, np.zeros(tri.shape[0], np.float32)

@@ -50,7 +50,9 @@ class SegmentCaster(Protocol):
     :class:`~roslan.render.base.BeamCaster`): the first hit of each ray within its range,
     a record with ``distance`` and ``triangle`` (N,) arrays."""
 
-    def cast(self, origins: Any, directions: Any, max_range: Any = ...) -> Any: ...
+    def cast(
+        self, origins: Any, directions: Any, max_range: Any = ..., *, t: Any = None
+    ) -> Any: ...
 
 
 class VehiclePoints(NamedTuple):
@@ -107,10 +109,11 @@ def vehicle_points(vehicle: Any = None, sensors: Sequence[Any] = ()) -> VehicleP
 
 
 def segment_hits(
-    caster: SegmentCaster, origins: F64, ends: F64
+    caster: SegmentCaster, origins: F64, ends: F64, t: float | F64 = 0.0
 ) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
     """First hit of each segment ``origins -> ends`` (N, 3): the triangle (-1 = none) and
-    the fraction of the segment at the hit (0 for none), cast through ``caster``."""
+    the fraction of the segment at the hit (0 for none), cast through ``caster`` against
+    the scene at each segment's trajectory time ``t`` (s, scalar or (N,): its start)."""
     d = ends - origins
     seg = np.linalg.norm(d, axis=1)
     moving = seg > 1e-9
@@ -120,10 +123,12 @@ def segment_hits(
         return prim, frac
     idx = np.flatnonzero(moving)
     u = d[idx] / seg[idx, None]
+    ts = np.asarray(t, dtype=np.float64)
     hits = caster.cast(
         np.ascontiguousarray(origins[idx], dtype=np.float32),
         np.ascontiguousarray(u, dtype=np.float32),
         np.ascontiguousarray(seg[idx], dtype=np.float32),
+        t=ts if ts.ndim == 0 else ts[idx],
     )
     p = np.asarray(hits.triangle).astype(np.int64)
     tf = np.where(p >= 0, np.asarray(hits.distance, dtype=np.float64), 0.0)
@@ -187,7 +192,8 @@ def check_clearance(
         # base_link -> every point at one instant
         s1 = trajectory.state([when])
         pw = s1.position[0] + P @ s1.R_world_body[0].T
-        prim, frac = segment_hits(caster, np.broadcast_to(s1.position[0], pw.shape).copy(), pw)
+        o = np.broadcast_to(s1.position[0], pw.shape).copy()
+        prim, frac = segment_hits(caster, o, pw, when)
         hit = np.flatnonzero(prim >= 0)
         if not hit.size:
             return None
@@ -267,7 +273,7 @@ def path_hit(
     K = points.shape[0]
     wb = position[:, None, :] + np.einsum("nij,kj->nki", R_world_body, points)
     a, b = wb[:-1].reshape(-1, 3), wb[1:].reshape(-1, 3)
-    prim, frac = segment_hits(caster, a, b)
+    prim, frac = segment_hits(caster, a, b, np.repeat(np.asarray(t, np.float64)[:-1], K))
     hit = np.flatnonzero(prim >= 0)
     if not hit.size:
         return None

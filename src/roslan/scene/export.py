@@ -31,14 +31,7 @@ __all__ = ["export_scene", "local_geometry"]
 
 def local_geometry(obj: SceneObject) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
     """Object-frame (before scale) vertices and normals, (V, 3) float32 each."""
-    if obj.local_vertices is not None and obj.local_normals is not None:
-        return obj.local_vertices, obj.local_normals
-    R, t = obj.pose[:3, :3], obj.pose[:3, 3]
-    sc = np.asarray(obj.scale, dtype=np.float64)
-    v = ((obj.vertices.astype(np.float64) - t) @ R) / sc
-    n = (obj.normals.astype(np.float64) @ R) * sc
-    n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-30)
-    return v.astype(np.float32), n.astype(np.float32)
+    return obj.model_geometry()
 
 
 def _floats(a: Any) -> list[float]:

@@ -155,7 +155,8 @@ def _compute(scene: Scene) -> SceneLabels:
         )
     t_inst = np.concatenate(tri_inst) if tri_inst else np.zeros(0, np.uint16)
     t_cls = np.concatenate(tri_cls) if tri_cls else np.zeros(0, np.uint16)
-    boxes = _boxes(scene, t_inst, [scene.objects[oi].pose[:3, :3] for _, _, oi in first])
+    # world-frame boxes at t = 0 (the scene at t = 0, each object's pose then)
+    boxes = _boxes(scene, t_inst, [scene.objects[oi].pose_at(0.0)[:3, :3] for _, _, oi in first])
     instances = tuple(
         Instance(
             id=i + 1,
@@ -182,7 +183,7 @@ def _boxes(scene: Scene, tri_inst: U16, frames: list[F64]) -> list[Box]:
     n = len(frames)
     if n == 0:
         return []
-    verts, faces, _ = scene.triangles
+    verts, faces, _ = scene.at(0.0).triangles
     keep = tri_inst > 0
     inst = tri_inst[keep].astype(np.int64) - 1
     corners = verts[faces[keep]].astype(np.float64)  # (T, 3, 3)

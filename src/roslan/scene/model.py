@@ -2,8 +2,11 @@
 
 A :class:`Scene` is built once (from a scene file or a built-in generator) and
 handed to both back-ends, so images and beams see exactly the same triangles.
-All geometry is in the world frame (ENU, metres), float32 for the GPU, with
-per-object materials.
+Each object keeps its geometry in its model frame plus a pose over time
+(:mod:`roslan.scene.pose`; constant today) and its world-placed triangles at that pose
+(ENU, metres, float32 for the GPU), with per-object materials. Every consumer reads
+"the scene at t" through :meth:`Scene.at`; a static scene's view is its world-placed
+arrays themselves (the fast path: the same bytes, nothing recomputed).
 """
 
 from __future__ import annotations
@@ -14,9 +17,11 @@ from functools import cached_property
 import numpy as np
 from numpy.typing import NDArray
 
+from roslan.errors import RenderError
 from roslan.scene.classes import PartLabels
+from roslan.scene.pose import ConstantPose, PoseTrack
 
-__all__ = ["Lights", "Material", "Scene", "SceneObject"]
+__all__ = ["Lights", "Material", "Scene", "SceneAt", "SceneObject", "require_static"]
 
 F32 = NDArray[np.float32]
 F64 = NDArray[np.float64]
@@ -43,7 +48,8 @@ class Material:
 
 @dataclass(frozen=True, eq=False)
 class SceneObject:
-    """One rigid object, its triangles already posed and scaled into the world frame.
+    """One rigid object: its model-frame geometry, its pose over time and its triangles
+    posed and scaled into the world frame at its pose at t = 0.
 
     Attributes:
         name: unique within the scene.
@@ -61,6 +67,8 @@ class SceneObject:
         local_normals: (V, 3) float32 object-frame normals matching ``local_vertices``, or None.
         labels: class and instance of its triangles (:class:`~roslan.scene.classes.PartLabels`),
             or None (unlabelled: class 0); see :mod:`roslan.scene.instances`.
+        motion: its pose over time (:class:`~roslan.scene.pose.PoseTrack`), or None:
+            constant at ``pose`` (every object today).
     """
 
     name: str
@@ -75,10 +83,57 @@ class SceneObject:
     local_vertices: F32 | None = None
     local_normals: F32 | None = None
     labels: PartLabels | None = None
+    motion: PoseTrack | None = None
 
     @property
     def n_triangles(self) -> int:
         return int(self.faces.shape[0])
+
+    @property
+    def track(self) -> PoseTrack:
+        """Its pose over time (a :class:`~roslan.scene.pose.ConstantPose` at ``pose``
+        when it has no ``motion``)."""
+        return self.motion if self.motion is not None else ConstantPose(self.pose)
+
+    @property
+    def is_static(self) -> bool:
+        return self.motion is None or self.motion.is_static
+
+    def pose_at(self, t: float) -> F64:
+        """(4, 4) ``T_world_object`` at trajectory time ``t`` (s)."""
+        return self.pose if self.motion is None else self.motion.at(t)
+
+    def model_geometry(self) -> tuple[F32, F32]:
+        """Model-frame (before scale) vertices and normals, (V, 3) float32 each: the kept
+        ``local_vertices``/``local_normals``, or the world arrays taken back through
+        ``pose`` and ``scale`` for an object built without them."""
+        if self.local_vertices is not None and self.local_normals is not None:
+            return self.local_vertices, self.local_normals
+        R, t = self.pose[:3, :3], self.pose[:3, 3]
+        sc = np.asarray(self.scale, dtype=np.float64)
+        v = ((self.vertices.astype(np.float64) - t) @ R) / sc
+        n = (self.normals.astype(np.float64) @ R) * sc
+        n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-30)
+        return v.astype(np.float32), n.astype(np.float32)
+
+    def vertices_at(self, t: float) -> F32:
+        """(V, 3) float32 world vertices at time ``t``: ``vertices`` itself for a static
+        object, else the model geometry placed at :meth:`pose_at` (``R (scale p) + t``,
+        the loader's formula, so a pose equal to ``pose`` gives the same bytes)."""
+        if self.is_static:
+            return self.vertices
+        T = self.pose_at(t)
+        local = self.model_geometry()[0].astype(np.float64) * np.asarray(self.scale)
+        return np.ascontiguousarray(local @ T[:3, :3].T + T[:3, 3], dtype=np.float32)
+
+    def point_velocity(self, t: float, points: F64) -> F64:
+        """(N, 3) world velocity (m/s) at time ``t`` of the object's surface points
+        ``points`` (N, 3, world, at ``t``): ``v + w x (p - origin)``; zero when static."""
+        p = np.asarray(points, dtype=np.float64)
+        if self.is_static:
+            return np.zeros_like(p)
+        v, w = self.track.twist(t)
+        return v + np.cross(w, p - self.pose_at(t)[:3, 3])
 
 
 @dataclass(frozen=True)
@@ -152,8 +207,86 @@ class Scene:
             return np.zeros((2, 3))
         return np.stack([v.min(axis=0), v.max(axis=0)]).astype(np.float64)
 
+    @cached_property
+    def is_static(self) -> bool:
+        """True when no object moves: :meth:`at` is then the same view at every time."""
+        return all(o.is_static for o in self.objects)
+
+    def at(self, t: float) -> SceneAt:
+        """The scene at trajectory time ``t`` (s): what the renderer, the caster, the
+        clearance check and the motion field read."""
+        return SceneAt(self, float(t))
+
     def object(self, name: str) -> SceneObject:
         for o in self.objects:
             if o.name == name:
                 return o
         raise KeyError(name)
+
+
+@dataclass(frozen=True, eq=False)
+class SceneAt:
+    """A :class:`Scene` at one trajectory time: the world-placed triangles and the motion
+    of its surfaces at ``t``. A static scene's view is its own arrays (no copy), so the
+    back-ends' static fast paths see exactly today's bytes."""
+
+    scene: Scene
+    t: float
+
+    @property
+    def is_static(self) -> bool:
+        return self.scene.is_static
+
+    @cached_property
+    def triangles(self) -> tuple[F32, NDArray[np.int32], NDArray[np.int32]]:
+        """As :attr:`Scene.triangles` (same faces and owners) with every object's
+        vertices at ``t``."""
+        tri = self.scene.triangles
+        if self.scene.is_static or not self.scene.objects:
+            return tri
+        verts = np.concatenate([o.vertices_at(self.t) for o in self.scene.objects])
+        return verts.astype(np.float32, copy=False), tri[1], tri[2]
+
+    @property
+    def triangle_reflectivity(self) -> F32:
+        return self.scene.triangle_reflectivity
+
+    @cached_property
+    def bounds(self) -> F64:
+        """(2, 3) axis-aligned min and max corners of the geometry at ``t`` (m)."""
+        if self.scene.is_static:
+            return self.scene.bounds
+        v = self.triangles[0]
+        if v.shape[0] == 0:
+            return np.zeros((2, 3))
+        return np.stack([v.min(axis=0), v.max(axis=0)]).astype(np.float64)
+
+    def point_velocity(self, points: F64, owner: NDArray[np.integer]) -> F64:
+        """(N, 3) world velocity (m/s) of surface points ``points`` (N, 3) lying on
+        objects ``owner`` (N,) (indices into ``Scene.objects``; negative: no surface, 0
+        velocity): the object-motion term of the motion field; zero for a static scene."""
+        p = np.asarray(points, dtype=np.float64)
+        out = np.zeros(p.shape)
+        if self.scene.is_static:
+            return out
+        own = np.asarray(owner)
+        for i in np.unique(own[own >= 0]):  # one call per moving object, not per point
+            obj = self.scene.objects[int(i)]
+            if not obj.is_static:
+                sel = own == i
+                out[sel] = obj.point_velocity(self.t, p[sel])
+        return out
+
+
+def require_static(scene: Scene, what: str) -> None:
+    """Raise RenderError unless every object of ``scene`` keeps a constant pose (``what``
+    names the back-end: those build their structures once, from ``scene.at(0)``, and
+    take their time argument as the same scene at every time)."""
+    if scene.is_static:
+        return
+    moving = [o.name for o in scene.objects if not o.is_static]
+    msg = (
+        f"scene {scene.name!r}: objects {moving} move over time, but {what} draws only "
+        "scenes whose objects keep a constant pose"
+    )
+    raise RenderError(msg)

@@ -40,6 +40,7 @@ from roslan.render.gl.settings import MAX_ANISO, default_samples
 from roslan.render.gl.supersample import render_supersampled
 from roslan.render.gl.targets import Targets, out_array
 from roslan.render.gl.upload import CLUSTER_CELLS, SceneBuffers, ShadowMap, merge_runs
+from roslan.scene.model import require_static
 
 if TYPE_CHECKING:
     from roslan.scene.model import Scene
@@ -141,6 +142,7 @@ class Renderer:
     def __init__(self, scene: Scene, *, samples: int | None = None) -> None:
         # (the scene's lights only: a renderer must not keep its scene alive, so that the
         # per-process lookup of get_renderer, weak on the scene, lets both go)
+        require_static(scene, "the OpenGL renderer")
         self.lights = scene.lights
         self.ctx = ctx = create_context()
         self.max_size = int(
@@ -169,7 +171,7 @@ class Renderer:
         self._d_targets: dict[tuple[int, int], tuple[Any, Any, Any]] = {}
         self._released = False
 
-        lo, hi = scene.bounds
+        lo, hi = scene.at(0.0).bounds
         diag = float(np.linalg.norm(hi - lo))
         self._bounds_corners = np.array(
             [[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])]
@@ -275,6 +277,7 @@ class Renderer:
         out: F32 | None = None,
         near: float | None = None,
         supersampling: int = 1,
+        t: float | None = None,
     ) -> RenderResult:
         """Render the view of a pinhole camera.
 
@@ -305,6 +308,9 @@ class Renderer:
                 the result converges to the area average of the true image as N grows;
                 depth: see :func:`~roslan.render.gl.supersample.combine_depth`.
                 ``samples`` is ignored then.
+            t: trajectory time (s) of the view (None: t = 0); the scene at ``t``
+                (:meth:`Scene.at <roslan.scene.model.Scene.at>`) is the uploaded static
+                scene at every time, the only kind this renderer draws.
         Returns:
             :class:`RenderResult`; row 0 is the top of the image. Arrays are fresh (the
             caller may keep and modify them), except ``out``.

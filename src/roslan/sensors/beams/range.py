@@ -202,7 +202,9 @@ class RangeSensor:
         origins, dirs = rays_in_world(
             trajectory, self.T_body_sensor, t, np.zeros(n_r), d, mode="exact"
         )
-        hits = caster.cast(origins.reshape(-1, 3), dirs.reshape(-1, 3), c.max_range)
+        hits = caster.cast(
+            origins.reshape(-1, 3), dirs.reshape(-1, 3), c.max_range, t=np.repeat(t, n_r)
+        )
         true: NDArray[np.float64] = hits.distance.astype(np.float64).reshape(n_t, n_r).min(axis=1)
         out = np.full(n_t, np.inf)
         hit = np.isfinite(true) & keep

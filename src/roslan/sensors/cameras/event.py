@@ -220,13 +220,14 @@ class EventCamera:
             luminance=True,
             near=self.config.near_clip,
             supersampling=self.config.supersampling,
+            t=t_ns * 1e-9,
         )
         assert res.luminance is not None
         out = res if cam.plan is None else remap_result(cam.plan, res)
         lum, depth = out.luminance, out.depth
         assert lum is not None
         if depth is not None and exact_depth and not cam.model.is_pinhole:
-            depth = depth_on_rays(ctx.raycaster(), T_wc, cam.rays)
+            depth = depth_on_rays(ctx.raycaster(), T_wc, cam.rays, t=t_ns * 1e-9)
         return lum, depth, v, w
 
     # -------------------------------------------------------------- stream

@@ -78,7 +78,9 @@ def flow_end_times(gt_times: NDArray[np.int64], interval_ns: int, end_ns: int) -
     return out
 
 
-def depth_on_rays(caster: BeamCaster, T_world_cam: F64, rays: tuple[F64, F64]) -> F32:
+def depth_on_rays(
+    caster: BeamCaster, T_world_cam: F64, rays: tuple[F64, F64], *, t: float | None = None
+) -> F32:
     """z-depth (m, optical axis; ``inf``: nothing hit) of the scene along each output
     pixel's own ray, ray cast (Embree: the triangles the rasterizer draws).
 
@@ -91,13 +93,14 @@ def depth_on_rays(caster: BeamCaster, T_world_cam: F64, rays: tuple[F64, F64]) -
         caster: the scene's ray caster.
         T_world_cam: (4, 4) pose of the optical frame.
         rays: (H, W) normalized pinhole ``x``, ``y`` of each output pixel's ray.
+        t: trajectory time (s) of the view: the scene is cast as it is then.
     """
     x, y = rays
     T = np.asarray(T_world_cam, np.float64)
     # direction (x, y, 1) in the camera, in the world: the distance along it is z
     d = np.stack([T[k, 0] * x.ravel() + T[k, 1] * y.ravel() + T[k, 2] for k in range(3)], 1)
     o = np.broadcast_to(T[:3, 3], d.shape)
-    hits = caster.cast(o, d)
+    hits = caster.cast(o, d, t=t)
     out: F32 = np.asarray(hits.distance, np.float32).reshape(x.shape)
     return out
 

@@ -375,7 +375,15 @@ class _ImagingCamera(CameraBase):
 
         def meter(k: int, exposure: float) -> float:
             res = renderer.render(
-                T_opt[k], K, w, h, color=False, depth=False, luminance=True, near=c.near_clip
+                T_opt[k],
+                K,
+                w,
+                h,
+                color=False,
+                depth=False,
+                luminance=True,
+                near=c.near_clip,
+                t=float(stamps[k]) * 1e-9,
             )
             assert res.luminance is not None
             return meter_level(res.luminance, scale * exposure)
@@ -404,7 +412,15 @@ class _ImagingCamera(CameraBase):
             now = loop.exposure
             T_opt = pose_matrices(ctx, np.array([t])) @ self._T_body_sensor @ e.T_sensor_optical
             res = renderer.render(
-                T_opt[0], K, w, h, color=False, depth=False, luminance=True, near=c.near_clip
+                T_opt[0],
+                K,
+                w,
+                h,
+                color=False,
+                depth=False,
+                luminance=True,
+                near=c.near_clip,
+                t=t * 1e-9,
             )
             assert res.luminance is not None
             loop.update(meter_level(res.luminance, scale * now))

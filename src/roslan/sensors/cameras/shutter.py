@@ -330,6 +330,7 @@ def render_bands(
             samples=samples,
             near=near,
             supersampling=supersampling,
+            t=float(shutter.instants_ns[k]) * 1e-9,
         )
         img = res.luminance if mono else res.color
         assert img is not None
