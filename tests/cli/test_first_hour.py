@@ -160,6 +160,7 @@ def test_trajectory_command_reads_only_the_trajectory_block(
 def test_a_sensor_without_scene_stops_before_any_work(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
 ) -> None:
+    import roslan.pipeline.record as record_mod
     import roslan.pipeline.run as run_mod
 
     job = tmp_path / "job.yaml"
@@ -177,7 +178,7 @@ def test_a_sensor_without_scene_stops_before_any_work(
     )
     started: list[str] = []
     monkeypatch.setattr(run_mod, "WorkerPool", lambda *a: started.append("pool"))
-    monkeypatch.setattr(run_mod, "make_temp", lambda *a: started.append("tmp"))
+    monkeypatch.setattr(record_mod, "make_temp", lambda *a: started.append("tmp"))
     assert main(["simulate", str(job), "-o", str(tmp_path / "out")]) == 2
     err = capsys.readouterr().err
     assert err.startswith(f"error: {job}: sensors[1] ('velo', type lidar) needs a scene")

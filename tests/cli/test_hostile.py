@@ -26,7 +26,7 @@ import yaml
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-import roslan.pipeline.run as run_mod
+import roslan.pipeline.record as run_mod
 from roslan.cli import main
 from roslan.errors import OutputError
 
