@@ -217,7 +217,8 @@ def test_the_dry_run_builds_each_landings_scene_once(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """The plan's clearance check and the run's checks share the scene each landing is
-    built with (its own seed): one build per landing, whatever the weak scene table keeps; main built each twice."""
+    built with (its own seed): one build per landing, whatever the weak scene table
+    keeps; main built each twice."""
     import roslan.scene.builtin as builtin
     import roslan.scene.loader as loader
     from roslan.cli import main
