@@ -317,5 +317,12 @@ def _image_formation(sensors: Any) -> dict[str, Any] | None:
     if not any(hasattr(s, "supersampling") for s in sensors):
         return None
     from roslan.render.gl import image_formation
+    from roslan.sensors.cameras.row_exposure import RENDER_SAMPLES
 
-    return image_formation()
+    record = image_formation()
+    record["exposed_rows"] = (
+        "frame and stereo cameras with an exposure or readout time: each row integrates its "
+        "own exposure window, warped along the exact per-pixel motion from renders at "
+        f"{RENDER_SAMPLES} MSAA samples (msaa_samples above is the renderer's default)"
+    )
+    return record
