@@ -23,7 +23,8 @@ watertight) only when some point lies in its box.
 
 from __future__ import annotations
 
-from functools import cached_property, lru_cache
+import weakref
+from functools import cached_property
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -88,10 +89,19 @@ class Inside(NamedTuple):
     """(3,) the point's world position, m."""
 
 
-@lru_cache(maxsize=8)
+_CANDIDATES: weakref.WeakKeyDictionary[Scene, tuple[ClosedObject, ...]] = (
+    weakref.WeakKeyDictionary()
+)
+"""Each live scene's candidates (their meshes built lazily), never keeping a scene alive."""
+
+
 def _candidates(scene: Scene) -> tuple[ClosedObject, ...]:
-    # fewer than a tetrahedron's four faces cannot close a volume
-    return tuple(ClosedObject(i, o) for i, o in enumerate(scene.objects) if o.n_triangles >= 4)
+    found = _CANDIDATES.get(scene)
+    if found is None:
+        # fewer than a tetrahedron's four faces cannot close a volume
+        found = tuple(ClosedObject(i, o) for i, o in enumerate(scene.objects) if o.n_triangles >= 4)
+        _CANDIDATES[scene] = found
+    return found
 
 
 def closed_objects(scene: Scene) -> tuple[ClosedObject, ...]:
