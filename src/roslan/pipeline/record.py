@@ -153,7 +153,12 @@ class Recorder:
     def warm_up_overview(self) -> None:
         """Pay matplotlib's first-draw costs beside the streaming (with ``overview``)."""
         if self.opts.overview:
-            self.warm = threading.Thread(target=_warm_up_plots, name="overview-warm-up")
+            # a daemon: an interrupted run (Ctrl-C, SIGTERM) exits without waiting for
+            # matplotlib's imports, which take seconds on a loaded machine; a finished run
+            # joins it in close()
+            self.warm = threading.Thread(
+                target=_warm_up_plots, name="overview-warm-up", daemon=True
+            )
             self.warm.start()
 
     # ------------------------------------------------------------------ the end
