@@ -60,6 +60,66 @@ def _hypothesis(store: MessageStore, class_id: int, score: float, pose: Any) -> 
     return store.new("vision_msgs/msg/ObjectHypothesisWithPose", hypothesis=hyp, pose=with_cov)
 
 
+def _array(
+    store: MessageStore,
+    msgtype: str,
+    stamp_ns: int,
+    frame_id: str,
+    boxes: list[tuple[Any, Any]],
+    class_ids: ArrayLike,
+    instance_ids: ArrayLike,
+    scores: ArrayLike | None,
+) -> Any:
+    """The shape both arrays share: per box (hypothesis pose, bounding box) one detection
+    with one hypothesis (class, score), ROS 1's empty source data or ROS 2's instance id."""
+    n = len(boxes)
+    cls = _column(class_ids, n, "class_ids", np.int64)
+    inst = _column(instance_ids, n, "instance_ids", np.int64)
+    sc = np.ones(n) if scores is None else _column(scores, n, "scores", np.float64)
+    header = store.header(stamp_ns, frame_id)
+    detection = msgtype.removesuffix("Array")
+    source = _ros1_source(store, detection) if store.is_ros1 else None
+    dets = []
+    for i, (pose, bbox) in enumerate(boxes):
+        hyp = _hypothesis(store, int(cls[i]), float(sc[i]), pose)
+        fields: dict[str, Any] = {"header": header, "results": [hyp], "bbox": bbox}
+        if source is not None:
+            fields.update(source)
+        else:
+            fields["id"] = str(int(inst[i]))
+        dets.append(store.new(detection, **fields))
+    return store.new(msgtype, header=header, detections=dets)
+
+
+def _ros1_source(store: MessageStore, detection: str) -> dict[str, Any]:
+    """ROS 1's empty ``source_img`` (Detection2D) or ``source_cloud`` (Detection3D)."""
+    if detection == "vision_msgs/msg/Detection2D":
+        img = store.new(
+            "sensor_msgs/msg/Image",
+            header=store.header(0, ""),
+            height=0,
+            width=0,
+            encoding="",
+            is_bigendian=0,
+            step=0,
+            data=np.zeros(0, np.uint8),
+        )
+        return {"source_img": img}
+    cloud = store.new(
+        "sensor_msgs/msg/PointCloud2",
+        header=store.header(0, ""),
+        height=0,
+        width=0,
+        fields=[],
+        is_bigendian=False,
+        point_step=0,
+        row_step=0,
+        data=np.zeros(0, np.uint8),
+        is_dense=False,
+    )
+    return {"source_cloud": cloud}
+
+
 def detection2d_array(
     store: MessageStore,
     stamp_ns: int,
@@ -77,16 +137,10 @@ def detection2d_array(
         scores: (N,) confidences; default 1 (ground truth).
     """
     b = np.asarray(boxes_xywh, dtype=np.float64).reshape(-1, 4)
-    n = b.shape[0]
-    cls = _column(class_ids, n, "class_ids", np.int64)
-    inst = _column(instance_ids, n, "instance_ids", np.int64)
-    sc = np.ones(n) if scores is None else _column(scores, n, "scores", np.float64)
-    header = store.header(stamp_ns, frame_id)
-    dets = []
-    for i in range(n):
-        cx, cy = b[i, 0] + b[i, 2] / 2.0, b[i, 1] + b[i, 3] / 2.0
+    boxes = []
+    for x, y, w, h in b.tolist():
+        cx, cy = x + w / 2.0, y + h / 2.0
         pose = _pose(store, (cx, cy, 0.0), (0.0, 0.0, 0.0, 1.0))
-        hyp = _hypothesis(store, int(cls[i]), float(sc[i]), pose)
         if store.is_ros1:
             center = store.new("geometry_msgs/msg/Pose2D", x=cx, y=cy, theta=0.0)
         else:
@@ -95,28 +149,11 @@ def detection2d_array(
                 position=store.new("vision_msgs/msg/Point2D", x=cx, y=cy),
                 theta=0.0,
             )
-        bbox = store.new(
-            "vision_msgs/msg/BoundingBox2D",
-            center=center,
-            size_x=float(b[i, 2]),
-            size_y=float(b[i, 3]),
-        )
-        fields: dict[str, Any] = {"header": header, "results": [hyp], "bbox": bbox}
-        if store.is_ros1:
-            fields["source_img"] = store.new(
-                "sensor_msgs/msg/Image",
-                header=store.header(0, ""),
-                height=0,
-                width=0,
-                encoding="",
-                is_bigendian=0,
-                step=0,
-                data=np.zeros(0, np.uint8),
-            )
-        else:
-            fields["id"] = str(int(inst[i]))
-        dets.append(store.new("vision_msgs/msg/Detection2D", **fields))
-    return store.new(DETECTION2D_ARRAY, header=header, detections=dets)
+        bbox = store.new("vision_msgs/msg/BoundingBox2D", center=center, size_x=w, size_y=h)
+        boxes.append((pose, bbox))
+    return _array(
+        store, DETECTION2D_ARRAY, stamp_ns, frame_id, boxes, class_ids, instance_ids, scores
+    )
 
 
 def detection3d_array(
@@ -143,35 +180,12 @@ def detection3d_array(
     n = c.shape[0]
     s = np.asarray(sizes, dtype=np.float64).reshape(n, 3)
     r = np.asarray(rpys, dtype=np.float64).reshape(n, 3)
-    cls = _column(class_ids, n, "class_ids", np.int64)
-    inst = _column(instance_ids, n, "instance_ids", np.int64)
-    sc = np.ones(n) if scores is None else _column(scores, n, "scores", np.float64)
-    header = store.header(stamp_ns, frame_id)
     vec = store.types["geometry_msgs/msg/Vector3"]
-    dets = []
+    boxes = []
     for i in range(n):
         pose = _pose(store, c[i], matrix_to_quat_xyzw(rpy_to_matrix(r[i])))
-        hyp = _hypothesis(store, int(cls[i]), float(sc[i]), pose)
-        bbox = store.new(
-            "vision_msgs/msg/BoundingBox3D",
-            center=pose,
-            size=vec(x=float(s[i, 0]), y=float(s[i, 1]), z=float(s[i, 2])),
-        )
-        fields: dict[str, Any] = {"header": header, "results": [hyp], "bbox": bbox}
-        if store.is_ros1:
-            fields["source_cloud"] = store.new(
-                "sensor_msgs/msg/PointCloud2",
-                header=store.header(0, ""),
-                height=0,
-                width=0,
-                fields=[],
-                is_bigendian=False,
-                point_step=0,
-                row_step=0,
-                data=np.zeros(0, np.uint8),
-                is_dense=False,
-            )
-        else:
-            fields["id"] = str(int(inst[i]))
-        dets.append(store.new("vision_msgs/msg/Detection3D", **fields))
-    return store.new(DETECTION3D_ARRAY, header=header, detections=dets)
+        size = vec(x=float(s[i, 0]), y=float(s[i, 1]), z=float(s[i, 2]))
+        boxes.append((pose, store.new("vision_msgs/msg/BoundingBox3D", center=pose, size=size)))
+    return _array(
+        store, DETECTION3D_ARRAY, stamp_ns, frame_id, boxes, class_ids, instance_ids, scores
+    )
