@@ -130,6 +130,7 @@ class FakeContext:
         self.root_camera: str | None = None
         self.root_imu: str | None = None
         self.sensor_threads = 1
+        self.labels = False  # output.labels
         self.outdir = outdir
         self.files = DatasetFolder(outdir)
         self._clock: Clock | None = None

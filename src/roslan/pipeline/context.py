@@ -53,6 +53,7 @@ class Context:
         backends: the scene's renderer and ray caster, owned by the run
             (:class:`~roslan.render.backends.SceneBackends`; default: made here on first
             use, owned by this context).
+        labels: the run's ``output.labels`` (sensors write their label outputs).
     """
 
     def __init__(
@@ -70,6 +71,7 @@ class Context:
         render_helpers: Mapping[str, int] | None = None,
         clock: Clock | None = None,
         backends: SceneBackends | None = None,
+        labels: bool = False,
     ) -> None:
         self.trajectory = trajectory
         self.clock = clock if clock is not None else Clock.fixed(trajectory.duration_ns)
@@ -85,6 +87,7 @@ class Context:
         self.sensor_threads = max(1, int(sensor_threads))
         self._helpers = dict(render_helpers or {})
         self._backends = backends
+        self.labels = bool(labels)
 
     def stamp(self, t_ns: int) -> int:
         """Absolute header stamp (ns) of trajectory time ``t_ns``."""

@@ -120,6 +120,7 @@ class RunPlan:
             render_helpers=None if stepped else self.render_helpers,
             clock=clock,
             backends=backends,
+            labels=config.output.labels,
         )
 
 
@@ -237,6 +238,7 @@ def make_plan(
         config.output.ground_truth_rate,
         static_transforms(sensors),
         scene=config.scene is not None,
+        objects=config.output.labels and config.scene is not None,
     )
     owners, bag_topics = _topics(gt, sensors)
     n_workers = resolve_workers(

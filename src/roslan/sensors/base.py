@@ -196,6 +196,9 @@ class SimContext(Protocol):
     files: DatasetFolder | None
     """The run's dataset-file sink (``files.path(relpath)``: a path inside the output
     folder, its parent folders made), or None: this run records no files, write none."""
+    labels: bool
+    """The run's ``output.labels``: sensors write their label outputs (unless their own
+    ``labels`` key is false; docs/guide/labels.md)."""
     sensor_threads: int
     """Threads a frame or scan sensor may use for its per-instant work after the render
     or cast (:class:`~roslan.io.ordered.OrderedPool`); outputs do not depend on it."""

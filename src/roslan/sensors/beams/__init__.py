@@ -1,6 +1,7 @@
 """Ray-cast (beam) sensors: spinning and solid-state LiDAR, 2-D laser scanner, sonar and
 altimeter, on shared machinery: rays from the pose at each firing instant (:mod:`.rays`),
-the range model and scan files (:mod:`.base`), PointCloud2 packing (:mod:`.pointcloud`)."""
+the range model and scan files (:mod:`.base`), PointCloud2 packing (:mod:`.pointcloud`),
+and with ``output.labels`` the label of every return (:mod:`.labels`)."""
 
 from __future__ import annotations
 
@@ -25,6 +26,7 @@ from roslan.sensors.beams.lidar import (
 from roslan.sensors.beams.pointcloud import (
     POINTCLOUD2,
     XYZIRT,
+    XYZIRTL,
     pointcloud2,
 )
 from roslan.sensors.beams.range import (
@@ -52,6 +54,7 @@ __all__ = [
     "POINTCLOUD2",
     "SOLID_STATE_PRESETS",
     "XYZIRT",
+    "XYZIRTL",
     "Altimeter",
     "AltimeterConfig",
     "Laser",

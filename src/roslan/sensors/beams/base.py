@@ -26,6 +26,7 @@ from roslan.sensors.base import (
     paced,
     sample_times_ns,
 )
+from roslan.sensors.beams.labels import cast_labelled, label_table
 from roslan.sensors.beams.pointcloud import POINTCLOUD2, pointcloud2
 from roslan.sensors.measurements import CloudScan
 
@@ -72,11 +73,15 @@ class Measurement(NamedTuple):
         valid: (N,) bool, a finite return.
         intensity: (N,) float32 ``intensity_scale * reflectivity * cos(incidence)``
             rounded to a multiple of ``intensity_step`` (unless 0), 0 without return.
+        label: (N,) uint32 label of the surface each beam returned from (the SemanticKITTI
+            encoding, :mod:`roslan.sensors.beams.labels`; 0 without return), or None when
+            the cast was not labelled.
     """
 
     range: F64
     valid: NDArray[np.bool_]
     intensity: F32
+    label: NDArray[np.uint32] | None = None
 
 
 class BeamDraws(NamedTuple):
@@ -113,16 +118,23 @@ def measure(
     noise_sigma: float,
     returns: BeamConfig,
     rng: np.random.Generator | BeamDraws,
+    labels: NDArray[np.uint32] | None = None,
 ) -> Measurement:
     """Cast the beams and apply the range sensor model (see :class:`Measurement`):
-    limits, noise, and the dropout and intensity keys of ``returns``.
+    limits, noise, and the dropout and intensity keys of ``returns``; with ``labels``
+    (:func:`~roslan.sensors.beams.labels.triangle_labels` of the scene) also the label of
+    each return, from the same cast (the ranges and intensities are the same bits).
 
     The random draws (one normal and one uniform per beam) do not depend on what is
     hit, so a seed gives the same noise stream whatever the scene; ``rng`` is the
     generator to draw them from, or the draws themselves (:func:`draw_beams`).
     """
     n = origins.shape[0]
-    dist, echo = caster.cast_incidence(origins, directions, max_range)
+    label = None
+    if labels is None:
+        dist, echo = caster.cast_incidence(origins, directions, max_range)
+    else:
+        dist, echo, label = cast_labelled(caster, origins, directions, max_range, labels)
     draws = rng if isinstance(rng, BeamDraws) else draw_beams(rng, n, noise_sigma, returns)
     dropout = returns.dropout
     for a, used in ((draws.noise, noise_sigma > 0), (draws.uniform, dropout > 0)):
@@ -148,7 +160,9 @@ def measure(
     if returns.intensity_step > 0:  # the sensor's integer (e.g. 8-bit) intensity codes
         step = np.float32(returns.intensity_step)
         np.multiply(np.rint(inten / step), step, out=inten)
-    return Measurement(r, valid, inten)
+    if label is not None:
+        label[~valid] = 0  # no return: no label
+    return Measurement(r, valid, inten, label)
 
 
 class ScanWriter:
@@ -159,7 +173,8 @@ class ScanWriter:
     (float32, s after the scan stamp), plus ``stamp`` (int64 trajectory ns) - and
     ``lidar/<name>/timestamps.txt`` with lines ``t <name>/NNNNNN.npz`` (t in seconds since
     the trajectory start, 9 decimals; the path relative to ``lidar/``). Organized clouds
-    are stored without their NaN (no return) entries.
+    are stored without their NaN (no return) entries. A labelled scan (``output.labels``)
+    adds ``label`` (uint32, SemanticKITTI: class | instance << 16), one per point.
     """
 
     def __init__(self, folder: Path, index: Path) -> None:
@@ -225,8 +240,17 @@ class PointCloudSensor:
     _writer: ScanWriter | None = None
 
     def scan(
-        self, trajectory: Any, caster: BeamCaster, t0_ns: int, rng: np.random.Generator | BeamDraws
+        self,
+        trajectory: Any,
+        caster: BeamCaster,
+        t0_ns: int,
+        rng: np.random.Generator | BeamDraws,
+        *,
+        labels: NDArray[np.uint32] | None = None,
     ) -> NDArray[Any]:  # pragma: no cover - every subclass has one
+        """One scan from ``t0_ns``: :data:`~.pointcloud.XYZIRT` points, or
+        :data:`~.pointcloud.XYZIRTL` with ``labels`` (the scene's
+        :func:`~roslan.sensors.beams.labels.triangle_labels`)."""
         raise NotImplementedError
 
     def cloud_layout(self) -> tuple[int, bool]:
@@ -252,12 +276,13 @@ class PointCloudSensor:
             index = ctx.files.path(f"lidar/{cfg.name}/timestamps.txt")
             writer = self._writer = ScanWriter(index.parent, index)
         height, dense = self.cloud_layout()
+        table = label_table(ctx, cfg)
         pool: OrderedPool[tuple[int, int, NDArray[Any]]] = OrderedPool(
             ctx.sensor_threads, f"{cfg.name}-scans"
         )
 
         def task(turn: Turn, seq: int, t0: int, draws: BeamDraws) -> tuple[int, int, NDArray[Any]]:
-            pts = self.scan(ctx.trajectory, caster, t0, draws)
+            pts = self.scan(ctx.trajectory, caster, t0, draws, labels=table)
             if writer is not None:
                 writer.write_file(seq, t0, pts)
             return seq, t0, pts

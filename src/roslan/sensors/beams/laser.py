@@ -15,7 +15,10 @@ Gaussian noise, clipped to [range_min, range_max]. ``intensities`` =
 ``intensity_scale * reflectivity * cos(incidence)``.
 
 Dataset file: ``laser_<name>.txt``, one line per scan: ``t r_0 ... r_{n-1}`` (s since
-the trajectory start, 9 decimals; m).
+the trajectory start, 9 decimals; m). With ``output.labels`` (LaserScan has no field for
+them) also ``laser_<name>_labels.txt``, the same lines with each beam's label in place of
+its range: ``t l_0 ... l_{n-1}`` (uint32, SemanticKITTI: class | instance << 16; 0 where
+the range is not finite).
 """
 
 from __future__ import annotations
@@ -39,7 +42,8 @@ from roslan.sensors.base import (
     paced,
     sample_times_ns,
 )
-from roslan.sensors.beams.base import BeamConfig, measure
+from roslan.sensors.beams.base import BeamConfig, Measurement, measure
+from roslan.sensors.beams.labels import label_table
 from roslan.sensors.beams.rays import rays_in_world
 from roslan.sensors.measurements import LaserScan
 
@@ -125,6 +129,7 @@ class Laser:
         )
         self._frac = np.arange(j, dtype=np.float64) / j
         self._fh: IO[str] | None = None
+        self._labels_fh: IO[str] | None = None
 
     def topics(self) -> list[TopicSpec]:
         return [TopicSpec(self.config.topic, LASERSCAN)]
@@ -136,6 +141,19 @@ class Laser:
         self, trajectory: Any, caster: BeamCaster, t0_ns: int, rng: np.random.Generator
     ) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
         """One scan from ``t0_ns``: (ranges, intensities), each (n_beams,) float32."""
+        m = self.measure_scan(trajectory, caster, t0_ns, rng)
+        return m.range.astype(np.float32), m.intensity
+
+    def measure_scan(
+        self,
+        trajectory: Any,
+        caster: BeamCaster,
+        t0_ns: int,
+        rng: np.random.Generator,
+        labels: NDArray[np.uint32] | None = None,
+    ) -> Measurement:
+        """One scan from ``t0_ns`` as its :class:`~.base.Measurement` (with ``labels``, the
+        scene's per-triangle labels, each beam's label too)."""
         c = self.config
         k, j = self._grid
         bt = c.beam_time
@@ -160,8 +178,9 @@ class Laser:
             noise_sigma=c.noise_sigma,
             returns=c,
             rng=rng,
+            labels=labels,
         )
-        return m.range.astype(np.float32), m.intensity
+        return m
 
     def messages(self, ctx: SimContext) -> Iterator[Message]:
         c = self.config
@@ -169,6 +188,11 @@ class Laser:
         rng = ctx.rng(c.name)
         if ctx.files is not None:  # (no file sink: a run that records nothing)
             self._fh = ctx.files.path(f"laser_{c.name}.txt").open(
+                "w", encoding="utf-8", newline="\n"
+            )
+        table = label_table(ctx, c)
+        if ctx.files is not None and table is not None:
+            self._labels_fh = ctx.files.path(f"laser_{c.name}_labels.txt").open(
                 "w", encoding="utf-8", newline="\n"
             )
         # t r_0 .. r_n: no header line (columns and angles in OUTDIR/README.md)
@@ -183,11 +207,15 @@ class Laser:
                 continue
             seq, t0 = item[0], int(item[1][0])
             last[0] = t0
-            ranges, inten = self.scan(ctx.trajectory, caster, t0, rng)
+            m = self.measure_scan(ctx.trajectory, caster, t0, rng, table)
+            ranges, inten = m.range.astype(np.float32), m.intensity
             ctx.clock.tap(c.name, LaserScan(t0, ranges, inten))
             if self._fh is not None:
                 txt = " ".join(np.char.mod("%.6f", ranges.astype(np.float64)).tolist())
                 self._fh.write(f"{format_seconds([t0])[0]} {txt}\n")
+            if self._labels_fh is not None and m.label is not None:
+                txt = " ".join(m.label.astype(str).tolist())
+                self._labels_fh.write(f"{format_seconds([t0])[0]} {txt}\n")
             stamp = ctx.stamp(t0)
 
             def build(
@@ -214,6 +242,7 @@ class Laser:
             yield Message(t0, c.topic, LASERSCAN, build)
 
     def close(self, ctx: SimContext) -> None:
-        if self._fh is not None:
-            self._fh.close()
-            self._fh = None
+        for fh in (self._fh, self._labels_fh):
+            if fh is not None:
+                fh.close()
+        self._fh = self._labels_fh = None

@@ -43,7 +43,7 @@ from roslan.sensors.beams.base import (
     draw_beams,
     measure,
 )
-from roslan.sensors.beams.pointcloud import XYZIRT
+from roslan.sensors.beams.pointcloud import XYZIRT, XYZIRTL
 from roslan.sensors.beams.rays import rays_in_world
 
 if TYPE_CHECKING:
@@ -302,20 +302,29 @@ class Lidar(PointCloudSensor):
         return draw_beams(rng, n, self.spec.noise_sigma, self.config)
 
     def scan(
-        self, trajectory: Any, caster: BeamCaster, t0_ns: int, rng: np.random.Generator | BeamDraws
+        self,
+        trajectory: Any,
+        caster: BeamCaster,
+        t0_ns: int,
+        rng: np.random.Generator | BeamDraws,
+        *,
+        labels: NDArray[np.uint32] | None = None,
     ) -> NDArray[Any]:
-        """One turn starting at ``t0_ns``: structured :data:`XYZIRT` points.
+        """One turn starting at ``t0_ns``: structured :data:`XYZIRT` points, or
+        :data:`XYZIRTL` with ``labels`` (the scene's per-triangle labels,
+        :func:`~roslan.sensors.beams.labels.triangle_labels`).
 
         Returns (n_returns,) in firing order, or (rings * steps,) row-major by ring
-        when ``organized`` (NaN x/y/z, zero intensity where there is no return). The
-        turn is cast and packed :data:`SCAN_CHUNK_BEAMS` beams (whole columns) at a time.
+        when ``organized`` (NaN x/y/z, zero intensity and label where there is no return).
+        The turn is cast and packed :data:`SCAN_CHUNK_BEAMS` beams (whole columns) at a time.
         """
         s = self.spec
         steps, n_l = s.azimuth_steps, s.n_lasers
         draws = rng if isinstance(rng, BeamDraws) else self.draw(rng)
         t_knots = t0_ns * 1e-9 + np.arange(steps, dtype=np.float64) * s.column_period
         organized = bool(self.config.organized)
-        pts = np.empty(steps * n_l, XYZIRT)  # pages are only committed as they are written
+        layout = XYZIRT if labels is None else XYZIRTL
+        pts = np.empty(steps * n_l, layout)  # pages are only committed as they are written
         grid = pts.reshape(n_l, steps)  # organized: rows = rings (lowest first)
         ring = self.ring
         filled = 0
@@ -343,6 +352,7 @@ class Lidar(PointCloudSensor):
                 noise_sigma=s.noise_sigma,
                 returns=self.config,
                 rng=BeamDraws(*(None if a is None else a[b0:b1] for a in draws)),
+                labels=labels,
             )
             del origins, dirs
             d32 = d_sensor.reshape(-1, 3).astype(np.float32)
@@ -350,15 +360,18 @@ class Lidar(PointCloudSensor):
             rings = np.tile(ring, c1 - c0)
             if organized:
                 r = np.where(m.valid, m.range, np.nan).astype(np.float32)
-                block = np.empty(b1 - b0, XYZIRT)
-                _pack(block, d32, r, m.intensity, rings, off32)
+                block = np.empty(b1 - b0, layout)
+                _pack(block, d32, r, m.intensity, rings, off32, m.label)
                 lor = self._laser_of_ring
                 grid[:, c0:c1] = block.reshape(c1 - c0, n_l)[:, lor].T
                 continue
             sel: Any = slice(None) if bool(m.valid.all()) else np.flatnonzero(m.valid)
             r = m.range[sel].astype(np.float32)
             k = r.shape[0]
-            _pack(pts[filled : filled + k], d32[sel], r, m.intensity[sel], rings[sel], off32[sel])
+            lab = None if m.label is None else m.label[sel]
+            _pack(
+                pts[filled : filled + k], d32[sel], r, m.intensity[sel], rings[sel], off32[sel], lab
+            )
             filled += k
         return pts if organized else pts[:filled]
 
@@ -370,11 +383,15 @@ def _pack(
     intensity: NDArray[np.float32],
     ring: NDArray[np.uint16],
     time: NDArray[np.float32],
+    label: NDArray[np.uint32] | None = None,
 ) -> None:
-    """Fill the :data:`XYZIRT` points ``out`` (a view): sensor-frame xyz = direction x range."""
+    """Fill the :data:`XYZIRT` (with ``label``: :data:`XYZIRTL`) points ``out`` (a view):
+    sensor-frame xyz = direction x range."""
     out["x"] = d32[:, 0] * r
     out["y"] = d32[:, 1] * r
     out["z"] = d32[:, 2] * r
     out["intensity"] = intensity
     out["ring"] = ring
     out["time"] = time
+    if label is not None:
+        out["label"] = label

@@ -10,7 +10,7 @@ from numpy.typing import NDArray
 if TYPE_CHECKING:
     from roslan.io.messages import MessageStore
 
-__all__ = ["POINTCLOUD2", "XYZIRT", "pointcloud2"]
+__all__ = ["POINTCLOUD2", "XYZIRT", "XYZIRTL", "pointcloud2"]
 
 
 XYZIRT = np.dtype(
@@ -23,9 +23,28 @@ XYZIRT = np.dtype(
 )
 """velodyne_pointcloud's PointXYZIRT wire layout: packed, 22 bytes per point."""
 
+XYZIRTL = np.dtype(
+    {
+        "names": ["x", "y", "z", "intensity", "ring", "time", "label"],
+        "formats": ["<f4", "<f4", "<f4", "<f4", "<u2", "<f4", "<u4"],
+        "offsets": [0, 4, 8, 12, 16, 18, 22],
+        "itemsize": 26,
+    }
+)
+""":data:`XYZIRT` and ``label`` (uint32 at byte 22, the SemanticKITTI encoding: class id in
+the low 16 bits, instance id in the high 16; 0 for no return): the layout of a labelled
+scan (``output.labels``), packed, 26 bytes per point."""
+
+
 POINTCLOUD2 = "sensor_msgs/msg/PointCloud2"
 
-_POINTFIELD_TYPE = {np.dtype("<f4"): 7, np.dtype("<u2"): 4, np.dtype("<f8"): 8, np.dtype("u1"): 2}
+_POINTFIELD_TYPE = {
+    np.dtype("<f4"): 7,  # FLOAT32
+    np.dtype("<u2"): 4,  # UINT16
+    np.dtype("<u4"): 6,  # UINT32
+    np.dtype("<f8"): 8,  # FLOAT64
+    np.dtype("u1"): 2,  # UINT8
+}
 
 
 def pointcloud2(

@@ -16,7 +16,10 @@ dropped out), -inf for a surface closer than ``min_range``; otherwise the true
 minimum plus Gaussian noise, clipped to [min_range, max_range].
 
 Dataset file: ``range_<name>.txt`` with lines ``t range`` (s since the trajectory
-start, 9 decimals; m; ``inf`` / ``-inf`` as above).
+start, 9 decimals; m; ``inf`` / ``-inf`` as above). With ``output.labels`` (sensor_msgs/Range
+has no field for it) also ``range_<name>_labels.txt``, lines ``t label``: the label of the
+surface the reading came from, the one the cone's nearest ray hit (uint32, SemanticKITTI:
+class | instance << 16; 0 where the reading is not finite).
 """
 
 from __future__ import annotations
@@ -42,6 +45,7 @@ from roslan.sensors.base import (
     paced,
     sample_times_ns,
 )
+from roslan.sensors.beams.labels import label_table
 from roslan.sensors.beams.rays import rays_in_world
 from roslan.sensors.measurements import RangeSamples
 
@@ -165,6 +169,7 @@ class RangeSensor:
         self.T_body_sensor = T  # x along the beam
         self.directions = cone_directions(0.5 * config.field_of_view, config.rings)
         self._fh: IO[str] | None = None
+        self._labels_fh: IO[str] | None = None
 
     def topics(self) -> list[TopicSpec]:
         return [TopicSpec(self.config.topic, RANGE)]
@@ -192,10 +197,24 @@ class RangeSensor:
     ) -> NDArray[np.float64]:
         """(N,) readings at ``t_ns`` given each reading's standard-normal ``noise`` draw and
         whether it survives dropout (``keep``)."""
+        return self.labelled_readings(trajectory, caster, t_ns, noise, keep)[0]
+
+    def labelled_readings(
+        self,
+        trajectory: Any,
+        caster: BeamCaster,
+        t_ns: NDArray[np.int64],
+        noise: NDArray[np.float64],
+        keep: NDArray[np.bool_],
+        labels: NDArray[np.uint32] | None = None,
+    ) -> tuple[NDArray[np.float64], NDArray[np.uint32] | None]:
+        """:meth:`readings` and, with ``labels`` (the scene's per-triangle labels,
+        :func:`~roslan.sensors.beams.labels.triangle_labels`), the (N,) label of the
+        triangle the nearest ray of each reading hit (0 where the reading is not finite)."""
         c = self.config
         n_t = t_ns.shape[0]
         if n_t == 0:
-            return np.zeros(0)
+            return np.zeros(0), None if labels is None else np.zeros(0, np.uint32)
         n_r = self.directions.shape[0]
         d = np.broadcast_to(self.directions, (n_t, n_r, 3))
         t = t_ns.astype(np.float64) * 1e-9
@@ -213,7 +232,13 @@ class RangeSensor:
         ok = hit & ~close
         out[ok] = np.clip(true[ok] + c.noise_sigma * noise[ok], c.min_range, c.max_range)
         out[close] = -np.inf
-        return out
+        if labels is None:
+            return out, None
+        # the nearest ray of each reading (the first of equals) and the triangle it hit
+        nearest = np.argmin(hits.distance.reshape(n_t, n_r), axis=1)
+        tri = hits.triangle.reshape(n_t, n_r)[np.arange(n_t), nearest]
+        label = np.where(ok & (tri >= 0), labels[np.maximum(tri, 0)], np.uint32(0))
+        return out, label.astype(np.uint32)
 
     def messages(self, ctx: SimContext) -> Iterator[Message]:
         c = self.config
@@ -223,6 +248,11 @@ class RangeSensor:
         rng = ctx.rng(c.name)
         if ctx.files is not None:  # (no file sink: a run that records nothing)
             self._fh = ctx.files.path(f"range_{c.name}.txt").open(
+                "w", encoding="utf-8", newline="\n"
+            )
+        table = label_table(ctx, c)
+        if ctx.files is not None and table is not None:
+            self._labels_fh = ctx.files.path(f"range_{c.name}_labels.txt").open(
                 "w", encoding="utf-8", newline="\n"
             )
         chunk = max(1, round(c.rate))  # one second of readings per batch of draws
@@ -244,9 +274,13 @@ class RangeSensor:
                 noise = np.asarray(rng.standard_normal(chunk))
                 keep = np.asarray(rng.random(chunk) >= c.dropout)
             span = slice(at, at + t.size)
-            r = self.readings(ctx.trajectory, caster, t, noise[span], keep[span])
+            r, lab = self.labelled_readings(
+                ctx.trajectory, caster, t, noise[span], keep[span], table
+            )
             if self._fh is not None:
                 write_columns(self._fh, t, r, fmt="%.6f", allow_nonfinite=True)
+            if self._labels_fh is not None and lab is not None:
+                write_columns(self._labels_fh, t, lab, fmt="%d")
             ctx.clock.tap(c.name, RangeSamples(t, r))
             last[0] = int(t[-1])
             for k, (tk, rk) in enumerate(zip(t.tolist(), r.tolist(), strict=True)):
@@ -270,9 +304,10 @@ class RangeSensor:
         return build
 
     def close(self, ctx: SimContext) -> None:
-        if self._fh is not None:
-            self._fh.close()
-            self._fh = None
+        for fh in (self._fh, self._labels_fh):
+            if fh is not None:
+                fh.close()
+        self._fh = self._labels_fh = None
 
 
 class Sonar(RangeSensor):

@@ -46,7 +46,7 @@ from roslan.sensors.beams.base import (
     draw_beams,
     measure,
 )
-from roslan.sensors.beams.pointcloud import XYZIRT
+from roslan.sensors.beams.pointcloud import XYZIRT, XYZIRTL
 from roslan.sensors.beams.rays import rays_in_world
 
 if TYPE_CHECKING:
@@ -168,9 +168,16 @@ class SolidStateLidar(PointCloudSensor):
         return draw_beams(rng, self.instants * self.spec.lines, self.spec.noise_sigma, self.config)
 
     def scan(
-        self, trajectory: Any, caster: BeamCaster, t0_ns: int, rng: np.random.Generator | BeamDraws
+        self,
+        trajectory: Any,
+        caster: BeamCaster,
+        t0_ns: int,
+        rng: np.random.Generator | BeamDraws,
+        *,
+        labels: NDArray[np.uint32] | None = None,
     ) -> NDArray[Any]:
-        """One frame from ``t0_ns``: (n_returns,) :data:`XYZIRT` points in firing order."""
+        """One frame from ``t0_ns``: (n_returns,) :data:`XYZIRT` points in firing order
+        (:data:`XYZIRTL` with ``labels``, the scene's per-triangle labels)."""
         s = self.spec
         j = min(self.instants, _INSTANTS_PER_KNOT)
         k = -(-self.instants // j)
@@ -193,13 +200,16 @@ class SolidStateLidar(PointCloudSensor):
             noise_sigma=s.noise_sigma,
             returns=self.config,
             rng=rng,
+            labels=labels,
         )
         sel = np.flatnonzero(m.valid)
         d_flat = d_s.reshape(-1, 3)[:n]
-        pts = np.empty(sel.shape[0], XYZIRT)
+        pts = np.empty(sel.shape[0], XYZIRT if m.label is None else XYZIRTL)
         xyz = d_flat[sel] * m.range[sel, None]
         pts["x"], pts["y"], pts["z"] = xyz[:, 0], xyz[:, 1], xyz[:, 2]
         pts["intensity"] = m.intensity[sel]
         pts["ring"] = (sel % s.lines).astype(np.uint16)
         pts["time"] = off[sel // s.lines]
+        if m.label is not None:
+            pts["label"] = m.label[sel]
         return pts
