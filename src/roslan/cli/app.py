@@ -29,6 +29,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "roslan.cli.scene",
     "roslan.cli.view",
     "roslan.cli.fitnoise",
+    "roslan.cli.export",
 )
 
 
