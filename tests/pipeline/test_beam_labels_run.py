@@ -330,3 +330,36 @@ def test_semantickitti_export_reads_back_with_numpy(
         != 0
     )
     assert "'nope'" in capsys.readouterr().err
+
+
+def test_dry_run_counts_the_label_files_and_their_disk(runs: tuple[Path, Path]) -> None:
+    from roslan.pipeline.estimate import estimate_run
+
+    on, _ = runs
+    scene = on / "scene" / "scene.yaml"
+    with_labels = estimate_run(_config(scene, True), duration=1.2)
+    without = estimate_run(_config(scene, False), duration=1.2)
+    extra = {k: v for k, v in with_labels.parts.items() if k not in without.parts}
+    assert set(extra) == {"lidar labels", "label text files (3)"}
+    for bag in ("bag_ros1", "bag_ros2"):  # the clouds' label field and /objects
+        assert with_labels.parts[bag] > without.parts[bag]
+    # the text files' estimate against the files written (a planning figure: within 2x)
+    written = sum(
+        (on / f"{n}_labels.txt").stat().st_size
+        for n in ("laser_laser", "range_sonar", "range_altimeter")
+    )
+    assert 0.5 < extra["label text files (3)"] / written < 2.0
+    # the label arrays inside the scans: at most the estimate (1 byte a point)
+    import zipfile
+
+    inside = 0
+    for f in (on / "lidar" / "velodyne").glob("*.npz"):
+        with zipfile.ZipFile(f) as zf:
+            inside += zf.getinfo("label.npy").compress_size
+    assert 0 < inside <= extra["lidar labels"]
+    # a sensor that opts out is not counted
+    opted = _config(scene, True).model_dump()
+    for s in opted["sensors"]:
+        s["labels"] = False
+    est = estimate_run(SimConfig.model_validate(opted), duration=1.2)
+    assert not {k for k in est.parts if "label" in k}

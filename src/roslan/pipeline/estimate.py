@@ -77,6 +77,12 @@ _EVENT_H5 = {False: 2.9, True: 4.7}  # bytes per event in events.h5 (gzip), with
 _EVENT_ROS = {"ros1": 13.0, "ros2": 16.0}  # bytes per dvs_msgs/Event
 _NPZ_POINT = 14.0  # bytes per point in a compressed .npz scan (8-bit intensities)
 _POINT = 22.0  # bytes per PointCloud2 point (x y z intensity ring time)
+_LABEL_POINT = 4.0  # bytes per point of a PointCloud2's uint32 label field
+_LABEL_NPZ_POINT = 1.0  # bytes per point of a scan's compressed label array
+_LABEL_TEXT = 8.0  # bytes per label in laser_/range_<name>_labels.txt
+_OBJECT_BYTES = {"ros1": 507.0, "ros2": 472.0}  # bytes per instance of the /objects message
+_INSTANCES = {"warehouse": 799, "refinery": 89, "empty": 1, None: 0}
+_INSTANCES_DEFAULT = 100  # a scene file's, before it is loaded
 _GT_TICK = 1190.0  # bytes of /tf, pose, odometry, accel, tau per ground-truth tick
 _FIXED = 0.7e6  # overview.png, trajectory.png, calib/, run.json...
 _SCENE_EXPORT = {"warehouse": 7.0e6, "refinery": 3.0e6, "empty": 0.05e6, None: 0.0}
@@ -254,12 +260,58 @@ def estimate_run(
             bag("small", n * 40.0)
             add("files", n * 25.0)
             spend(s, n * 64 / 1e6 * _CPU_PER_MRAY)
+    for name, nbytes in _beam_labels(config, duration, hit, fmts, codec).items():
+        add(name, nbytes)
     add("scene", _SCENE_EXPORT.get(key, _SCENE_DEFAULT) if key != "other" else _SCENE_DEFAULT)
     add("other", _FIXED)
     total = sum(parts.values())
     est = _timing(config, key, work, total, n_gt)
     est.bytes, est.parts = total, parts
     return est
+
+
+def _beam_labels(
+    config: SimConfig,
+    duration: float,
+    hit: float,
+    fmts: tuple[str, ...],
+    codec: dict[str, str],
+) -> dict[str, float]:
+    """Disk bytes of the beam sensors' labels and /objects with ``output.labels``
+    (docs/guide/labels.md): the ``label`` array of each LiDAR scan (``lidar labels``), its
+    4 bytes per point in each bag's PointCloud2, the laser's and range sensors' label text
+    files (``label text files (N)``), and the one /objects message in each bag."""
+    if not config.output.labels:
+        return {}
+    parts: dict[str, float] = {}
+    n_files = 0
+    text = 0.0
+    for s in config.sensors:
+        if not getattr(s, "labels", False):
+            continue
+        n = duration * float(getattr(s, "rate", 0.0) or 0.0)
+        if s.type in ("lidar", "solid_state_lidar"):
+            points = n * _rays_per_scan(s) * hit
+            parts["lidar labels"] = parts.get("lidar labels", 0.0) + points * _LABEL_NPZ_POINT
+            for f in fmts:
+                raw = points * _LABEL_POINT
+                parts[f"bag_{f}"] = parts.get(f"bag_{f}", 0.0) + raw * _RATIO["cloud"][codec[f]]
+        elif s.type == "laser":
+            beams = round((s.angle_max - s.angle_min) / s.angle_increment) + 1  # type: ignore[attr-defined]
+            text += n * beams * _LABEL_TEXT
+            n_files += 1
+        elif s.type in ("sonar", "altimeter"):
+            text += n * (15.0 + _LABEL_TEXT)
+            n_files += 1
+    if n_files:
+        parts[f"label text files ({n_files})"] = text
+    if config.scene is not None:
+        key = _scene_key(config.scene)
+        n_inst = _INSTANCES.get(key, _INSTANCES_DEFAULT) if key != "other" else _INSTANCES_DEFAULT
+        for f in fmts:
+            raw = n_inst * _OBJECT_BYTES[f]
+            parts[f"bag_{f}"] = parts.get(f"bag_{f}", 0.0) + raw * _RATIO["small"][codec[f]]
+    return parts
 
 
 def _timing(
