@@ -21,6 +21,7 @@ from __future__ import annotations
 import math
 import os
 import shutil
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -275,7 +276,7 @@ def _beam_labels(
     duration: float,
     hit: float,
     fmts: tuple[str, ...],
-    codec: dict[str, str],
+    codec: Mapping[str, str],
 ) -> dict[str, float]:
     """Disk bytes of the beam sensors' labels and /objects with ``output.labels``
     (docs/guide/labels.md): the ``label`` array of each LiDAR scan (``lidar labels``), its
