@@ -79,7 +79,7 @@ _EVENT_ROS = {"ros1": 13.0, "ros2": 16.0}  # bytes per dvs_msgs/Event
 _NPZ_POINT = 14.0  # bytes per point in a compressed .npz scan (8-bit intensities)
 _POINT = 22.0  # bytes per PointCloud2 point (x y z intensity ring time)
 _LABEL_POINT = 4.0  # bytes per point of a PointCloud2's uint32 label field
-_LABEL_NPZ_POINT = 1.0  # bytes per point of a scan's compressed label array
+_LABEL_NPZ_POINT = 0.3  # bytes per point of a scan's compressed label array (warehouse: 0.20)
 _LABEL_TEXT = 8.0  # bytes per label in laser_/range_<name>_labels.txt
 _OBJECT_BYTES = {"ros1": 507.0, "ros2": 472.0}  # bytes per instance of the /objects message
 _INSTANCES = {"warehouse": 799, "refinery": 89, "empty": 1, None: 0}
@@ -296,7 +296,7 @@ def _beam_labels(
             parts["lidar labels"] = parts.get("lidar labels", 0.0) + points * _LABEL_NPZ_POINT
             for f in fmts:
                 raw = points * _LABEL_POINT
-                parts[f"bag_{f}"] = parts.get(f"bag_{f}", 0.0) + raw * _RATIO["cloud"][codec[f]]
+                parts[f"bag_{f}"] = parts.get(f"bag_{f}", 0.0) + raw * _RATIO["small"][codec[f]]
         elif s.type == "laser":
             beams = round((s.angle_max - s.angle_min) / s.angle_increment) + 1  # type: ignore[attr-defined]
             text += n * beams * _LABEL_TEXT

@@ -194,6 +194,16 @@ _PATTERNS: tuple[tuple[str, str], ...] = (
         "`angle_min + i * angle_increment` (run.json); `inf` no return, `-inf` too close.",
     ),
     (
+        "range_*_labels.txt",
+        "`t label` of the range sensor `<name>` (`output.labels`): uint32, class id in the "
+        "low 16 bits, instance id in the high 16, of the surface read; 0: no finite range.",
+    ),
+    (
+        "laser_*_labels.txt",
+        "`t l_0 .. l_n` of the laser `<name>` (`output.labels`): uint32 per beam, class id in "
+        "the low 16 bits, instance id in the high 16; 0: no finite range.",
+    ),
+    (
         "depth_*.txt",
         "`t path` of the depth camera `<name>`; 16-bit PNGs in millimetres "
         "(0 = no return) under `depth/<name>/`.",
@@ -234,7 +244,10 @@ def outdir_readme(
             lines.append(f"| `{name}` | {text} |")
     for pattern, text in _PATTERNS:
         for p in sorted(outdir.glob(pattern)):
-            lines.append(f"| `{p.name}` | {text.replace('<name>', p.stem.split('_', 1)[1])} |")
+            if p.stem.endswith("_labels") != pattern.endswith("_labels.txt"):
+                continue  # a labels file has its own row
+            name = p.stem.split("_", 1)[1].removesuffix("_labels")
+            lines.append(f"| `{p.name}` | {text.replace('<name>', name)} |")
     for d in sorted(p for p in outdir.iterdir() if p.is_dir() and (p / "images.txt").is_file()):
         files = ", ".join(
             f"`{f}`"

@@ -249,6 +249,7 @@ def export_semantickitti(
     _check_dest(dest, overwrite)
     poses = sensor_poses(outdir, seq.name, seq.t_ns)
     relative = np.linalg.inv(poses[0]) @ poses
+    relative[0] = np.eye(4)  # exactly, as KITTI's first line (not inv(T) T's rounding)
     scale = float(_sensor_config(outdir, seq.name).get("intensity_scale", 255.0) or 0.0)
     try:
         dest.parent.mkdir(parents=True, exist_ok=True)
