@@ -55,6 +55,18 @@ class OutputConfig(StrictModel):
     workers: Literal["auto"] | Annotated[int, Field(ge=0, strict=True)] = "auto"
     """Worker processes for render-heavy sensors: ``auto`` (one per such sensor, at most
     the CPUs; none on one CPU), ``0`` (all in the main process) or N; outputs are the same."""
+    labels: Annotated[bool, Field(strict=True)] = False
+    """True: write ground-truth labels (classes.json, instances.json and every sensor's
+    label outputs, docs/guide/labels.md); the scene must have classes. A sensor opts out
+    with its own ``labels: false``. Left out of run.json when false (the default), so
+    runs without labels stay byte-identical."""
+
+    @model_serializer(mode="wrap")
+    def _drop_default_labels(self, handler: SerializerFunctionWrapHandler) -> Any:
+        data = handler(self)
+        if isinstance(data, dict) and data.get("labels") is False:
+            data.pop("labels")
+        return data
 
     @field_validator("start_time", mode="before")
     @classmethod

@@ -50,6 +50,7 @@ __all__ = [
     "BAG_FORMATS",
     "CheckedScene",
     "RunPlan",
+    "check_labelled_scene",
     "check_run",
     "load_checked_scene",
     "make_plan",
@@ -135,6 +136,23 @@ def preflight(config: SimConfig, traj: Trajectory) -> None:
                 "empty) or a scene YAML path"
             )
             raise ConfigError(msg)
+    if config.output.labels and config.scene is None:
+        msg = (
+            "output.labels = true: labels need a scene with classes but the config has "
+            "none; add e.g. 'scene: warehouse' or set output.labels: false"
+        )
+        raise ConfigError(msg)
+
+
+def check_labelled_scene(config: SimConfig, scene: Scene) -> None:
+    """Refuse ``output.labels: true`` on a scene none of whose objects has a class."""
+    if config.output.labels and not any(o.labels is not None for o in scene.objects):
+        msg = (
+            f"output.labels = true: scene {config.scene!r} has no classes (no object gives "
+            "'class' or 'parts'); give its objects a 'class' (docs/guide/scenes.md, "
+            '"Classes and instances") or set output.labels: false'
+        )
+        raise ConfigError(msg)
 
 
 def _formats(config: SimConfig, formats: Sequence[str] | None) -> tuple[str, ...]:
@@ -278,6 +296,7 @@ def load_checked_scene(
 
         say(f"loading scene {config.scene!r}")
         scene = scene_mod.load_scene(config.scene, base_dir=plan.base_dir, seed=config.seed)
+        check_labelled_scene(config, scene)
     # the goal is where the vehicle's contact point meets the surface: base_link's
     # trajectory ends above it (roslan.vehicle); only the goal moves, not the timing
     traj_config = base_link_trajectory(config.trajectory, config.vehicle, scene)

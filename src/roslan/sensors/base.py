@@ -32,7 +32,13 @@ from typing import (
 
 import numpy as np
 from numpy.typing import NDArray
-from pydantic import AfterValidator, Field, model_validator
+from pydantic import (
+    AfterValidator,
+    Field,
+    SerializerFunctionWrapHandler,
+    model_serializer,
+    model_validator,
+)
 
 from roslan.config.base import FiniteFloat, Pose, StrictModel
 from roslan.limits import MAX_RATE_HZ
@@ -48,6 +54,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "WAIT_TOPIC",
+    "LabelsKey",
     "Message",
     "Sensor",
     "SensorConfig",
@@ -115,6 +122,25 @@ class SensorConfig(StrictModel):
     @property
     def frame(self) -> str:
         return self.frame_id or self.name
+
+
+class LabelsKey(StrictModel):
+    """The ``labels`` key of every sensor that can write labels (cameras, the event
+    camera, LiDARs, laser, sonar, altimeter): with ``output.labels: true`` such a sensor
+    writes its label outputs unless it says ``labels: false`` (docs/guide/labels.md).
+
+    Left out of the dump (run.json) at its default, so runs that do not use it stay
+    byte-identical."""
+
+    labels: Annotated[bool, Field(strict=True)] = True
+    """False: this sensor writes no labels even when ``output.labels`` is true."""
+
+    @model_serializer(mode="wrap")
+    def _drop_default_labels(self, handler: SerializerFunctionWrapHandler) -> Any:
+        data = handler(self)
+        if isinstance(data, dict) and data.get("labels") is True:
+            data.pop("labels")
+        return data
 
 
 class TopicSpec(NamedTuple):

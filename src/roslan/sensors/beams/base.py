@@ -17,6 +17,7 @@ from roslan.config.base import FiniteFloat
 from roslan.io.files import save_npz
 from roslan.io.ordered import OrderedPool, Turn
 from roslan.sensors.base import (
+    LabelsKey,
     Message,
     SensorConfig,
     SimContext,
@@ -45,7 +46,7 @@ F64 = NDArray[np.float64]
 F32 = NDArray[np.float32]
 
 
-class BeamConfig(SensorConfig):
+class BeamConfig(SensorConfig, LabelsKey):
     """Keys of the return model every scanning beam sensor (lidar, solid_state_lidar,
     laser) shares."""
 

@@ -32,6 +32,7 @@ from pydantic import Field, model_validator
 from roslan.config.base import FiniteFloat, Vec3
 from roslan.io.text import write_columns
 from roslan.sensors.base import (
+    LabelsKey,
     Message,
     SensorConfig,
     SimContext,
@@ -101,7 +102,7 @@ def cone_directions(half_angle: float, rings: int) -> NDArray[np.float64]:
     return np.concatenate(dirs)
 
 
-class _RangeConfig(SensorConfig):
+class _RangeConfig(SensorConfig, LabelsKey):
     """Keys shared by sonar and altimeter (defaults set by each type)."""
 
     axis: Vec3

@@ -16,7 +16,7 @@ from pydantic import Field, model_validator
 from roslan.config.base import FiniteFloat
 from roslan.io.ordered import Turn
 from roslan.render import FrameRenderer
-from roslan.sensors.base import Message, SensorConfig, SimContext
+from roslan.sensors.base import LabelsKey, Message, SensorConfig, SimContext
 from roslan.sensors.cameras.common import (
     RAW_ROWS_FACTOR,
     CameraBase,
@@ -38,7 +38,7 @@ Positive = Annotated[FiniteFloat, Field(gt=0)]
 NonNegative = Annotated[FiniteFloat, Field(ge=0)]
 
 
-class DepthCameraConfig(SensorConfig, CameraIntrinsics, RollingShutterKeys):
+class DepthCameraConfig(SensorConfig, LabelsKey, CameraIntrinsics, RollingShutterKeys):
     """``type: depth_camera``: 32FC1 z-depth in metres, NaN where nothing is measured (REP 118).
 
     With ``readout_time`` > 0 (a rolling shutter) ``readout_samples`` renders spread over

@@ -11,7 +11,7 @@ from pydantic import Field, model_validator
 from roslan.config.base import FiniteFloat
 from roslan.events.model import EVENT_PRESETS, EventModelParams
 from roslan.limits import MAX_RATE_HZ
-from roslan.sensors.base import SensorConfig
+from roslan.sensors.base import LabelsKey, SensorConfig
 from roslan.sensors.cameras.config import CameraIntrinsics, intrinsics_model
 from roslan.sensors.cameras.model import CameraModel
 
@@ -61,7 +61,7 @@ SENSOR_PRESETS: dict[str, SensorPreset] = {
 }  # fmt: skip
 
 
-class EventCameraConfig(SensorConfig, CameraIntrinsics):
+class EventCameraConfig(SensorConfig, LabelsKey, CameraIntrinsics):
     """``type: event_camera``. ``rate`` is the APS frame / camera_info rate (Hz).
 
     Unset pixel parameters come from ``preset`` (``clean``: ideal ESIM pixel;

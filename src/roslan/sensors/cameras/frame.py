@@ -47,7 +47,7 @@ from roslan.errors import SensorError
 from roslan.io.ordered import Turn
 from roslan.io.text import format_seconds
 from roslan.render import REC709_LUMA, FrameRenderer
-from roslan.sensors.base import Message, SensorConfig, SimContext
+from roslan.sensors.base import LabelsKey, Message, SensorConfig, SimContext
 from roslan.sensors.cameras.calibration import CalibCamera, load_calibration
 from roslan.sensors.cameras.common import RAW_ROWS_FACTOR, CameraBase, Eye, Shot, pose_matrices
 from roslan.sensors.cameras.config import CameraIntrinsics, intrinsics_model
@@ -88,7 +88,7 @@ NonNegative = Annotated[FiniteFloat, Field(ge=0)]
 
 
 # --------------------------------------------------------------------- configs
-class _ImagingConfig(SensorConfig, CameraIntrinsics, RollingShutterKeys):
+class _ImagingConfig(SensorConfig, LabelsKey, CameraIntrinsics, RollingShutterKeys):
     """Keys shared by the colour cameras."""
 
     encoding: Literal["mono8", "rgb8", "bgr8"] = "rgb8"
