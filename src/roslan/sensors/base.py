@@ -35,6 +35,7 @@ from numpy.typing import NDArray
 from pydantic import (
     AfterValidator,
     Field,
+    PrivateAttr,
     SerializerFunctionWrapHandler,
     model_serializer,
     model_validator,
@@ -134,6 +135,14 @@ class LabelsKey(StrictModel):
 
     labels: Annotated[bool, Field(strict=True)] = True
     """False: this sensor writes no labels even when ``output.labels`` is true."""
+
+    _run_labels: bool = PrivateAttr(default=False)
+    """``output.labels`` of the run (set by :class:`~roslan.config.sim.SimConfig`)."""
+
+    @property
+    def writes_labels(self) -> bool:
+        """Whether this sensor writes labels in its run: ``output.labels`` and ``labels``."""
+        return self.labels and self._run_labels
 
     @model_serializer(mode="wrap")
     def _drop_default_labels(self, handler: SerializerFunctionWrapHandler) -> Any:
