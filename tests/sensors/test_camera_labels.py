@@ -229,3 +229,19 @@ def test_ros1_own_reader_decodes_the_camera_detections(run: Path) -> None:
         for b in [a["bbox"]]
     ]
     assert row["boxes"] == expected
+
+
+def test_dry_run_counts_the_label_files(run: Path) -> None:
+    from roslan.pipeline.estimate import estimate_run
+
+    names = ("annotations.json", "classes.json", "instances.json")
+    files = [
+        p
+        for p in run.rglob("*")
+        if p.is_file() and (p.name in names or p.parent.name in ("instance", "semantic"))
+    ]
+    duration = json.loads((run / "run.json").read_text())["trajectory_duration_s"]
+    est = estimate_run(SimConfig.model_validate(JOB), duration=duration)
+    assert abs(est.label_files - len(files)) <= 0.1 * len(files)
+    actual = sum(p.stat().st_size for p in files)
+    assert 0.5 * actual <= est.parts["labels"] <= 4.0 * actual
