@@ -147,8 +147,11 @@ class LabelsKey(StrictModel):
     @model_serializer(mode="wrap")
     def _drop_default_labels(self, handler: SerializerFunctionWrapHandler) -> Any:
         data = handler(self)
-        if isinstance(data, dict) and data.get("labels") is True:
-            data.pop("labels")
+        if isinstance(data, dict):
+            if data.get("labels") is True:
+                data.pop("labels")
+            if "label_rate" in data and data["label_rate"] is None:
+                data.pop("label_rate")  # (the event camera's key, when unset)
         return data
 
 
