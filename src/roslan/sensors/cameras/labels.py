@@ -146,6 +146,32 @@ def instance_boxes(inst: U16) -> tuple[NDArray[np.int64], NDArray[np.int64], NDA
     return ids, counts, boxes
 
 
+def _runs(inst: U16) -> dict[int, list[int]]:
+    """Every instance's uncompressed COCO RLE counts (column-major runs of 0 and 1,
+    starting with 0s) from one pass over ``inst``."""
+    f = np.ascontiguousarray(inst.T).reshape(-1)
+    n = f.size
+    cut = np.flatnonzero(f[1:] != f[:-1]) + 1
+    starts = np.concatenate([[0], cut])
+    ends = np.concatenate([cut, [n]])
+    vals = f[starts]
+    order = np.argsort(vals, kind="stable")
+    vals, starts, ends = vals[order], starts[order], ends[order]
+    first = np.concatenate([[0], np.flatnonzero(np.diff(vals)) + 1])
+    last = np.concatenate([first[1:], [vals.size]])
+    out: dict[int, list[int]] = {}
+    for a, b in zip(first.tolist(), last.tolist(), strict=True):
+        k = int(vals[a])
+        if k == 0:
+            continue
+        edges = np.empty(2 * (b - a) + 2, dtype=np.int64)
+        edges[0], edges[-1] = 0, n
+        edges[1:-1:2], edges[2:-1:2] = starts[a:b], ends[a:b]
+        c = np.diff(edges)
+        out[k] = (c[:-1] if c[-1] == 0 else c).tolist()
+    return out
+
+
 def coco_annotations(
     inst: U16, image_id: int, first_id: int, inst_class: U16, extra: dict[int, dict[str, float]]
 ) -> list[dict[str, Any]]:
@@ -153,12 +179,14 @@ def coco_annotations(
     from pycocotools import mask as mask_utils
 
     ids, counts, boxes = instance_boxes(inst)
+    runs = _runs(inst)
+    h, w = inst.shape
     out = []
     for j, (k, n, (x0, y0, x1, y1)) in enumerate(
         zip(ids.tolist(), counts.tolist(), boxes.tolist(), strict=True)
     ):
-        m = np.asfortranarray(inst == k, dtype=np.uint8)
-        rle = mask_utils.encode(m)
+        # COCO's column-major RLE of the mask, compressed by pycocotools
+        rle = mask_utils.frPyObjects({"size": [h, w], "counts": runs[k]}, h, w)
         ann: dict[str, Any] = {
             "id": first_id + j,
             "image_id": image_id,
