@@ -100,3 +100,22 @@ def test_labels_on_a_scene_without_classes_refused(tmp_path: Path) -> None:
     data["objects"][0]["class"] = "ground"
     scene.write_text(yaml.safe_dump(data))
     check_run(validate_model(SimConfig, job), tmp_path / "out")
+
+
+def test_dataset_writes_labels_unless_told_not_to() -> None:
+    from roslan.batch.paper import dataset_plan
+
+    on = dataset_plan(["empty"], check_clearance=False, sensors=[])
+    off = dataset_plan(["empty"], check_clearance=False, sensors=[], labels=False)
+    assert all(SimConfig.model_validate(r.config).output.labels for r in on)
+    assert not any(SimConfig.model_validate(r.config).output.labels for r in off)
+
+
+def test_labels_guide_lists_the_class_table() -> None:
+    import re
+
+    from roslan.scene.classes import BUILTIN_CLASSES
+
+    text = (Path(__file__).parents[2] / "docs" / "guide" / "labels.md").read_text()
+    rows = re.findall(r"^\| (\d+) \| `([a-z_]+)` \| (.+?) \|$", text, flags=re.M)
+    assert [(int(i), n, d) for i, n, d in rows] == list(BUILTIN_CLASSES)

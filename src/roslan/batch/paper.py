@@ -231,13 +231,14 @@ def dataset_plan(
     duration: float | None = None,
     formats: Sequence[str] | None = None,
     check_clearance: bool = True,
+    labels: bool = True,
 ) -> list[DatasetRun]:
     """The dataset's simulations, in order (scene by scene, trajectories 1..6); the
     arguments are :func:`iter_dataset_plan`'s."""
     return list(
         iter_dataset_plan(
             scenes, seed=seed, sensors=sensors, duration=duration, formats=formats,
-            check_clearance=check_clearance,
+            check_clearance=check_clearance, labels=labels,
         )
     )  # fmt: skip
 
@@ -250,6 +251,7 @@ def iter_dataset_plan(
     duration: float | None = None,
     formats: Sequence[str] | None = None,
     check_clearance: bool = True,
+    labels: bool = True,
 ) -> Iterator[DatasetRun]:
     """The dataset's simulations one at a time, in order (scene by scene, trajectories
     1..6): a caller that checks each one as it comes finds its scene still loaded.
@@ -263,6 +265,7 @@ def iter_dataset_plan(
         formats: bag formats (``ros1``, ``ros2``); None: the config default (both).
         check_clearance: turn a blocked heading until the path is clear in the scene as
             the simulation will build it (with its own seed).
+        labels: ``output.labels: true`` in every simulation (``--no-labels``: False).
     """
     if not scenes:
         msg = "--scenes: give at least one scene"
@@ -310,8 +313,13 @@ def iter_dataset_plan(
                 "sensors": [dict(s) for s in suite],
                 "seed": sim_seed,
             }
+            output: dict[str, Any] = {}
             if formats is not None:
-                config["output"] = {"formats": list(formats)}
+                output["formats"] = list(formats)
+            if labels:
+                output["labels"] = True
+            if output:
+                config["output"] = output
             yield (
                 DatasetRun(
                     folder=f"{label}_{i + 1:02d}",
@@ -440,10 +448,13 @@ def build_dataset(
     formats: Sequence[str] | None = None,
     progress: bool = True,
     runner: Runner | None = None,
+    labels: bool = True,
 ) -> tuple[list[DatasetRun], BatchReport]:
     """Plan, simulate (on Dask, see :func:`roslan.batch.runner.run_tasks`) and index the dataset."""
     out = Path(outdir).resolve()
-    runs = dataset_plan(scenes, seed=seed, sensors=sensors, duration=duration, formats=formats)
+    runs = dataset_plan(
+        scenes, seed=seed, sensors=sensors, duration=duration, formats=formats, labels=labels
+    )
     tasks = make_tasks(
         [r.config for r in runs],
         Path.cwd(),

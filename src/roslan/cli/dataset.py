@@ -44,6 +44,7 @@ def _dataset(args: argparse.Namespace) -> int:
         duration=args.duration,
         formats=bag_formats(args.format),
         progress=not args.quiet,
+        labels=not args.no_labels,
     )
     if not args.quiet:
         print_summary(report)
@@ -66,7 +67,7 @@ def _dataset_dry_run(args: argparse.Namespace, sensors: list[dict[str, Any]] | N
     # the plan's clearance check) is still loaded for the run's checks
     for r in iter_dataset_plan(
         args.scenes, seed=args.seed, sensors=sensors, duration=args.duration,
-        formats=bag_formats(args.format),
+        formats=bag_formats(args.format), labels=not args.no_labels,
     ):  # fmt: skip
         (task,) = make_tasks(
             [r.config], Path.cwd(), names=[r.folder], overrides=[{}], source="roslan dataset"
@@ -117,6 +118,11 @@ def register(subparsers: Any) -> None:
         help="touchdown time of every landing (scales the start distance; default: 8 m start)",
     )
     p.add_argument("--format", choices=FORMAT_CHOICES, help="bag formats (default both)")
+    p.add_argument(
+        "--no-labels",
+        action="store_true",
+        help="write no ground-truth labels (default: output.labels: true, docs/guide/labels.md)",
+    )
     p.add_argument(
         "--dry-run",
         action="store_true",

@@ -127,7 +127,12 @@ def print_run_estimate(
     table = Table(title=f"roslan simulate plan: {outdir}")
     table.add_column("output")
     table.add_column("est. disk", justify="right")
-    names = {"bag_ros1": "landing.bag", "bag_ros2": "landing_ros2/", "files": "other text files"}
+    names = {
+        "bag_ros1": "landing.bag",
+        "bag_ros2": "landing_ros2/",
+        "files": "other text files",
+        "labels": f"labels ({est.label_files} files)",
+    }
     for key, nbytes in sorted(est.parts.items(), key=lambda kv: -kv[1]):
         table.add_row(names.get(key, key), format_bytes(nbytes))
     con = _console()

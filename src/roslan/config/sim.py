@@ -21,7 +21,7 @@ from pydantic import (
 from roslan.config.base import FiniteFloat, ModelFor, StrictModel
 from roslan.config.closed_loop import ClosedLoopConfig
 from roslan.limits import MAX_RATE_HZ, MAX_SEED
-from roslan.sensors.base import SensorConfig
+from roslan.sensors.base import LabelsKey, SensorConfig
 from roslan.sensors.registry import SENSOR_TYPES, config_class, config_class_for
 from roslan.trajectory.base import DEFAULT_GROUND_TRUTH_RATE
 from roslan.trajectory.config import TrajectoryConfig
@@ -131,6 +131,14 @@ class SimConfig(StrictModel):
         if isinstance(data, dict) and data.get("closed_loop") is None:
             data.pop("closed_loop", None)
         return data
+
+    @model_validator(mode="after")
+    def _run_labels(self) -> SimConfig:
+        # each labelling sensor knows whether the run writes labels (also in workers)
+        for s in self.sensors:
+            if isinstance(s, LabelsKey):
+                s._run_labels = self.output.labels
+        return self
 
     @model_validator(mode="after")
     def _unique(self) -> SimConfig:

@@ -232,13 +232,30 @@ class EventH5Writer:
             g["t_ns"].attrs["unit"] = "ns since the trajectory start (exact)"
         g["p"].attrs["values"] = "1 ON (brighter), 0 OFF"
         self._pending: list[EventBatch] = []
+        self._labels: list[NDArray[np.uint32]] | None = None  # events/label, when given
+        self._opts = opts
         self._n_pending = 0
         self._next_ms = 0  # first millisecond whose ms_to_idx entry is not yet written
         self.count = 0
 
-    def write(self, batch: EventBatch) -> None:
+    def write(self, batch: EventBatch, labels: NDArray[np.uint32] | None = None) -> None:
+        """Append ``batch`` (and its ``events/label`` values: give them with every batch
+        or never)."""
+        if labels is not None and self._labels is None:
+            ds = self._f["events"].create_dataset(
+                "label", shape=(0,), maxshape=(None,), dtype=np.uint32,
+                chunks=(self.chunk,), **self._opts,
+            )  # fmt: skip
+            ds.attrs["encoding"] = "SemanticKITTI: class | instance << 16 (docs/guide/labels.md)"
+            self._ds["label"] = ds
+            self._labels = []
         if batch.size == 0:
             return
+        if self._labels is not None:
+            if labels is None or labels.shape[0] != batch.size:
+                msg = f"{self.path}: give events/label values with every batch, one per event"
+                raise ValueError(msg)
+            self._labels.append(labels)
         self._pending.append(batch)
         self._n_pending += batch.size
         if self._n_pending >= self.chunk:
@@ -271,6 +288,12 @@ class EventH5Writer:
         last_ms = int(t_us[-1]) // 1000
         ms = np.arange(self._next_ms, last_ms + 1, dtype=np.int64)
         self._append_ms(n0 + np.searchsorted(t_us, ms * 1000, side="left"))
+        if self._labels is not None:
+            lab = np.concatenate(self._labels)
+            ds = self._ds["label"]
+            ds.resize((n0 + m,))
+            ds[n0 : n0 + m] = lab[:m]
+            self._labels = [lab[m:]] if lab.size > m else []
         self.count += m
         rest = allb.slice(m, allb.size)
         self._pending = [rest] if rest.size else []

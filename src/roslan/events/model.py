@@ -378,6 +378,7 @@ class EventGenerator:
             tau = 1.0 / (2.0 * math.pi * p.cutoff_hz)
             a = 1.0 - math.exp(-dt_ns * 1e-9 / tau)  # exact first-order step
         leak = self.leak_slope if self.leak_slope is not None else _NO_LEAK
+        lp0 = self.lp.copy() if self.flag_noise else None
         s0, s1 = self.signal, self._sig_next
         k.pixel_step(
             L, E, mode, a, self.lp, leak, t_ns * 1e-9, self.ref, self.c_pos,
@@ -419,6 +420,7 @@ class EventGenerator:
         self.signal, self._sig_next = s1, s0
         self.t_ns = t_ns
         n_out = n - int(dropped)
+        self.last_noise = np.zeros(0, dtype=bool)
         if n_out == 0:
             return EventBatch.empty()
         idx, t, pol = idx[:n], t[:n], pol[:n]
@@ -432,8 +434,12 @@ class EventGenerator:
             # the sorted keys hold the events themselves (no gather); dropped ones sort last
             key = self._key[:n]
             k.pack_keys(t, idx, pol, n_real, t0, ib, key)
+            shot_keys = np.sort(key[n_real:]) if lp0 is not None else None
             key.sort()
             k.unpack_keys(key[:n_out], t0, ib, self.width, *out)
+            if lp0 is not None and shot_keys is not None:
+                shot = np.isin(key[:n_out], shot_keys, assume_unique=False)
+                self.last_noise = self._noise(out, shot, lp0)
             return out
         # the reference's stable time order: real events by pixel (then identical), shot
         # noise by position (sorted by pixel, ties in draw order)
@@ -442,7 +448,25 @@ class EventGenerator:
         shot_ev = pos >= n_real
         order = kept[np.lexsort((np.where(shot_ev, pos, idx)[kept], shot_ev[kept], t[kept]))]
         k.gather_events(order, idx, t, pol, self.width, *out)
+        if lp0 is not None:
+            self.last_noise = self._noise(out, shot_ev[order], lp0)
         return out
+
+    def _noise(self, out: EventBatch, shot: NDArray[np.bool_], lp0: F64) -> NDArray[np.bool_]:
+        """Which events of ``out`` are noise: shot noise (``shot``) and leak events, i.e.
+        crossings whose pixel's low-passed log intensity did not move in the direction
+        of their polarity over the interval (the leak's drift alone crossed the
+        threshold)."""
+        pix = out.y.astype(np.int64) * self.width + out.x
+        d = self.lp[pix] - lp0[pix]
+        leak = np.where(out.p > 0, d <= 0.0, d >= 0.0)
+        return np.asarray(shot | leak, dtype=bool)
+
+    flag_noise: bool = False
+    """Compute :attr:`last_noise` at every step (the event camera's labels)."""
+    last_noise: NDArray[np.bool_] = np.zeros(0, dtype=bool)
+    """After a step with :attr:`flag_noise`: which of its events are noise (shot noise,
+    leak events; :meth:`_noise`), aligned with the returned batch."""
 
     def _scratch(self, n: int, keep: int = 0) -> tuple[I64, I64, NDArray[np.int8]]:
         """Reused event buffers of at least ``n`` events (grown by doubling, the first

@@ -71,7 +71,6 @@ class Context:
         render_helpers: Mapping[str, int] | None = None,
         clock: Clock | None = None,
         backends: SceneBackends | None = None,
-        labels: bool = False,
     ) -> None:
         self.trajectory = trajectory
         self.clock = clock if clock is not None else Clock.fixed(trajectory.duration_ns)
@@ -87,7 +86,6 @@ class Context:
         self.sensor_threads = max(1, int(sensor_threads))
         self._helpers = dict(render_helpers or {})
         self._backends = backends
-        self.labels = bool(labels)
 
     def stamp(self, t_ns: int) -> int:
         """Absolute header stamp (ns) of trajectory time ``t_ns``."""

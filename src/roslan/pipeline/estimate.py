@@ -118,6 +118,18 @@ PARALLEL_EFFICIENCY = 0.7
 :func:`batch_seconds`)."""
 
 
+_LABEL_PNG_RATIO = 0.25
+"""Bytes of a camera's instance + semantic PNGs per pixel (uint16, mostly flat regions:
+0.15 + 0.10 measured at 96x72 in the warehouse, 2026-12-02; less at larger sizes)."""
+_LABEL_FRAME_JSON = 60e3
+"""Bytes of one frame's COCO annotations (about 150 visible instances of ~400 bytes with
+their RLE masks in the warehouse)."""
+_LABEL_FRAME_DETECTIONS = 15e3
+"""Bytes of one frame's Detection2DArray (about 150 detections)."""
+_LABEL_TABLES = 250e3
+"""classes.json + instances.json (799 warehouse instances with their boxes)."""
+
+
 @dataclass
 class RunEstimate:
     """Disk bytes and wall seconds of one run, with the bytes of each output."""
@@ -135,6 +147,9 @@ class RunEstimate:
     """Added on the first run on a machine (compiling the event camera's kernels)."""
     sensor_cpu: dict[str, float] = field(default_factory=dict)
     """Of ``cpu``: each sensor's own work (the rest: set-up, ground truth, writing, plots)."""
+    label_files: int = 0
+    """Files of ``output.labels`` (PNGs, annotations, tables) the run writes; their bytes
+    are ``parts['labels']``."""
 
     def assumption(self) -> str:
         """What ``seconds`` assumes, for the dry run's summary line."""
@@ -185,6 +200,9 @@ def estimate_run(
     hit = LIDAR_HIT_FRACTION.get(key, 1.0) if key != "other" else 1.0
     parts: dict[str, float] = {}
     work: dict[str, float] = {}  # CPU seconds of each sensor's own work
+    label_files = 2 if config.output.labels else 0  # classes.json, instances.json
+    if config.output.labels:
+        parts["labels"] = _LABEL_TABLES
 
     def add(name: str, nbytes: float) -> None:
         parts[name] = parts.get(name, 0.0) + nbytes
@@ -206,6 +224,13 @@ def estimate_run(
             w, h = _resolution(s)
             mpix = w * h / 1e6 * int(getattr(s, "supersampling", 1)) ** 2  # rendered pixels
             bag("small", n * 400.0)  # camera_info
+            if getattr(s, "writes_labels", False) and t != "event_camera":
+                eyes = 2 if t == "stereo_camera" else 1
+                frames = eyes * (math.floor(n + 1e-9) + 1)  # stamps from t = 0 on
+                add("labels", frames * (w * h * _LABEL_PNG_RATIO + _LABEL_FRAME_JSON))
+                label_files += 2 * frames + eyes  # two PNGs a frame, annotations.json
+                bag("mono", frames * w * h * 4)  # <topic>/semantic, /instance (mono16)
+                bag("small", frames * _LABEL_FRAME_DETECTIONS)
             if t == "event_camera":
                 events = ev_rate * w * h * duration
                 for f in fmts:
@@ -268,6 +293,7 @@ def estimate_run(
     total = sum(parts.values())
     est = _timing(config, key, work, total, n_gt)
     est.bytes, est.parts = total, parts
+    est.label_files = label_files
     return est
 
 

@@ -120,7 +120,6 @@ class RunPlan:
             render_helpers=None if stepped else self.render_helpers,
             clock=clock,
             backends=backends,
-            labels=config.output.labels,
         )
 
 

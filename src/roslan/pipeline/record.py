@@ -132,6 +132,11 @@ class Recorder:
             return
         import roslan.scene as scene_mod
 
+        if self.config.output.labels:
+            from roslan.pipeline.labels import write_label_tables
+
+            write_label_tables(self.folder, scene)
+
         self.export = BackgroundSink("scene-export", backlog=1)
         self.export.submit(scene_mod.export_scene, scene, self.folder / "scene")
 

@@ -229,7 +229,6 @@ class _Run:
                 nice=nices[g],
                 sensor_threads=plan.sensor_threads,
                 render_helpers=tuple(plan.render_helpers.items()),
-                labels=config.output.labels,
             )
         )
 

@@ -203,8 +203,6 @@ class WorkerJob:
     sensor_threads: int = 1
     render_helpers: tuple[tuple[str, int], ...] = ()
     """Render helper processes per event camera name (:func:`plan_helpers`)."""
-    labels: bool = False
-    """The run's ``output.labels``."""
 
 
 class ByteQueue:
@@ -312,7 +310,6 @@ def _run_job(job: WorkerJob, put: Callable[[Any], None]) -> None:
         scene=job.scene,
         sensor_threads=job.sensor_threads,
         render_helpers=dict(job.render_helpers),
-        labels=job.labels,
     )
     stores = [MessageStore(Flavor(f)) for f in job.formats]
     sensors = [cls(job.sensors[i]) for cls, i in zip(job.classes, job.assigned, strict=True)]

@@ -33,15 +33,17 @@ class RenderResult:
             (``0.2126 R + 0.7152 G + 0.0722 B``), or None if not requested.
         flow: (H, W, 2) float32 image motion (px/s), or None (no renderer computes it
             yet: the cameras derive it from ``depth`` and their twist).
-        ids: (H, W) int32 object id of every pixel, or None (room for the object ids of
-            a later version: no renderer writes them yet).
+        ids: (H, W) uint32: 1 + the index in :attr:`Scene.triangles
+            <roslan.scene.model.Scene.triangles>` of the triangle each pixel centre sees
+            (0: nothing), or None if not requested; a camera maps it to instance and class
+            ids (:func:`roslan.sensors.cameras.labels.label_images`) before its lens remap.
     """
 
     color: F32 | None
     depth: F32 | None
     luminance: F32 | None = None
     flow: F32 | None = None
-    ids: NDArray[np.int32] | None = None
+    ids: NDArray[np.uint32] | None = None
 
 
 class FrameRenderer(Protocol):
@@ -71,9 +73,11 @@ class FrameRenderer(Protocol):
         near: float | None = None,
         supersampling: int = 1,
         t: float | None = None,
+        ids: bool = False,
     ) -> RenderResult:
         """Render the view of a pinhole camera (pose of the OPTICAL frame, OpenCV ``K``)
-        of the scene at trajectory time ``t`` (s; None: t = 0)."""
+        of the scene at trajectory time ``t`` (s; None: t = 0); ``ids``: also the scene
+        triangle at each pixel centre (:attr:`RenderResult.ids`)."""
         ...
 
 

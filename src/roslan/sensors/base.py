@@ -35,6 +35,7 @@ from numpy.typing import NDArray
 from pydantic import (
     AfterValidator,
     Field,
+    PrivateAttr,
     SerializerFunctionWrapHandler,
     model_serializer,
     model_validator,
@@ -135,11 +136,22 @@ class LabelsKey(StrictModel):
     labels: Annotated[bool, Field(strict=True)] = True
     """False: this sensor writes no labels even when ``output.labels`` is true."""
 
+    _run_labels: bool = PrivateAttr(default=False)
+    """``output.labels`` of the run (set by :class:`~roslan.config.sim.SimConfig`)."""
+
+    @property
+    def writes_labels(self) -> bool:
+        """Whether this sensor writes labels in its run: ``output.labels`` and ``labels``."""
+        return self.labels and self._run_labels
+
     @model_serializer(mode="wrap")
     def _drop_default_labels(self, handler: SerializerFunctionWrapHandler) -> Any:
         data = handler(self)
-        if isinstance(data, dict) and data.get("labels") is True:
-            data.pop("labels")
+        if isinstance(data, dict):
+            if data.get("labels") is True:
+                data.pop("labels")
+            if "label_rate" in data and data["label_rate"] is None:
+                data.pop("label_rate")  # (the event camera's key, when unset)
         return data
 
 
@@ -196,9 +208,6 @@ class SimContext(Protocol):
     files: DatasetFolder | None
     """The run's dataset-file sink (``files.path(relpath)``: a path inside the output
     folder, its parent folders made), or None: this run records no files, write none."""
-    labels: bool
-    """The run's ``output.labels``: sensors write their label outputs (unless their own
-    ``labels`` key is false; docs/guide/labels.md)."""
     sensor_threads: int
     """Threads a frame or scan sensor may use for its per-instant work after the render
     or cast (:class:`~roslan.io.ordered.OrderedPool`); outputs do not depend on it."""

@@ -17,7 +17,7 @@ from __future__ import annotations
 import ctypes
 import os
 import weakref
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -35,6 +35,7 @@ from roslan.render.gl.context import (
     gl_flush,
     gl_mat,
 )
+from roslan.render.gl.ids import IdPass
 from roslan.render.gl.programs import Programs
 from roslan.render.gl.settings import MAX_ANISO, default_samples
 from roslan.render.gl.supersample import render_supersampled
@@ -170,6 +171,7 @@ class Renderer:
         self._targets: dict[tuple[int, int, int, bool, bool, bool], Targets] = {}
         self._d_targets: dict[tuple[int, int], tuple[Any, Any, Any]] = {}
         self._released = False
+        self._ids: IdPass | None = None  # made on the first render with ids=True
 
         lo, hi = scene.at(0.0).bounds
         diag = float(np.linalg.norm(hi - lo))
@@ -278,6 +280,7 @@ class Renderer:
         near: float | None = None,
         supersampling: int = 1,
         t: float | None = None,
+        ids: bool = False,
     ) -> RenderResult:
         """Render the view of a pinhole camera.
 
@@ -311,6 +314,8 @@ class Renderer:
             t: trajectory time (s) of the view (None: t = 0); the scene at ``t``
                 (:meth:`Scene.at <roslan.scene.model.Scene.at>`) is the uploaded static
                 scene at every time, the only kind this renderer draws.
+            ids: also return :attr:`RenderResult.ids`, the scene triangle at every pixel
+                centre of the same view (:mod:`roslan.render.gl.ids`).
         Returns:
             :class:`RenderResult`; row 0 is the top of the image. Arrays are fresh (the
             caller may keep and modify them), except ``out``.
@@ -320,6 +325,18 @@ class Renderer:
             raise RenderError(msg)
         width, height = int(width), int(height)
         self.check_size(width, height)
+        if ids:
+            res = self.render(
+                T_world_cam, K, width, height, color=color, depth=depth, luminance=luminance,
+                samples=samples, out=out, near=near, supersampling=supersampling, t=t,
+            )  # fmt: skip
+            view = self._view(T_world_cam, K, width, height, near)
+            if self._ids is None:
+                self._ids = IdPass(self.ctx, self.buffers)
+            tri = self._ids.render(
+                width, height, view.mvp, view.zrow, (view.first, view.count, view.cull)
+            )
+            return replace(res, ids=tri)
         if not (color or depth or luminance):
             return RenderResult(None, None)
         n = int(supersampling)
@@ -560,6 +577,8 @@ class Renderer:
                 for o in d:
                     o.release()
             self._d_targets.clear()
+            if self._ids is not None:
+                self._ids.release()
             self.programs.release()
             self.buffers.release()
             self.shadow.release()

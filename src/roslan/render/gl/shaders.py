@@ -16,6 +16,7 @@ __all__ = [
     "COLOR_VERT",
     "FRAG_DEPTH",
     "FRAG_EDGE_AA",
+    "FRAG_IDS",
     "FRAG_RESOLVE",
     "FRAG_SHADOW",
     "VERT_DEPTH",
@@ -167,6 +168,16 @@ void main() {
     gl_Position = u_mvp * p;
     v_z = dot(u_zrow, p);
 }
+"""
+
+FRAG_IDS = """
+#version 410
+uniform uint u_tri0;  // the draw's first triangle in the index buffer
+in float v_z;
+layout(location = 0) out float o_invz;
+layout(location = 1) out uint o_tri;
+// 1 + the uploaded triangle at the pixel centre (no MSAA, no blend: one surface)
+void main() { o_invz = 1.0 / max(v_z, 1e-6); o_tri = u_tri0 + uint(gl_PrimitiveID) + 1u; }
 """
 
 VERT_SHADOW = """

@@ -86,11 +86,13 @@ class _Clusters:
         self.o_hi: list[F32] = []
         self.o_closed: list[bool] = []
         self.closed_names: list[str] = []
+        self.source: list[NDArray[np.int64]] = []  # per uploaded face: its scene triangle
         self.offset = 0  # vertices so far
 
-    def add(self, o: SceneObject, group: int, first: int) -> int:
-        """Add object ``o`` of texture group ``group`` whose indices start at ``first``;
-        returns its index count."""
+    def add(self, o: SceneObject, group: int, first: int, tri0: int) -> int:
+        """Add object ``o`` of texture group ``group`` whose indices start at ``first``
+        and whose first face is triangle ``tri0`` of :attr:`Scene.triangles`; returns its
+        index count."""
         nv = int(o.vertices.shape[0])
         nf = int(o.faces.shape[0])
         self.parts.append(_vertex_attrs(o))
@@ -100,6 +102,7 @@ class _Clusters:
         inv = inv.reshape(-1)
         order = np.argsort(inv, kind="stable")
         self.faces.append(o.faces[order].astype(np.int32) + self.offset)
+        self.source.append(order.astype(np.int64) + tri0)
         sizes = np.bincount(inv)
         starts = np.concatenate([[0], np.cumsum(sizes)[:-1]])
         self.lo.append(np.minimum.reduceat(tri.min(axis=1)[order], starts, axis=0))
@@ -127,6 +130,8 @@ class SceneBuffers:
         vao_depth, vao_shadow: position-only vertex arrays of the depth and shadow
             programs (None without triangles).
         closed_solids: names of the objects whose back faces may be culled.
+        tri_source: (F,) int64, for every uploaded triangle (index buffer order) its
+            index in :attr:`Scene.triangles <roslan.scene.model.Scene.triangles>`.
     """
 
     def __init__(
@@ -149,6 +154,7 @@ class SceneBuffers:
         self.c_closed = np.asarray(acc.o_closed, dtype=bool)[self.c_obj]
         self.o_lo = np.asarray(acc.o_lo, dtype=np.float64).reshape(-1, 3)
         self.o_hi = np.asarray(acc.o_hi, dtype=np.float64).reshape(-1, 3)
+        self.tri_source = np.concatenate(acc.source) if acc.source else np.zeros(0, dtype=np.int64)
         self.vbo: Any = None
         self.ibo: Any = None
         self.vao_depth: Any = None
@@ -176,6 +182,7 @@ class SceneBuffers:
         """Add the objects group by group (one group per texture) and make the textures."""
         groups: dict[int, list[int]] = {}
         images: dict[int, NDArray[np.uint8] | None] = {0: None}
+        tri0 = np.concatenate([[0], np.cumsum([o.faces.shape[0] for o in scene.objects])])
         for i, obj in enumerate(scene.objects):
             tex = obj.material.texture
             key = 0 if tex is None else id(tex)
@@ -190,7 +197,7 @@ class SceneBuffers:
             for i in members:
                 o = scene.objects[i]
                 if o.faces.shape[0] != 0:
-                    count += acc.add(o, g, first + count)
+                    count += acc.add(o, g, first + count, int(tri0[i]))
             if count == 0:
                 continue
             img = images[key]

@@ -97,7 +97,8 @@ def cast_labelled(
 
 def label_table(ctx: SimContext, config: Any) -> U32 | None:
     """The scene's :func:`triangle_labels` when sensor ``config`` writes labels in this
-    run (``output.labels`` on, the sensor's own ``labels`` key not false), else None."""
-    if not ctx.labels or not getattr(config, "labels", True):
+    run (its config's ``writes_labels``: ``output.labels`` on and its own ``labels`` key
+    not false), else None."""
+    if not getattr(config, "writes_labels", False):
         return None
     return triangle_labels(ctx.scene)

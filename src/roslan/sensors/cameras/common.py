@@ -121,6 +121,10 @@ class CameraBase:
                 TopicSpec(f"{e.topic}/image_raw", IMAGE),
                 TopicSpec(f"{e.topic}/camera_info", CAMERA_INFO),
             ]
+            if getattr(self.config, "writes_labels", False):
+                from roslan.sensors.cameras.labels import label_topics
+
+                out += [TopicSpec(t, m) for t, m in label_topics(e.topic)]
         return out
 
     def static_transforms(self) -> list[StaticTransform]:
@@ -193,6 +197,15 @@ class CameraBase:
             img = img[..., ::-1]  # the topic's bgr8 data; a PNG file holds RGB
         write_png(ctx.path(f"{e.files}/{index:08d}.png"), img)
 
+    def _label_outputs(self, ctx: SimContext) -> Any:
+        """The sensor's :class:`~.labels.CameraLabels` when it writes labels, else None."""
+        if not getattr(self.config, "writes_labels", False):
+            return None
+        from roslan.sensors.cameras.labels import CameraLabels
+
+        self._labels = CameraLabels(ctx, self)
+        return self._labels
+
     def _listed(self, e: Eye, index: int, t_ns: int) -> None:
         """Frame ``index``'s line in the eye's index file (in frame order)."""
         # images.txt lists paths relative to its own folder; depth_<name>.txt to OUTDIR
@@ -202,6 +215,9 @@ class CameraBase:
         e.index_fh.write(f"{format_seconds(np.array([t_ns]))[0]} {listed}\n")
 
     def close(self, ctx: SimContext) -> None:
+        labels = getattr(self, "_labels", None)
+        if labels is not None:
+            labels.close(ctx)
         for e in self._eyes:
             for fh in (e.index_fh, e.exposure_fh):
                 if fh is not None and not fh.closed:
@@ -241,9 +257,19 @@ class CameraBase:
         pool: OrderedPool[tuple[int, int, list[Shot]]] = OrderedPool(
             ctx.sensor_threads, f"{self.config.name}-frames"
         )
+        labels = self._label_outputs(ctx)
+        recs: dict[int, Any] = {}  # frame -> its label records (the labels' post)
+        if labels is not None:
+            render_image = render
+
+            def render(inline: bool, i: int, t: int) -> Any:
+                return render_image(inline, i, t), labels.render(ctx, t)
 
         def task(turn: Turn, i: int, t: int, job: Any) -> tuple[int, int, list[Shot]]:
-            return i, t, post(turn, i, t, job)
+            if labels is None:
+                return i, t, post(turn, i, t, job)
+            recs[i] = labels.post(ctx, i, t, job[1])
+            return i, t, post(turn, i, t, job[0])
 
         def emit(done: list[tuple[int, int, list[Shot]]]) -> Iterator[Message]:
             for i, t, shots in done:
@@ -252,6 +278,8 @@ class CameraBase:
                         self._listed(s.eye, i, t)
                     ctx.clock.tap(self.config.name, Frame(t, s.data, s.eye.suffix))
                     yield from self._messages(ctx, t, i, s.eye, s.data, s.encoding)
+                if labels is not None:
+                    yield from labels.messages(ctx, t, i, recs.pop(i))
 
         last = [-1]
         try:

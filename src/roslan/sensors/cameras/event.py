@@ -433,9 +433,12 @@ class EventCamera:
 
         return Message(t_ns, f"{self.config.topic}/{topic}", "sensor_msgs/msg/Image", build)
 
-    def _write_events(self, batch: EventBatch) -> None:
+    def _write_events(self, batch: EventBatch, labels: NDArray[np.uint32] | None = None) -> None:
         for wr in self._writers:
-            wr.write(batch)
+            if labels is not None and isinstance(wr, EventH5Writer):
+                wr.write(batch, labels)
+            else:
+                wr.write(batch)
 
     def _write_image(self, ctx: SimContext, t_ns: int, aps: NDArray[np.uint8], index: int) -> None:
         rel = f"images/{index:08d}.png"

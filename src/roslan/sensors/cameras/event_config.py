@@ -96,6 +96,9 @@ class EventCameraConfig(SensorConfig, LabelsKey, CameraIntrinsics):
     """Initial phase of the leak: ``steady`` (default; as if the sensor had been running)
     or ``zero`` (every pixel reset at the start: no leak event before ``1 / leak_rate``)."""
     log_eps: Positive | None = None
+    label_rate: Annotated[FiniteFloat, Field(gt=0, le=MAX_RATE_HZ)] | None = None
+    """With ``output.labels``: the rate (Hz) of the ``tracks.npy`` boxes (default: at the
+    APS frame instants, every ``1 / rate``); left out of run.json when unset."""
     timestamp_resolution: Annotated[FiniteFloat, Field(ge=0, le=1e-3)] | None = None
     """Tick of the event timestamps, s: event times are floored to multiples of it, as a
     sensor's timestamp counter does (a whole number of ns, or 0 for exact ns times).

@@ -71,7 +71,7 @@ class StreamSensor(Protocol):
     @property
     def _writers(self) -> Sized: ...
 
-    def _write_events(self, batch: EventBatch) -> None: ...
+    def _write_events(self, batch: EventBatch, labels: Any = None) -> None: ...
 
     def _write_image(
         self, ctx: SimContext, t_ns: int, aps: NDArray[np.uint8], index: int
@@ -135,6 +135,15 @@ class AfterRender:
         self.image_index = 0
         self.n_events = 0
         self.ready: collections.deque[Message] = collections.deque()
+        self.labels: Any = None  # the labels' side (output.labels: event_labels.py)
+        if getattr(c, "writes_labels", False):
+            from roslan.sensors.base import sample_times_ns
+            from roslan.sensors.cameras.event_labels import EventLabels
+
+            end = int(ctx.trajectory.duration_ns)
+            times = sample_times_ns(c.label_rate, end) if c.label_rate else info_times
+            self.gen.flag_noise = True
+            self.labels = EventLabels(sensor, ctx, times)
 
     def step(self, t: int, lum: F32, depth: F32 | None, flow: F32 | None) -> None:
         s, c, ctx, sink = self.sensor, self.sensor.config, self.ctx, self.sensor._sink
@@ -144,11 +153,14 @@ class AfterRender:
             # the sensor's timestamp counter (order kept): floor to the tick, in place
             np.floor_divide(batch.t, self.tick, out=batch.t)
             batch.t[:] *= self.tick
+        labels = None
+        if self.labels is not None:
+            labels = self.labels.events(batch, self.gen.last_noise, t)
         if batch.size:
             self.n_events += batch.size
             ctx.clock.tap(c.name, EventSamples(batch.x, batch.y, batch.t, batch.p))
             if s._writers:
-                sink.submit(s._write_events, batch)
+                sink.submit(s._write_events, batch, labels)
             self.buf.append(batch)
         recent = self.recent
         if recent is not None:
@@ -164,6 +176,8 @@ class AfterRender:
                 if ctx.files is not None:  # (None: a run that records no files)
                     sink.submit(s._write_image, ctx, t, aps, self.image_index)
                 self.image_index += 1
+        if self.labels is not None:
+            self.labels.instant(t, aps=c.has_aps and t in self.info_set)
         if t in self.gt_set:
             out += s._truth_msgs(ctx, t, flow, depth, self.gt_times, self.gt_rate)
         if s.flow_truth is not None:  # (a map starts after the first event)
@@ -197,6 +211,8 @@ class AfterRender:
         self.buf, ready = self.packets.split(self.buf, t, final=True)
         self._push(*ready)
         self._release(None)
+        if self.labels is not None:
+            self.labels.close()
 
     def _push(self, *msgs: Message) -> None:
         for m in msgs:
