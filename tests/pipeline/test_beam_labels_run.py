@@ -344,7 +344,8 @@ def test_dry_run_counts_the_label_files_and_their_disk(runs: tuple[Path, Path]) 
     with_labels = estimate_run(_config(scene, True), duration=1.2)
     without = estimate_run(_config(scene, False), duration=1.2)
     extra = {k: v for k, v in with_labels.parts.items() if k not in without.parts}
-    assert set(extra) == {"lidar labels", "label text files (3)"}
+    # (``labels``: classes.json and instances.json, the run's tables)
+    assert set(extra) == {"labels", "lidar labels", "label text files (3)"}
     for bag in ("bag_ros1", "bag_ros2"):  # the clouds' label field and /objects
         assert with_labels.parts[bag] > without.parts[bag]
     # the text files' estimate against the files written (a planning figure: within 2x)
@@ -366,4 +367,4 @@ def test_dry_run_counts_the_label_files_and_their_disk(runs: tuple[Path, Path]) 
     for s in opted["sensors"]:
         s["labels"] = False
     est = estimate_run(SimConfig.model_validate(opted), duration=1.2)
-    assert not {k for k in est.parts if "label" in k}
+    assert not {k for k in est.parts if "label" in k} - {"labels"}  # the tables remain

@@ -174,6 +174,16 @@ def _flow_maps(s: Any, duration: float) -> int:
     return max(0, math.floor((duration - float(s.flow_interval)) * rate + 1e-9))
 
 
+def _camera_labels(kind: str, n: float, w: int, h: int) -> tuple[int, float, float, float]:
+    """A labelled frame/stereo/depth camera of ``n`` frames: (files, disk bytes, raw
+    mono16 bag bytes of ``<topic>/semantic`` and ``/instance``, raw detection bytes)."""
+    eyes = 2 if kind == "stereo_camera" else 1
+    frames = eyes * (math.floor(n + 1e-9) + 1)  # stamps from t = 0 on
+    files = 2 * frames + eyes  # two PNGs a frame, annotations.json
+    disk = frames * (w * h * _LABEL_PNG_RATIO + _LABEL_FRAME_JSON)
+    return files, disk, frames * w * h * 4.0, frames * _LABEL_FRAME_DETECTIONS
+
+
 def estimate_run(
     config: SimConfig,
     formats: tuple[str, ...] | None = None,
@@ -225,12 +235,11 @@ def estimate_run(
             mpix = w * h / 1e6 * int(getattr(s, "supersampling", 1)) ** 2  # rendered pixels
             bag("small", n * 400.0)  # camera_info
             if getattr(s, "writes_labels", False) and t != "event_camera":
-                eyes = 2 if t == "stereo_camera" else 1
-                frames = eyes * (math.floor(n + 1e-9) + 1)  # stamps from t = 0 on
-                add("labels", frames * (w * h * _LABEL_PNG_RATIO + _LABEL_FRAME_JSON))
-                label_files += 2 * frames + eyes  # two PNGs a frame, annotations.json
-                bag("mono", frames * w * h * 4)  # <topic>/semantic, /instance (mono16)
-                bag("small", frames * _LABEL_FRAME_DETECTIONS)
+                files, disk, mono, small = _camera_labels(t, n, w, h)
+                label_files += files
+                add("labels", disk)
+                bag("mono", mono)
+                bag("small", small)
             if t == "event_camera":
                 events = ev_rate * w * h * duration
                 for f in fmts:
