@@ -240,7 +240,7 @@ class LandingEnv(gym.Env[dict[str, NDArray[Any]], F32]):
         cfg = self._start(self.base_config.model_copy(update={"seed": ep_seed}), ep_seed)
         from roslan.vehicle import base_link_trajectory
 
-        scene, backends = self._scene(ep_seed)  # as `simulate` loads it with the run's seed
+        scene, backends = self._scene(self.scene_seed(ep_seed))
         traj_cfg = base_link_trajectory(cfg.trajectory, cfg.vehicle, scene)
         self._traj = traj = DynamicsTrajectory(traj_cfg, self.closed_loop.dynamics, self.step_ns)
         caster = backends.caster() if backends is not None else None
@@ -271,6 +271,7 @@ class LandingEnv(gym.Env[dict[str, NDArray[Any]], F32]):
         self._episode = {
             "policy": self.policy_name,
             "seed": ep_seed,
+            "scene_seed": self.scene_seed(ep_seed),
             "success": False,
             "reason": None,
             **Outcome().as_dict(),
@@ -279,6 +280,14 @@ class LandingEnv(gym.Env[dict[str, NDArray[Any]], F32]):
         obs = {**self._obs.build(out.taps, (0, 0)), **self._constant_copy()}
         self._last_events = self._obs.raw_events(out.taps)
         return obs, self._info(out, clipped=False)
+
+    def scene_seed(self, seed: int) -> int:
+        """The scene's seed for episode ``seed``: the config's ``seed`` when
+        ``closed_loop.scene_seed`` is ``fixed``, ``seed`` itself when ``per_episode``
+        (as ``simulate`` loads a run's scene with the run's seed)."""
+        if self.closed_loop.scene_seed == "per_episode":
+            return int(seed)
+        return int(self.base_config.seed)
 
     def _constant_copy(self) -> dict[str, NDArray[np.float32]]:
         """The constant entries, new arrays each step (Gymnasium's rule)."""
