@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import json
 import numbers
+import os
 import weakref
 from collections.abc import Mapping
 from pathlib import Path
@@ -92,6 +93,7 @@ class _Held:
     def __init__(self) -> None:
         self.session: Any = None
         self.scenes: dict[int, Any] = {}
+        self.pid = os.getpid()  # a forked child's exit leaves its parent's episode alone
 
     def close_session(self) -> None:
         session, self.session = self.session, None
@@ -104,6 +106,8 @@ class _Held:
             backends.release()
 
     def release(self) -> None:
+        if os.getpid() != self.pid:
+            return
         self.close_session()
         self.release_scenes()
 
@@ -202,8 +206,8 @@ class LandingEnv(gym.Env[dict[str, NDArray[Any]], F32]):
 
     # ------------------------------------------------------------------ episode
     def _scene(self, seed: int) -> Any:
-        """The scene of ``seed`` and its back ends (renderer, ray caster), kept while the
-        seed stays: a new seed releases the old ones (the env owns them)."""
+        """The scene of scene seed ``seed`` and its back ends (renderer, ray caster), kept
+        while the seed stays: a new seed releases the old ones (the env owns them)."""
         if self.base_config.scene is None:
             return None, None
         held = self._held
@@ -221,7 +225,8 @@ class LandingEnv(gym.Env[dict[str, NDArray[Any]], F32]):
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[dict[str, NDArray[Any]], dict[str, Any]]:
         """Start an episode at the config's initial state. ``seed`` (default: drawn from
-        the environment's generator) is the episode's ``seed``: sensor noise and scene.
+        the environment's generator) is the episode's ``seed``: sensor noise, the start's
+        draws and, with ``closed_loop.scene_seed: per_episode``, the scene (:meth:`scene_seed`).
         ``options``: none are defined (None or ``{}``; any key is a ConfigError)."""
         if options is not None and (not isinstance(options, Mapping) or options):
             what = (
