@@ -1,14 +1,21 @@
-"""Steps per process CPU-second of an unrecorded closed-loop episode, A/B between trees.
+"""Steps per process CPU-second of an unrecorded closed-loop episode, and the reset's
+cost, A/B(/C) between trees.
 
-Two cases: the default ``roslan/Landing-v0`` (warehouse, 1 kHz IMU, DAVIS346 event camera)
-and the same config with only its IMU. Each run is a fresh interpreter that resets the
-environment (seed 0, not timed) and then flies the tau-state policy for at most ``--steps``
-control steps (or to the episode's end), timing only the steps with
-``time.process_time()`` (every thread of the process; there are no children). Trees are
-alternated run by run (A, B, A, B...), so both see the same machine load; the figure is
-the median over ``--repeat`` runs per tree and case.
+Cases: ``default``, the default ``roslan/Landing-v0`` (warehouse, 1 kHz IMU, DAVIS346
+event camera); ``imu``, the same config with only its IMU; ``reset``, the default
+config's resets. For ``default`` and ``imu`` each run is a fresh interpreter that resets
+the environment (seed 0, not timed) and then flies the tau-state policy for at most
+``--steps`` control steps (or to the episode's end), timing only the steps with
+``time.process_time()`` (every thread of the process; there are no children). For
+``reset`` a fresh interpreter times its first reset (seed 0: CPU and wall, every lazy
+import and the scene included) and then three resets with new seeds (1, 2, 3: the median
+CPU), with the tree's default ``closed_loop`` (today's ``scene_seed: fixed``; trees older
+than the key rebuild the scene for every new seed). Trees are alternated run by run (A,
+B, C, A, B, C...), so all see the same machine load; the figure is the median over
+``--repeat`` runs per tree and case.
 
-    python benchmarks/bench_env.py --a /work/base/src --b src [--repeat 3] [--steps 150]
+    python benchmarks/bench_env.py --a /work/base/src --b src [--c OTHER/src] \
+        [--repeat 3] [--steps 150] [--cases default,imu,reset]
 """
 
 from __future__ import annotations
@@ -31,11 +38,26 @@ cfg, _ = load_env_config(None)
 if case == "imu":
     cfg = cfg.model_copy(update={"sensors": [s for s in cfg.sensors if s.type == "imu"]})
 env = LandingEnv(cfg)
+if case == "reset":
+    c0, w0 = time.process_time(), time.perf_counter()
+    env.reset(seed=0)
+    first = (time.process_time() - c0, time.perf_counter() - w0)
+    cpus = []
+    for seed in (1, 2, 3):
+        c0 = time.process_time()
+        env.reset(seed=seed)
+        cpus.append(time.process_time() - c0)
+    env.close()
+    print(first[0], first[1], sorted(cpus)[1])
+    raise SystemExit(0)
 obs, info = env.reset(seed=0)
 pol = make_policy("tau-state")
-dyn = env.closed_loop.dynamics
-pol.reset(PolicyContext(env.config, env.dt, env._traj.R_world_goal,
-                        dyn.max_acceleration, dyn.max_body_rate))
+if hasattr(env, "policy_context"):
+    pol.reset(env.policy_context())
+else:  # (trees before LandingEnv.policy_context)
+    dyn = env.closed_loop.dynamics
+    pol.reset(PolicyContext(env.config, env.dt, env._traj.R_world_goal,
+                            dyn.max_acceleration, dyn.max_body_rate))
 n = 0
 c0 = time.process_time()
 while n < steps:
@@ -49,36 +71,71 @@ print(n, cpu)
 """
 
 
-def _once(src: str, case: str, steps: int) -> tuple[int, float]:
+def _run(src: str, case: str, steps: int) -> list[str]:
     env = dict(os.environ, PYTHONPATH=src)
-    out = subprocess.run(
+    return subprocess.run(
         [sys.executable, "-c", CHILD, case, str(steps)],
         env=env,
         check=True,
         capture_output=True,
         text=True,
     ).stdout.split()
+
+
+def _once(src: str, case: str, steps: int) -> tuple[int, float]:
+    out = _run(src, case, steps)
     return int(out[-2]), float(out[-1])
+
+
+def _resets(trees: dict[str, str], repeat: int) -> None:
+    """The ``reset`` case: first reset CPU and wall, a new seed's reset CPU."""
+    got: dict[str, list[tuple[float, ...]]] = {name: [] for name in trees}
+    for _ in range(repeat):
+        for name, src in trees.items():
+            first_cpu, first_wall, new_cpu = (float(x) for x in _run(src, "reset", 0)[-3:])
+            got[name].append((first_cpu, first_wall, new_cpu))
+            print(
+                f"  reset {name}: first {first_cpu:.2f} CPU-s ({first_wall:.2f} s wall), "
+                f"new seed {new_cpu:.3f} CPU-s"
+            )
+    ref = statistics.median(r[2] for r in got["A"])
+    for name, rows in got.items():
+        med = [statistics.median(r[i] for r in rows) for i in range(3)]
+        print(
+            f"reset {name}: first {med[0]:.2f} CPU-s ({med[1]:.2f} s wall), new seed "
+            f"{med[2]:.3f} CPU-s, {med[2] / ref:.3f}x A's"
+        )
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--a", required=True, help="source tree A (PYTHONPATH), e.g. main's src")
     ap.add_argument("--b", required=True, help="source tree B (PYTHONPATH)")
+    ap.add_argument("--c", default=None, help="source tree C (PYTHONPATH), optional")
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--steps", type=int, default=150)
-    ap.add_argument("--cases", default="default,imu")
+    ap.add_argument("--cases", default="default,imu,reset")
     args = ap.parse_args()
+    trees = {"A": args.a, "B": args.b}
+    if args.c:
+        trees["C"] = args.c
     print(f"load average at start: {os.getloadavg()}")
     for case in args.cases.split(","):
-        rates: dict[str, list[float]] = {"A": [], "B": []}
+        if case == "reset":
+            _resets(trees, args.repeat)
+            continue
+        rates: dict[str, list[float]] = {name: [] for name in trees}
         for _ in range(args.repeat):
-            for name, src in (("A", args.a), ("B", args.b)):
+            for name, src in trees.items():
                 n, cpu = _once(src, case, args.steps)
                 rates[name].append(n / cpu)
                 print(f"  {case} {name}: {n} steps, {cpu:.2f} CPU-s, {n / cpu:.1f} steps/CPU-s")
-        a, b = statistics.median(rates["A"]), statistics.median(rates["B"])
-        print(f"{case}: A {a:.1f} steps/CPU-s, B {b:.1f} steps/CPU-s, B/A {b / a:.3f}")
+        a = statistics.median(rates["A"])
+        figures = ", ".join(
+            f"{name} {statistics.median(r):.1f} steps/CPU-s ({statistics.median(r) / a:.3f}x A)"
+            for name, r in rates.items()
+        )
+        print(f"{case}: {figures}")
     print(f"load average at end: {os.getloadavg()}")
 
 

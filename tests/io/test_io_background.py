@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import subprocess
+import sys
 import threading
 
 import pytest
@@ -81,3 +83,36 @@ def test_abort_drops_waiting_calls_and_stops_the_thread() -> None:
     sink.close()  # no error after an abort
     with pytest.raises(RuntimeError, match="closed"):
         sink.submit(work, 9)
+
+
+# Ten forked children each leave a sink busy with OpenCV calls (which release the GIL in
+# C++) and exit normally; without the exit handler the interpreter unwinds the thread out
+# of the C++ call and the child aborts (SIGABRT, "terminate called without an active
+# exception"), as unclosed environments did.
+_BUSY_AT_EXIT = """
+import os, time
+import numpy as np, cv2
+from roslan.io.background import BackgroundSink
+img = np.zeros((400, 400), np.float32)
+codes = []
+for _ in range(10):
+    pid = os.fork()
+    if pid == 0:
+        sink = BackgroundSink("busy", backlog=1000)
+        for _ in range(1000):
+            sink.submit(cv2.GaussianBlur, img, (31, 31), 5.0)
+        time.sleep(0.05)  # the thread is inside a call
+        break  # the child's interpreter exits as a script's does
+    codes.append(os.waitstatus_to_exitcode(os.waitpid(pid, 0)[1]))
+else:
+    print(codes)
+"""
+
+
+def test_a_sink_busy_at_interpreter_exit_exits_cleanly() -> None:
+    out = subprocess.run(
+        [sys.executable, "-c", _BUSY_AT_EXIT], capture_output=True, text=True, timeout=120
+    )
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.split("\n")[0] == str([0] * 10), out.stderr
+    assert "terminate called" not in out.stderr

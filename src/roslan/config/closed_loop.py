@@ -130,3 +130,8 @@ class ClosedLoopConfig(StrictModel):
     success: SuccessConfig = SuccessConfig()
     start_spread: StartSpread = StartSpread()
     start_estimate: StartEstimateConfig = StartEstimateConfig()
+    scene_seed: Literal["fixed", "per_episode"] = "fixed"
+    """The procedural scene's seed: ``fixed`` (the config's ``seed``: one scene, built at
+    the first reset and kept; a reset with a new seed costs no scene) or ``per_episode``
+    (the episode's seed: the scene varies too, domain randomisation, and every new seed
+    builds its scene again)."""

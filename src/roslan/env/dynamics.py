@@ -107,7 +107,9 @@ class DynamicsTrajectory(Trajectory):
         config: the ``trajectory:`` block with base_link's goal
             (:func:`roslan.vehicle.base_link_trajectory`); its start state is the closed-form
             landing's at t = 0 (``initial`` or ``approach``; gaps and rates, without
-            flapping); its flapping is superimposed.
+            flapping); its flapping is superimposed. The start's linear acceleration is
+            the closed form's, each world component limited to +-``max_acceleration``
+            (:attr:`start_limited`).
         dynamics: actuator bounds and lags (the bounds are the environment's to apply).
         step_ns: control period, integer ns.
     """
@@ -129,6 +131,14 @@ class DynamicsTrajectory(Trajectory):
         self._flap = config.flapping if config.flapping.enabled else None
         self._lags = (float(dynamics.acceleration_lag), float(dynamics.body_rate_lag))
         first = np.concatenate([s0.gaps[0], s0.rates[0], s0.accels[0, :3]])
+        # the actuator's acceleration stays within its command range, at the start too
+        self.start_acceleration: F64 = self.R_world_goal @ s0.accels[0, :3]
+        """The closed form's acceleration at t = 0 in the world (m/s^2), before limiting."""
+        bound = float(dynamics.max_acceleration)
+        self.start_limited = bool(np.any(np.abs(self.start_acceleration) > bound))
+        """True when the start's acceleration was limited to +-``max_acceleration``."""
+        if self.start_limited:
+            first[12:15] = self._RT @ np.clip(self.start_acceleration, -bound, bound)
         # step start states (n + 1, 15) and commands (n, 6), in buffers grown by doubling
         self._n = 0
         self._start_buf = np.zeros((64, 15))

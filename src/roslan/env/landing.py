@@ -12,6 +12,9 @@ and the episode's end.
 from __future__ import annotations
 
 import json
+import numbers
+import os
+import weakref
 from collections.abc import Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -72,6 +75,43 @@ def _fmt(v: NDArray[np.float64]) -> str:
     return "[" + ", ".join(f"{float(x):.4g}" for x in v) + "]"
 
 
+_ACTION_NAMES = ("ax", "ay", "az", "p", "q", "r")
+
+
+def _is_real(x: Any) -> bool:
+    """A real number (int, float, NumPy real scalar), not a bool, string or complex."""
+    return isinstance(x, numbers.Real) and not isinstance(x, (bool, np.bool_))
+
+
+class _Held:
+    """What an environment holds that needs releasing: the running episode's sensors and
+    the scene's back ends. :meth:`release` runs at ``close()``, when the environment is
+    garbage-collected, and at interpreter exit for one never closed (``weakref.finalize``,
+    an ``atexit`` handler): a recorded episode's hidden partial folder is removed and
+    every sensor thread stopped while the interpreter is whole."""
+
+    def __init__(self) -> None:
+        self.session: Any = None
+        self.scenes: dict[int, Any] = {}
+        self.pid = os.getpid()  # a forked child's exit leaves its parent's episode alone
+
+    def close_session(self) -> None:
+        session, self.session = self.session, None
+        if session is not None:
+            session.abort()
+
+    def release_scenes(self) -> None:
+        scenes, self.scenes = self.scenes, {}
+        for _, backends in scenes.values():
+            backends.release()
+
+    def release(self) -> None:
+        if os.getpid() != self.pid:
+            return
+        self.close_session()
+        self.release_scenes()
+
+
 class LandingEnv(gym.Env[dict[str, NDArray[Any]], F32]):
     """A closed-loop landing (module docstring).
 
@@ -94,8 +134,9 @@ class LandingEnv(gym.Env[dict[str, NDArray[Any]], F32]):
     base_link in the world frame (m/s^2, each within +-``closed_loop.dynamics.
     max_acceleration``; gravity is the wings' job, so 0 holds the velocity) and the
     commanded body rates (rad/s, each within +-``max_body_rate``). Values out of range
-    are clipped (``info["clipped"]``); NaN, inf or a wrong shape raise
-    :class:`~roslan.errors.ActionError`.
+    are clipped (``info["clipped"]``); NaN, inf, a value that is not a real number
+    (complex, string, bool, object) or a wrong shape raise
+    :class:`~roslan.errors.ActionError` naming the component.
     """
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 50}  # noqa: RUF012 (gym's name)
@@ -145,8 +186,9 @@ class LandingEnv(gym.Env[dict[str, NDArray[Any]], F32]):
         self.goal: Pose | None = None
         """The goal's pose in the world (where the contact point lands), after ``reset``."""
         self._constant: dict[str, NDArray[np.float32]] = {}
-        self._scenes: dict[int, Any] = {}
-        self._session: Any = None
+        self._held = _Held()
+        # (holds the holder, not the environment: an unclosed one is still collected)
+        self._finalizer = weakref.finalize(self, self._held.release)
         self._traj: DynamicsTrajectory | None = None
         self._contact: ContactModel | None = None
         self._done = True
@@ -154,40 +196,56 @@ class LandingEnv(gym.Env[dict[str, NDArray[Any]], F32]):
         self._last_events = EventPacket.empty()
         self._return = 0.0
 
+    @property
+    def _session(self) -> Any:
+        return self._held.session
+
+    @_session.setter
+    def _session(self, session: Any) -> None:
+        self._held.session = session
+
     # ------------------------------------------------------------------ episode
     def _scene(self, seed: int) -> Any:
-        """The scene of ``seed`` and its back ends (renderer, ray caster), kept while the
-        seed stays: a new seed releases the old ones (the env owns them)."""
+        """The scene of scene seed ``seed`` and its back ends (renderer, ray caster), kept
+        while the seed stays: a new seed releases the old ones (the env owns them)."""
         if self.base_config.scene is None:
             return None, None
-        if seed not in self._scenes:
+        held = self._held
+        if seed not in held.scenes:
             import roslan.scene as scene_mod
             from roslan.render.backends import SceneBackends
 
-            self._release_scenes()
+            held.release_scenes()
             base = self.config_path.parent if self.config_path is not None else None
             scene = scene_mod.load_scene(self.base_config.scene, base_dir=base, seed=seed)
-            self._scenes = {seed: (scene, SceneBackends(scene))}
-        return self._scenes[seed]
-
-    def _release_scenes(self) -> None:
-        for _, backends in self._scenes.values():
-            backends.release()
-        self._scenes = {}
+            held.scenes = {seed: (scene, SceneBackends(scene))}
+        return held.scenes[seed]
 
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[dict[str, NDArray[Any]], dict[str, Any]]:
         """Start an episode at the config's initial state. ``seed`` (default: drawn from
-        the environment's generator) is the episode's ``seed``: sensor noise and scene."""
+        the environment's generator) is the episode's ``seed``: sensor noise, the start's
+        draws and, with ``closed_loop.scene_seed: per_episode``, the scene (:meth:`scene_seed`).
+        ``options``: none are defined (None or ``{}``; any key is a ConfigError)."""
+        if options is not None and (not isinstance(options, Mapping) or options):
+            what = (
+                f"keys {sorted(map(str, options))}"
+                if isinstance(options, Mapping)
+                else f"a {type(options).__name__}"
+            )
+            msg = (
+                f"reset(options=...): {what}: LandingEnv.reset takes no options (allowed: "
+                "None or {}); the episode is chosen by seed=, the rest by the config"
+            )
+            raise ConfigError(msg)
         super().reset(seed=seed)
-        del options
         self._close_session()
         ep_seed = int(seed) if seed is not None else int(self.np_random.integers(0, 2**31 - 1))
         cfg = self._start(self.base_config.model_copy(update={"seed": ep_seed}), ep_seed)
         from roslan.vehicle import base_link_trajectory
 
-        scene, backends = self._scene(ep_seed)  # as `simulate` loads it with the run's seed
+        scene, backends = self._scene(self.scene_seed(ep_seed))
         traj_cfg = base_link_trajectory(cfg.trajectory, cfg.vehicle, scene)
         self._traj = traj = DynamicsTrajectory(traj_cfg, self.closed_loop.dynamics, self.step_ns)
         caster = backends.caster() if backends is not None else None
@@ -218,6 +276,7 @@ class LandingEnv(gym.Env[dict[str, NDArray[Any]], F32]):
         self._episode = {
             "policy": self.policy_name,
             "seed": ep_seed,
+            "scene_seed": self.scene_seed(ep_seed),
             "success": False,
             "reason": None,
             **Outcome().as_dict(),
@@ -226,6 +285,14 @@ class LandingEnv(gym.Env[dict[str, NDArray[Any]], F32]):
         obs = {**self._obs.build(out.taps, (0, 0)), **self._constant_copy()}
         self._last_events = self._obs.raw_events(out.taps)
         return obs, self._info(out, clipped=False)
+
+    def scene_seed(self, seed: int) -> int:
+        """The scene's seed for episode ``seed``: the config's ``seed`` when
+        ``closed_loop.scene_seed`` is ``fixed``, ``seed`` itself when ``per_episode``
+        (as ``simulate`` loads a run's scene with the run's seed)."""
+        if self.closed_loop.scene_seed == "per_episode":
+            return int(seed)
+        return int(self.base_config.seed)
 
     def _constant_copy(self) -> dict[str, NDArray[np.float32]]:
         """The constant entries, new arrays each step (Gymnasium's rule)."""
@@ -284,9 +351,10 @@ class LandingEnv(gym.Env[dict[str, NDArray[Any]], F32]):
         """The action as (6,) float64 within bounds and whether it was clipped.
 
         Raises:
-            ActionError: wrong shape, NaN or infinite value (named by index and meaning).
+            ActionError: wrong shape, a value that is not a real number (complex, string,
+                bool, object) or NaN or infinite (named by index and meaning).
         """
-        a = np.asarray(action, dtype=np.float64)
+        a = self._real_array(action)
         if a.shape != (6,):
             msg = (
                 f"action: shape {a.shape}; expected (6,): [ax, ay, az] m/s^2 (world) and "
@@ -296,7 +364,7 @@ class LandingEnv(gym.Env[dict[str, NDArray[Any]], F32]):
         bad = np.flatnonzero(~np.isfinite(a))
         if bad.size:
             i = int(bad[0])
-            what = ("ax", "ay", "az", "p", "q", "r")[i]
+            what = _ACTION_NAMES[i]
             msg = (
                 f"action[{i}] ({what}) = {a[i]}: every action value must be finite "
                 f"(bounds: +-{self._box.high[i]:g} "
@@ -306,6 +374,34 @@ class LandingEnv(gym.Env[dict[str, NDArray[Any]], F32]):
         hi = self._box.high.astype(np.float64)
         clipped = np.clip(a, -hi, hi)
         return clipped, bool(np.any(clipped != a))
+
+    def _real_array(self, action: Any) -> NDArray[np.float64]:
+        """``action`` as float64, refusing every value that is not a real number."""
+        try:
+            raw = np.asarray(action)
+        except (ValueError, TypeError) as err:  # ragged sequences
+            msg = f"action: not an array of 6 numbers ({err})"
+            raise ActionError(msg) from None
+        if raw.dtype.kind in "iuf":
+            return raw.astype(np.float64, copy=False)
+        flat = raw.reshape(-1)
+        if raw.dtype.kind == "O":
+            bad = [i for i, x in enumerate(flat) if not _is_real(x)]
+            if not bad:  # e.g. an object array of Python floats
+                return raw.astype(np.float64)
+        elif raw.dtype.kind == "c":
+            bad = [i for i, x in enumerate(flat) if x.imag != 0] or [0]
+        else:  # strings, bytes, bools, dates...
+            bad = [0]
+        i = bad[0] if bad else 0
+        where = f"action[{i}] ({_ACTION_NAMES[i]})" if raw.shape == (6,) else f"action[{i}]"
+        value = flat[i] if flat.size else raw
+        msg = (
+            f"{where} = {value!r} ({type(value).__name__}, array dtype {raw.dtype}): every "
+            "action value must be a real number (int or float): [ax, ay, az] m/s^2, "
+            "[p, q, r] rad/s"
+        )
+        raise ActionError(msg)
 
     def step(
         self, action: Any
@@ -417,14 +513,14 @@ class LandingEnv(gym.Env[dict[str, NDArray[Any]], F32]):
 
     # ------------------------------------------------------------------ close
     def _close_session(self) -> None:
-        if self._session is not None:
-            self._session.abort()
-            self._session = None
+        self._held.close_session()
         self._done = True
 
     def close(self) -> None:
-        """Stop a running episode (a recorded one that did not end leaves no OUTDIR) and
-        release the scene's renderer and ray caster."""
-        self._close_session()
-        self._release_scenes()
+        """Stop a running episode (a recorded one that did not end leaves no OUTDIR, not
+        even its hidden partial folder) and release the scene's renderer and ray caster.
+        An environment never closed does the same when it is garbage-collected or at
+        interpreter exit."""
+        self._held.release()
+        self._done = True
         super().close()

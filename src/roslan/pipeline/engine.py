@@ -207,7 +207,14 @@ class SensorEngine:
         return seconds
 
     def abort(self) -> None:
-        """Close every generator (sensors stop their threads and helper processes)."""
+        """Close every generator (sensors stop their threads and helper processes), then
+        every local sensor's files (``close``: its dataset files are abandoned, but no
+        file object is left for the garbage collector, which would warn of it)."""
         for st in self.streams:
             with contextlib.suppress(BaseException):
                 st.close()
+        if not self._closed:
+            self._closed = True
+            for i in self.local:
+                with contextlib.suppress(Exception):
+                    self.sensors[i].close(self.ctx)

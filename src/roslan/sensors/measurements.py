@@ -23,6 +23,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from roslan.config.closed_loop import ClosedLoopConfig
+from roslan.errors import ConfigError
 
 __all__ = [
     "MEASUREMENTS",
@@ -415,7 +416,20 @@ def _imu(config: Any, loop: ClosedLoopConfig, first: bool) -> Observer | None:
     if not first:
         return None  # only the first IMU is observed
     obs = loop.observation
-    n = obs.max_imu_samples or (math.ceil(config.rate / loop.control_rate) + 1)
+    ratio = config.rate / loop.control_rate
+    default = math.ceil(ratio) + 1
+    # the most samples one step can hold (a step of a whole number of sample periods holds
+    # exactly that many; otherwise one more, as the sample instants fall)
+    need = default - 1 if abs(ratio - round(ratio)) < 1e-9 else default
+    n = obs.max_imu_samples or default
+    if n < need:
+        msg = (
+            f"closed_loop.observation.max_imu_samples = {n}: a control step "
+            f"({loop.control_rate:g} Hz) holds up to {need} samples of the IMU "
+            f"'{config.name}' ({config.rate:g} Hz), which would be dropped; allowed: at "
+            f"least {need} (or null: {default})"
+        )
+        raise ConfigError(msg)
     return ImuObserver(config.name, n)
 
 
