@@ -54,7 +54,7 @@ from roslan.sensors.cameras.config import CameraIntrinsics, intrinsics_model
 from roslan.sensors.cameras.encoding import encode_image, srgb_lut
 from roslan.sensors.cameras.model import T_LINK_OPTICAL, CameraModel
 from roslan.sensors.cameras.remap import remap_view
-from roslan.sensors.cameras.row_exposure import output_rays, render_row_frame
+from roslan.sensors.cameras.row_exposure import RowShot, output_rays, render_row_frame
 from roslan.sensors.cameras.shutter import (
     AutoExposure,
     AutoExposureLoop,
@@ -474,19 +474,8 @@ class _ImagingCamera(CameraBase):
             return out
 
         mono = c.encoding == "mono8"
-        compose = render_row_frame(
-            renderer,
-            p,
-            e.rays,
-            poses,
-            t_ns,
-            exposure,
-            c.readout_time,
-            c.exposure_samples,
-            mono,
-            c.near_clip,
-            c.supersampling,
-        )
+        shot = RowShot(p, e.rays, poses, t_ns, exposure, c.readout_time, c.exposure_samples)
+        compose = render_row_frame(renderer, shot, mono, c.near_clip, c.supersampling)
         shape = (e.model.height, e.model.width, *(() if mono else (3,)))
         return lambda: compose(e.buffer("rows", shape))
 

@@ -51,8 +51,10 @@ __all__ = [
     "RENDER_SAMPLES",
     "ROW_STEP_PX",
     "RowFrame",
+    "RowShot",
     "output_rays",
     "plan_row_frame",
+    "relative_poses",
     "render_row_frame",
 ]
 
@@ -237,7 +239,7 @@ class RowFrame:
     serve: I64
 
 
-def _relative(T_ref: F64, T: F64) -> tuple[F64, F64]:
+def relative_poses(T_ref: F64, T: F64) -> tuple[F64, F64]:
     """``(R, c)`` of poses ``T`` (N, 4, 4) in the frames ``T_ref`` (N, 4, 4)."""
     Rr = np.transpose(T_ref[:, :3, :3], (0, 2, 1))
     R = Rr @ T[:, :3, :3]
@@ -252,20 +254,37 @@ def _nearest(shutter: ShutterPlan, t_ns: F64) -> I64:
     return np.searchsorted(mids, t_ns).astype(np.int64)
 
 
-def plan_row_frame(
-    plan: RenderPlan,
-    rays: tuple[F32, F32],
-    poses: Callable[[I64], F64],
-    stamp_ns: int,
-    exposure: float,
-    readout: float,
-    samples: int,
-) -> tuple[RowFrame, F64]:
+@dataclass(frozen=True)
+class RowShot:
+    """What one frame's row formation is asked for.
+
+    Attributes:
+        plan: the eye's virtual view (:class:`~.model.RenderPlan`).
+        rays: ``(x, y)`` (H, W) of every output pixel's ray (:func:`output_rays`).
+        poses: ``t_ns -> (N, 4, 4)`` optical poses at (N,) int64 instants.
+        stamp_ns: the frame's stamp.
+        exposure: ``E`` (s; 0: every row at one instant).
+        readout: ``R`` (s; 0: a global shutter).
+        samples: renders over the rows' window middles.
+    """
+
+    plan: RenderPlan
+    rays: tuple[F32, F32]
+    poses: Callable[[I64], F64]
+    stamp_ns: int
+    exposure: float
+    readout: float
+    samples: int
+
+
+def plan_row_frame(shot: RowShot) -> tuple[RowFrame, F64]:
     """The frame's renders, and their optical poses (n, 4, 4): ``samples`` instants
     spread evenly over the middles of the rows' windows (the readout; a global shutter:
     one, at the stamp), every row served by the nearest; band ``k`` holds the rows that
     the rotation-only points of its rows' windows reach, with :data:`PARALLAX_MARGIN`
     rows more on each side."""
+    plan, rays, poses = shot.plan, shot.rays, shot.poses
+    stamp_ns, exposure, readout, samples = shot.stamp_ns, shot.exposure, shot.readout, shot.samples
     H, W = rays[0].shape
     # the renders: spread over the rows' window middles (a global shutter: one, the stamp)
     sp = shutter_plan(stamp_ns, 0.0, readout, samples, H)
@@ -295,7 +314,7 @@ def plan_row_frame(
             dk = d[use]
         lo, hi = t_r[rows_k], t_r[rows_k] + e_ns
         T = poses(np.round(np.concatenate([lo, hi])).astype(np.int64))
-        Rk, _ = _relative(np.broadcast_to(T_k[k], T.shape), T)
+        Rk, _ = relative_poses(np.broadcast_to(T_k[k], T.shape), T)
         dd = np.concatenate([dk, dk])  # (2 rows, cols, 3)
         a = np.einsum("nij,ncj->nci", Rk, dd)
         az = np.where(a[..., 2] > 1e-9, a[..., 2], np.nan)
@@ -311,23 +330,14 @@ def plan_row_frame(
 
 
 def render_row_frame(
-    renderer: FrameRenderer,
-    plan: RenderPlan,
-    rays: tuple[F32, F32],
-    poses: Callable[[I64], F64],
-    stamp_ns: int,
-    exposure: float,
-    readout: float,
-    samples: int,
-    mono: bool,
-    near: float,
-    supersampling: int = 1,
+    renderer: FrameRenderer, shot: RowShot, mono: bool, near: float, supersampling: int = 1
 ) -> Callable[[F32], F32]:
-    """The frame stamped ``stamp_ns`` (``poses(t_ns)``: the optical poses, (N, 4, 4)):
-    its renders now (this thread), and a call that forms every row from them into an
-    output array ((H, W) luminance or (H, W, 3) linear RGB) on any thread."""
+    """The frame ``shot``: its renders now (this thread; each of the scene at its own
+    instant), and a call that forms every row from them into an output array ((H, W)
+    luminance or (H, W, 3) linear RGB) on any thread."""
+    plan, rays, poses = shot.plan, shot.rays, shot.poses
     H, W = rays[0].shape
-    rf, T_k = plan_row_frame(plan, rays, poses, stamp_ns, exposure, readout, samples)
+    rf, T_k = plan_row_frame(shot)
     C = 1 if mono else 3
     heights = [b - a for _, a, b in rf.bands]
     total = int(sum(heights))
@@ -357,6 +367,7 @@ def render_row_frame(
             else (dst if supersampling == 1 else None),
             near=near,
             supersampling=supersampling,
+            t=float(rf.shutter.instants_ns[k]) * 1e-9,
         )
         img = res.luminance if mono else res.color
         assert img is not None
@@ -370,7 +381,7 @@ def render_row_frame(
     t_r, e_ns = rf.row_start_ns, rf.exposure_ns
     # the exact poses of every row's window start, middle and end in its render's frame
     t = (t_r[:, None] + np.array([0.0, 0.5, 1.0])[None, :] * e_ns).reshape(-1)
-    R, c = _relative(T_k[np.repeat(rf.serve, 3)], poses(np.round(t).astype(np.int64)))
+    R, c = relative_poses(T_k[np.repeat(rf.serve, 3)], poses(np.round(t).astype(np.int64)))
     nmax = MAX_SUBSAMPLES if e_ns > 0.0 else 1
 
     def compose(out: F32) -> F32:
