@@ -40,7 +40,7 @@ from roslan.sensors.base import (
     sample_times_ns,
 )
 from roslan.sensors.beams.base import BeamConfig, measure
-from roslan.sensors.beams.rays import rays_in_world
+from roslan.sensors.beams.rays import firing_times, rays_in_world
 from roslan.sensors.measurements import LaserScan
 
 if TYPE_CHECKING:
@@ -160,6 +160,7 @@ class Laser:
             noise_sigma=c.noise_sigma,
             returns=c,
             rng=rng,
+            t=firing_times(t_knots, self._frac, j * bt)[:n],
         )
         return m.range.astype(np.float32), m.intensity
 

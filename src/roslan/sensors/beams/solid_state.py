@@ -193,6 +193,7 @@ class SolidStateLidar(PointCloudSensor):
             noise_sigma=s.noise_sigma,
             returns=self.config,
             rng=rng,
+            t=np.repeat(t0 + off[: self.instants], s.lines),
         )
         sel = np.flatnonzero(m.valid)
         d_flat = d_s.reshape(-1, 3)[:n]
