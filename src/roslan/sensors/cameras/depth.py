@@ -27,7 +27,6 @@ from roslan.sensors.cameras.config import CameraIntrinsics
 from roslan.sensors.cameras.depth_readout import render_depth_rows
 from roslan.sensors.cameras.model import T_LINK_OPTICAL
 from roslan.sensors.cameras.remap import remap_view
-from roslan.sensors.cameras.row_exposure import RowShot, output_rays
 from roslan.sensors.cameras.shutter import RollingShutterKeys, shutter_plan
 
 __all__ = ["DepthCamera", "DepthCameraConfig"]
@@ -166,17 +165,7 @@ class DepthCamera(CameraBase):
             T_wb = pose_matrices(ctx, plan.instants_ns)
             z0 = self._render_raw(renderer, e, T_wb[0], float(plan.instants_ns[0]) * 1e-9)
             return lambda: self._depth_view(e, z0)
-        p = e.plan
-        assert p is not None
-        if e.rays is None:
-            e.rays = output_rays(p, e.model.width, e.model.height)
-        T_bo = self._T_body_sensor @ e.T_sensor_optical
-
-        def poses(t: NDArray[np.int64]) -> F64:
-            out: F64 = pose_matrices(ctx, t) @ T_bo
-            return out
-
-        shot = RowShot(p, e.rays, poses, t_ns, 0.0, c.readout_time, c.readout_samples)
+        shot = self._row_shot(ctx, e, t_ns, 0.0, c.readout_time, c.readout_samples)
         compose = render_depth_rows(renderer, shot, c.near_clip, _non_affine, c.supersampling)
         shape = (e.model.height, e.model.width)
         if inline:

@@ -33,7 +33,13 @@ from numpy.typing import NDArray
 
 from roslan.events.jit import kernel
 from roslan.render import FrameRenderer
-from roslan.sensors.cameras.row_exposure import RowShot, plan_row_frame, relative_poses
+from roslan.sensors.cameras.row_exposure import (
+    RowShot,
+    band_K,
+    band_layout,
+    plan_row_frame,
+    relative_poses,
+)
 
 __all__ = ["FIXED_POINT_STEPS", "render_depth_rows"]
 
@@ -114,19 +120,12 @@ def render_depth_rows(
     ``flags(inv)``: 1.0 where inverse depth ``inv`` is not affine around a pixel."""
     plan, rays = shot.plan, shot.rays
     rf, T_k = plan_row_frame(shot)
-    total = int(sum(b - a for _, a, b in rf.bands))
+    total, base, a0, hgt = band_layout(rf)
     inv = np.empty((total, plan.width), np.float32)
-    n = rf.shutter.instants_ns.size
-    base = np.zeros(n, np.int64)
-    a0 = np.zeros(n, np.int64)
-    hgt = np.zeros(n, np.int64)
-    row = 0
     for k, a, b in rf.bands:
-        K = plan.K.copy()
-        K[1, 2] -= a
         z = renderer.render(
             T_k[k],
-            K,
+            band_K(plan, a),
             plan.width,
             b - a,
             color=False,
@@ -137,9 +136,7 @@ def render_depth_rows(
         ).depth
         assert z is not None
         with np.errstate(divide="ignore"):
-            np.reciprocal(z, out=inv[row : row + b - a])
-        base[k], a0[k], hgt[k] = row, a, b - a
-        row += b - a
+            np.reciprocal(z, out=inv[int(base[k]) : int(base[k]) + b - a])
     Kv = np.array([plan.K[0, 0], plan.K[0, 1], plan.K[0, 2], plan.K[1, 1], plan.K[1, 2]])
     R, c = relative_poses(T_k[rf.serve], shot.poses(np.round(rf.row_start_ns).astype(np.int64)))
 

@@ -52,6 +52,8 @@ __all__ = [
     "ROW_STEP_PX",
     "RowFrame",
     "RowShot",
+    "band_K",
+    "band_layout",
     "output_rays",
     "plan_row_frame",
     "relative_poses",
@@ -329,6 +331,28 @@ def plan_row_frame(shot: RowShot) -> tuple[RowFrame, F64]:
     return RowFrame(sp, t_r, e_ns, bands, serve), T_k
 
 
+def band_layout(rf: RowFrame) -> tuple[int, I64, I64, I64]:
+    """Where the bands of ``rf`` lie when stacked in one array, in render order: the rows
+    in all, and per render ``k`` its first stacked row, its first row of the virtual view
+    and its height (0 for a render that serves no row)."""
+    n = rf.shutter.instants_ns.size
+    base = np.zeros(n, np.int64)
+    a0 = np.zeros(n, np.int64)
+    hgt = np.zeros(n, np.int64)
+    row = 0
+    for k, a, b in rf.bands:
+        base[k], a0[k], hgt[k] = row, a, b - a
+        row += b - a
+    return row, base, a0, hgt
+
+
+def band_K(plan: RenderPlan, first_row: int) -> F64:
+    """The virtual view's ``K`` for a band that starts at ``first_row``."""
+    K = plan.K.copy()
+    K[1, 2] -= first_row
+    return K
+
+
 def render_row_frame(
     renderer: FrameRenderer, shot: RowShot, mono: bool, near: float, supersampling: int = 1
 ) -> Callable[[F32], F32]:
@@ -339,23 +363,15 @@ def render_row_frame(
     H, W = rays[0].shape
     rf, T_k = plan_row_frame(shot)
     C = 1 if mono else 3
-    heights = [b - a for _, a, b in rf.bands]
-    total = int(sum(heights))
+    total, base, a0, hgt = band_layout(rf)
     imgs = np.empty((total, plan.width, C), np.float32)
     zs = np.empty((total, plan.width), np.float32)
-    n = rf.shutter.instants_ns.size
-    base = np.zeros(n, np.int64)
-    a0 = np.zeros(n, np.int64)
-    hgt = np.zeros(n, np.int64)
-    row = 0
     for k, a, b in rf.bands:
-        K = plan.K.copy()
-        K[1, 2] -= a
-        h = b - a
+        row, h = int(base[k]), b - a
         dst = imgs[row : row + h]
         res = renderer.render(
             T_k[k],
-            K,
+            band_K(plan, a),
             plan.width,
             h,
             color=not mono,
@@ -375,8 +391,6 @@ def render_row_frame(
         if supersampling != 1:
             dst[...] = img.reshape(dst.shape)
         zs[row : row + h] = res.depth
-        base[k], a0[k], hgt[k] = row, a, h
-        row += h
     Kv = np.array([plan.K[0, 0], plan.K[0, 1], plan.K[0, 2], plan.K[1, 1], plan.K[1, 2]])
     t_r, e_ns = rf.row_start_ns, rf.exposure_ns
     # the exact poses of every row's window start, middle and end in its render's frame
