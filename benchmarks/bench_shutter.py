@@ -24,9 +24,10 @@ from roslan.cli.simulate import load_config
 from roslan.render.gl import get_renderer
 from roslan.scene import load_scene
 from roslan.sensors.cameras import Camera, CameraConfig
-from roslan.sensors.cameras.row_exposure import output_rays, plan_row_frame
+from roslan.sensors.cameras.row_exposure import RowShot, output_rays, plan_row_frame
 from roslan.trajectory import TauTrajectory
 from roslan.vehicle import base_link_trajectory
+from shutter_setup import BenchCtx, body_poses
 
 STEP = 10.0  # frames per trajectory second
 
@@ -58,30 +59,12 @@ SETTINGS: dict[str, dict[str, Any]] = {
 }
 
 
-def _poses(traj: Any, t_ns: np.ndarray) -> np.ndarray:
-    st = traj.state(t_ns.astype(np.float64) * 1e-9)
-    T = np.zeros((len(t_ns), 4, 4))
-    T[:, :3, :3] = st.R_world_body
-    T[:, :3, 3] = st.position
-    T[:, 3, 3] = 1.0
-    return T
-
-
-class _Ctx:
-    def __init__(self, renderer: Any, trajectory: Any) -> None:
-        self._r = renderer
-        self.trajectory = trajectory
-
-    def renderer(self) -> Any:
-        return self._r
-
-
 def main() -> None:
     rounds = int(sys.argv[1]) if len(sys.argv) > 1 else 3
     cfg, _ = load_config(None)
     cam_cfg = next(s for s in cfg.sensors if s.type == "camera")
     traj = TauTrajectory(base_link_trajectory(cfg.trajectory, cfg.vehicle), warn=False)
-    ctx = _Ctx(get_renderer(load_scene("warehouse")), traj)
+    ctx = BenchCtx(get_renderer(load_scene("warehouse")), traj)
     stamps = np.arange(0.05, traj.T - 0.05, 1.0 / STEP)
     stamps_ns = np.round(stamps * 1e9).astype(np.int64)
     cams: dict[str, Camera] = {}
@@ -117,15 +100,16 @@ def main() -> None:
             n, px = 1, 1.0
         else:
             T_bo = cam._T_body_sensor @ e.T_sensor_optical
-            rf, _ = plan_row_frame(
+            shot = RowShot(
                 e.plan,
                 output_rays(e.plan, e.model.width, e.model.height),
-                lambda t, T_bo=T_bo: _poses(traj, t) @ T_bo,
+                lambda t, T_bo=T_bo: body_poses(traj, t) @ T_bo,
                 t_mid,
                 c.exposure_time,
                 c.readout_time,
                 c.exposure_samples,
             )
+            rf, _ = plan_row_frame(shot)
             n = len(rf.bands)
             px = float(sum(b - a for _, a, b in rf.bands)) / e.plan.height
         m = float(np.mean(meter[name])) * 1e3

@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 import yaml
 
+from motion_helpers import Sliding
 from roslan.errors import RenderError
 from roslan.frames import rpy_to_matrix
 from roslan.render.raycast import RayCaster
@@ -25,31 +26,6 @@ POS = (1.5, -0.75, 0.6)
 RPY = (0.3, -0.2, 1.1)
 SCALE = (1.5, 0.5, 2.0)
 BOX = {"type": "box", "size": [1.0, 2.0, 0.5]}
-
-
-@dataclasses.dataclass(frozen=True)
-class Sliding:
-    """A test track: the t = 0 pose moved at constant velocity ``v``, turning at a
-    constant rate ``w`` about the world z axis through the object's origin."""
-
-    start: np.ndarray
-    v: np.ndarray
-    w: float
-
-    @property
-    def is_static(self) -> bool:
-        return False
-
-    def at(self, t: float) -> np.ndarray:
-        T = self.start.copy()
-        c, s = np.cos(self.w * t), np.sin(self.w * t)
-        Rz = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-        T[:3, :3] = Rz @ self.start[:3, :3]
-        T[:3, 3] = self.start[:3, 3] + self.v * t
-        return T
-
-    def twist(self, t: float) -> tuple[np.ndarray, np.ndarray]:
-        return self.v.copy(), np.array([0.0, 0.0, self.w])
 
 
 @pytest.fixture(scope="module")

@@ -44,12 +44,14 @@ def motion_field(
     w_cam: NDArray[np.floating],
     rays: tuple[F64, F64] | None = None,
 ) -> NDArray[np.float32]:
-    """Exact image motion of a static scene (Longuet-Higgins & Prazdny).
+    """Exact image motion (Longuet-Higgins & Prazdny).
 
     Args:
         depth: (H, W) z-depth along the optical axis, m (``inf``: infinitely far).
         K: (3, 3) pinhole intrinsics.
-        v_cam: (3,) linear velocity of the camera, m/s, in its optical frame.
+        v_cam: (3,) linear velocity of the camera, m/s, in its optical frame (a static
+            scene); or (H, W, 3) its velocity relative to each pixel's surface point (a
+            scene whose objects move: ``sensors.cameras.scene_motion.relative_velocity``).
         w_cam: (3,) angular velocity of the camera, rad/s, in its optical frame.
         rays: optional cached :func:`pixel_rays`.
     Returns:
@@ -58,11 +60,15 @@ def motion_field(
     d = np.asarray(depth, dtype=np.float64)
     H, W = d.shape
     x, y = rays if rays is not None else pixel_rays(K, W, H)
-    vx, vy, vz = (float(a) for a in v_cam)
+    va = np.asarray(v_cam, dtype=np.float64)
+    if va.ndim == 1:
+        vx, vy, vz = (float(a) for a in va)
+    else:  # per pixel
+        vx, vy, vz = va[..., 0], va[..., 1], va[..., 2]  # type: ignore[assignment]
     wx, wy, wz = (float(a) for a in w_cam)
     with np.errstate(divide="ignore", invalid="ignore"):
         inv_z = np.where(np.isfinite(d) & (d > 0), 1.0 / d, 0.0)
-    # a static point moves in the camera frame as dP/dt = -v - w x P
+    # a point moves in the camera frame as dP/dt = -v - w x P (v: relative to the point)
     dx = (-vx + x * vz) * inv_z + x * y * wx - (1.0 + x * x) * wy + y * wz
     dy = (-vy + y * vz) * inv_z + (1.0 + y * y) * wx - x * y * wy - x * wz
     out = np.empty((H, W, 2), dtype=np.float32)
@@ -124,7 +130,10 @@ def max_flow_speed(
     """``max |flow|`` over the image, px/s: what the ``optical_flow`` sampling needs, in one
     pass without the (H, W, 2) field of :func:`motion_field` (same arguments, same value;
     ``rays``, when given, are :func:`pixel_rays` of ``K``: only their first row and column
-    are read)."""
+    are read; a per-pixel ``v_cam`` (H, W, 3) is taken through :func:`motion_field`)."""
+    if np.ndim(v_cam) > 1:
+        f = motion_field(depth, K, v_cam, w_cam, rays)
+        return float(np.max(np.hypot(f[..., 0], f[..., 1]))) if f.size else 0.0
     d = np.asarray(depth)
     H, W = d.shape
     x, y = rays if rays is not None else pixel_rays(K, W, H)

@@ -135,6 +135,16 @@ class SceneObject:
         v, w = self.track.twist(t)
         return v + np.cross(w, p - self.pose_at(t)[:3, 3])
 
+    def carry(self, t0: float, t1: float, points: F64) -> F64:
+        """(N, 3) world positions at ``t1`` of the object's surface points ``points``
+        (N, 3, world, at ``t0``): ``T(t1) T(t0)^-1 p``; ``points`` itself when static."""
+        p = np.asarray(points, dtype=np.float64)
+        if self.is_static:
+            return p
+        T = self.pose_at(t1) @ np.linalg.inv(self.pose_at(t0))
+        out: F64 = p @ T[:3, :3].T + T[:3, 3]
+        return out
+
 
 @dataclass(frozen=True)
 class Lights:
@@ -275,6 +285,23 @@ class SceneAt:
             if not obj.is_static:
                 sel = own == i
                 out[sel] = obj.point_velocity(self.t, p[sel])
+        return out
+
+    def carry(self, points: F64, owner: NDArray[np.integer], t1: float) -> F64:
+        """(N, 3) world positions at ``t1`` of surface points ``points`` (N, 3, at this
+        view's ``t``) lying on objects ``owner`` (N,; negative: no surface, unmoved): what
+        a flow over an interval needs of the scene's own motion; ``points`` itself (the
+        same array) for a static scene."""
+        p = np.asarray(points, dtype=np.float64)
+        if self.scene.is_static:
+            return p
+        out = p.copy()
+        own = np.asarray(owner)
+        for i in np.unique(own[own >= 0]):  # one call per moving object, not per point
+            obj = self.scene.objects[int(i)]
+            if not obj.is_static:
+                sel = own == i
+                out[sel] = obj.carry(self.t, t1, p[sel])
         return out
 
 

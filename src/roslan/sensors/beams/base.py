@@ -119,6 +119,7 @@ def measure(
     returns: BeamConfig,
     rng: np.random.Generator | BeamDraws,
     labels: NDArray[np.uint32] | None = None,
+    t: float | NDArray[np.float64] | None = None,
 ) -> Measurement:
     """Cast the beams and apply the range sensor model (see :class:`Measurement`):
     limits, noise, and the dropout and intensity keys of ``returns``; with ``labels``
@@ -127,14 +128,16 @@ def measure(
 
     The random draws (one normal and one uniform per beam) do not depend on what is
     hit, so a seed gives the same noise stream whatever the scene; ``rng`` is the
-    generator to draw them from, or the draws themselves (:func:`draw_beams`).
+    generator to draw them from, or the draws themselves (:func:`draw_beams`). ``t``: the
+    beams' firing instants (trajectory s, scalar or (N,); :func:`~.rays.firing_times`),
+    the scene each is cast against (a static scene is the same at every instant).
     """
     n = origins.shape[0]
     label = None
     if labels is None:
-        dist, echo = caster.cast_incidence(origins, directions, max_range)
+        dist, echo = caster.cast_incidence(origins, directions, max_range, t=t)
     else:
-        dist, echo, label = cast_labelled(caster, origins, directions, max_range, labels)
+        dist, echo, label = cast_labelled(caster, origins, directions, max_range, labels, t=t)
     draws = rng if isinstance(rng, BeamDraws) else draw_beams(rng, n, noise_sigma, returns)
     dropout = returns.dropout
     for a, used in ((draws.noise, noise_sigma > 0), (draws.uniform, dropout > 0)):

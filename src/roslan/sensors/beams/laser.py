@@ -44,7 +44,7 @@ from roslan.sensors.base import (
 )
 from roslan.sensors.beams.base import BeamConfig, Measurement, measure
 from roslan.sensors.beams.labels import label_table
-from roslan.sensors.beams.rays import rays_in_world
+from roslan.sensors.beams.rays import firing_times, rays_in_world
 from roslan.sensors.measurements import LaserScan
 
 if TYPE_CHECKING:
@@ -179,6 +179,7 @@ class Laser:
             returns=c,
             rng=rng,
             labels=labels,
+            t=firing_times(t_knots, self._frac, j * bt)[:n],
         )
         return m
 

@@ -44,7 +44,7 @@ from roslan.sensors.beams.base import (
     measure,
 )
 from roslan.sensors.beams.pointcloud import XYZIRT, XYZIRTL
-from roslan.sensors.beams.rays import rays_in_world
+from roslan.sensors.beams.rays import firing_times, rays_in_world
 
 if TYPE_CHECKING:
     from roslan.render.base import BeamCaster
@@ -353,6 +353,7 @@ class Lidar(PointCloudSensor):
                 returns=self.config,
                 rng=BeamDraws(*(None if a is None else a[b0:b1] for a in draws)),
                 labels=labels,
+                t=firing_times(t_knots[c0:c1], self.frac, spacing),
             )
             del origins, dirs
             d32 = d_sensor.reshape(-1, 3).astype(np.float32)

@@ -25,7 +25,7 @@ from roslan.frames import rotation_log
 if TYPE_CHECKING:
     from roslan.trajectory.base import Trajectory
 
-__all__ = ["rays_in_world"]
+__all__ = ["firing_times", "rays_in_world"]
 
 F64 = NDArray[np.float64]
 
@@ -60,6 +60,19 @@ def _rotate(rv: NDArray[Any], v: NDArray[Any]) -> NDArray[Any]:
     s = np.where(theta > 1e-12, np.sin(theta) / safe, 1.0)
     c = np.where(theta > 1e-12, (1.0 - np.cos(theta)) / (safe * safe), 0.5)
     out: NDArray[Any] = v + c1 * s[:, None] + _cross(rv, c1) * c[:, None]
+    return out
+
+
+def firing_times(t_knots: F64, frac: F64, spacing: float | None = None) -> F64:
+    """(K * J,) firing instant (trajectory s) of every beam of :func:`rays_in_world`'s
+    grid, in its order: ``t_knots[k] + frac[j] * h`` (``h``: ``spacing``, default the
+    knots' spacing; a single knot without one: ``h = 0``). What the caster is asked to
+    cast each beam against: the scene at that instant."""
+    if spacing is not None:
+        h = float(spacing)
+    else:
+        h = float(t_knots[1] - t_knots[0]) if t_knots.shape[0] > 1 else 0.0
+    out: F64 = (t_knots[:, None] + frac[None, :] * h).reshape(-1)
     return out
 
 

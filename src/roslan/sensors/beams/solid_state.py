@@ -201,6 +201,7 @@ class SolidStateLidar(PointCloudSensor):
             returns=self.config,
             rng=rng,
             labels=labels,
+            t=np.repeat(t0 + off[: self.instants], s.lines),
         )
         sel = np.flatnonzero(m.valid)
         d_flat = d_s.reshape(-1, 3)[:n]

@@ -37,6 +37,7 @@ from roslan.sensors.base import (
     sample_times_ns,
 )
 from roslan.sensors.cameras.model import CameraModel, RenderPlan
+from roslan.sensors.cameras.row_exposure import RowShot, output_rays
 from roslan.sensors.cameras.shutter import shutter_plan
 from roslan.sensors.clock import Grid
 from roslan.sensors.measurements import Frame
@@ -109,6 +110,23 @@ class CameraBase:
 
     config: Any
     _eyes: list[Eye]
+
+    def _row_shot(
+        self, ctx: SimContext, e: Eye, t_ns: int, exposure: float, readout: float, samples: int
+    ) -> RowShot:
+        """Eye ``e``'s row formation of the frame stamped ``t_ns`` (:mod:`.row_exposure`):
+        its output rays (made once) and its optical poses from the trajectory."""
+        p = e.plan
+        assert p is not None
+        if e.rays is None:
+            e.rays = output_rays(p, e.model.width, e.model.height)
+        T_bo = self._T_body_sensor @ e.T_sensor_optical
+
+        def poses(t: NDArray[np.int64]) -> F64:
+            out: F64 = pose_matrices(ctx, t) @ T_bo
+            return out
+
+        return RowShot(p, e.rays, poses, t_ns, exposure, readout, samples)
 
     def _setup_eyes(self, eyes: list[Eye]) -> None:
         self._eyes = eyes

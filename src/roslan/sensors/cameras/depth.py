@@ -18,13 +18,13 @@ from roslan.io.ordered import Turn
 from roslan.render import FrameRenderer
 from roslan.sensors.base import LabelsKey, Message, SensorConfig, SimContext
 from roslan.sensors.cameras.common import (
-    RAW_ROWS_FACTOR,
     CameraBase,
     Eye,
     Shot,
     pose_matrices,
 )
 from roslan.sensors.cameras.config import CameraIntrinsics
+from roslan.sensors.cameras.depth_readout import render_depth_rows
 from roslan.sensors.cameras.model import T_LINK_OPTICAL
 from roslan.sensors.cameras.remap import remap_view
 from roslan.sensors.cameras.shutter import RollingShutterKeys, shutter_plan
@@ -41,8 +41,10 @@ NonNegative = Annotated[FiniteFloat, Field(ge=0)]
 class DepthCameraConfig(SensorConfig, LabelsKey, CameraIntrinsics, RollingShutterKeys):
     """``type: depth_camera``: 32FC1 z-depth in metres, NaN where nothing is measured (REP 118).
 
-    With ``readout_time`` > 0 (a rolling shutter) ``readout_samples`` renders spread over
-    the readout, each row taking the depth of the render nearest its instant."""
+    With ``readout_time`` > 0 (a rolling shutter) every row is read at its own instant:
+    ``readout_samples`` renders spread over the readout, each row formed from the one
+    nearest its instant, moved along the exact motion to that instant
+    (:mod:`~roslan.sensors.cameras.depth_readout`)."""
 
     type: Literal["depth_camera"] = "depth_camera"
     min_range: NonNegative = 0.0
@@ -56,7 +58,8 @@ class DepthCameraConfig(SensorConfig, LabelsKey, CameraIntrinsics, RollingShutte
     write_images: bool = True
     """Write ``depth/<name>/NNNNNNNN.png`` (16-bit mm) and ``depth_<name>.txt``."""
     readout_samples: Annotated[int, Field(ge=1, le=64)] = 8
-    """Renders per frame over the rolling shutter's readout (unused without one)."""
+    """Renders per frame over the rolling shutter's readout (unused without one): the
+    accuracy knob of the rows' warps (parallax near depth edges shrinks with it)."""
 
     @model_validator(mode="after")
     def _ranges(self) -> DepthCameraConfig:
@@ -97,11 +100,16 @@ class DepthCamera(CameraBase):
             [Eye("", config.camera_model(), T_LINK_OPTICAL.copy(), c.topic, f"{c.frame}_optical")]
         )
 
-    def render_depth(self, renderer: FrameRenderer, e: Eye, T_world_body: F64) -> F32:
-        """(H, W) float32 metric z-depth (inf: nothing hit) of eye ``e`` at one body pose (4, 4)."""
-        return self._depth_view(e, self._render_raw(renderer, e, T_world_body))
+    def render_depth(
+        self, renderer: FrameRenderer, e: Eye, T_world_body: F64, t: float | None = None
+    ) -> F32:
+        """(H, W) float32 metric z-depth (inf: nothing hit) of eye ``e`` at one body pose
+        (4, 4), of the scene at trajectory time ``t`` (s; None: t = 0)."""
+        return self._depth_view(e, self._render_raw(renderer, e, T_world_body, t))
 
-    def _render_raw(self, renderer: FrameRenderer, e: Eye, T_world_body: F64) -> F32:
+    def _render_raw(
+        self, renderer: FrameRenderer, e: Eye, T_world_body: F64, t: float | None = None
+    ) -> F32:
         """The render of :meth:`render_depth` (a fresh array of the virtual view)."""
         assert e.plan is not None
         T = T_world_body @ self._T_body_sensor @ e.T_sensor_optical
@@ -114,6 +122,7 @@ class DepthCamera(CameraBase):
             depth=True,
             near=self.config.near_clip,
             supersampling=self.config.supersampling,
+            t=t,
         ).depth
         assert z is not None
         return z
@@ -141,35 +150,28 @@ class DepthCamera(CameraBase):
 
     def rolling_depth(self, ctx: SimContext, renderer: FrameRenderer, e: Eye, t_ns: int) -> F32:
         """The depth frame stamped ``t_ns``: one render at the stamp (global shutter),
-        else each row from the render whose cell holds its instant (:mod:`.shutter`)."""
+        else every row at its own instant, from the render nearest it warped along the
+        exact motion (:mod:`.depth_readout`)."""
         return self.depth_raw(ctx, renderer, e, t_ns, inline=True)()
 
     def depth_raw(
         self, ctx: SimContext, renderer: FrameRenderer, e: Eye, t_ns: int, *, inline: bool
     ) -> Callable[[], F32]:
         """:meth:`rolling_depth` in two steps: the renders now (this thread), the rest as a
-        call for any thread. A rolling shutter's renders (full views) are handed over
-        when there are at most ``RAW_ROWS_FACTOR`` of them, else processed here."""
+        call for any thread (``inline``: all of it now)."""
         c = self.config
         plan = shutter_plan(t_ns, 0.0, c.readout_time, c.readout_samples, e.model.height)
-        T_wb = pose_matrices(ctx, plan.instants_ns)
         if plan.global_shutter:
-            z0 = self._render_raw(renderer, e, T_wb[0])
+            T_wb = pose_matrices(ctx, plan.instants_ns)
+            z0 = self._render_raw(renderer, e, T_wb[0], float(plan.instants_ns[0]) * 1e-9)
             return lambda: self._depth_view(e, z0)
-        z = np.empty((e.model.height, e.model.width), dtype=np.float32)
-        rows = [(k, int(r0), int(r1)) for k, (r0, r1) in enumerate(plan.rows) if r1 > r0]
-        if inline or len(rows) > RAW_ROWS_FACTOR:
-            for k, r0, r1 in rows:
-                z[r0:r1] = self.render_depth(renderer, e, T_wb[k])[r0:r1]
+        shot = self._row_shot(ctx, e, t_ns, 0.0, c.readout_time, c.readout_samples)
+        compose = render_depth_rows(renderer, shot, c.near_clip, _non_affine, c.supersampling)
+        shape = (e.model.height, e.model.width)
+        if inline:
+            z = compose(np.empty(shape, np.float32))
             return lambda: z
-        raws = [(r0, r1, self._render_raw(renderer, e, T_wb[k])) for k, r0, r1 in rows]
-
-        def compose() -> F32:
-            for r0, r1, raw in raws:
-                z[r0:r1] = self._depth_view(e, raw)[r0:r1]
-            return z
-
-        return compose
+        return lambda: compose(np.empty(shape, np.float32))
 
     def messages(self, ctx: SimContext) -> Iterator[Message]:
         """The depth frames: renders on this thread, the rest on the sensor's pool

@@ -62,6 +62,7 @@ from roslan.sensors.cameras.event_truth import DepthH5Writer, FlowPngWriter
 from roslan.sensors.cameras.flow_truth import FlowTruth, depth_on_rays, flow_end_times
 from roslan.sensors.cameras.model import T_LINK_OPTICAL, CameraModel, RenderPlan
 from roslan.sensors.cameras.remap import remap_result, remap_view
+from roslan.sensors.cameras.scene_motion import relative_velocity
 
 __all__ = ["EventCamera"]
 
@@ -202,7 +203,9 @@ class EventCamera:
     ) -> tuple[F32, F32 | None, F64, F64]:
         """Luminance (H, W), depth (H, W) or None, camera v and w (optical frame) at ``t_ns``
         (``exact_depth``: a distorted camera's depth along each pixel's own ray, ray cast,
-        for the ground truth; else that of the nearest ray of the virtual render)."""
+        for the ground truth; else that of the nearest ray of the virtual render). With a
+        depth, ``v`` is the camera's velocity relative to each pixel's surface point
+        (:func:`~.scene_motion.relative_velocity`: ``v`` (3,) itself in a static scene)."""
         cam = self.camera
         renderer = ctx.renderer()
         plan = cam.render_plan(renderer.max_size)
@@ -228,6 +231,8 @@ class EventCamera:
         assert lum is not None
         if depth is not None and exact_depth and not cam.model.is_pinhole:
             depth = depth_on_rays(ctx.raycaster(), T_wc, cam.rays, t=t_ns * 1e-9)
+        if depth is not None:  # the scene's own motion (a static scene: v itself)
+            v = relative_velocity(ctx.scene.at(t_ns * 1e-9), T_wc, v, depth, cam.rays, out.ids)
         return lum, depth, v, w
 
     # -------------------------------------------------------------- stream
@@ -380,6 +385,7 @@ class EventCamera:
                 c.flow_interval_ns,
                 end_ns,
                 sky_valid=c.flow_sky == "valid",
+                scene=ctx.scene,
             )
         if c.depthmap:
             path = ctx.path(f"{prefix}depth.h5")

@@ -49,8 +49,11 @@ from typing import TYPE_CHECKING, NamedTuple
 import numpy as np
 from numpy.typing import NDArray
 
+from roslan.sensors.cameras.scene_motion import require_ids
+
 if TYPE_CHECKING:
     from roslan.render.base import BeamCaster
+    from roslan.scene.model import Scene
     from roslan.sensors.cameras.event_truth import FlowPngWriter
     from roslan.sensors.cameras.model import CameraModel
 
@@ -143,6 +146,7 @@ def displacement_flow(
     T_c1_c0: F64,
     *,
     sky_valid: bool = False,
+    carry: Callable[[F64, NDArray[np.intp]], F64] | None = None,
 ) -> F64:
     """The flow map of the module docstring.
 
@@ -153,6 +157,10 @@ def displacement_flow(
             or <= 0: nothing hit.
         T_c1_c0: (4, 4) pose of the optical frame at ``t0`` in the one at ``t1``.
         sky_valid: ``flow_sky: valid`` (flow of the points at infinity where nothing is hit).
+        carry: the scene's own motion, or None (a static scene: the points stay where they
+            are): ``carry(P0, pixels)`` gives where the surface points ``P0`` (N, 3, the
+            camera frame at ``t0``) seen at flat pixel indices ``pixels`` (N,) are at
+            ``t1``, in the same frame (:meth:`FlowTruth._carry`).
     Returns:
         (H, W, 2) float64 displacement ``p1 - p0``, px; NaN where invalid (the range of
         the PNG is checked by the encoder).
@@ -165,6 +173,11 @@ def displacement_flow(
     z0 = np.where(hit, d0, 1.0).ravel()[idx]
     w = hit.ravel()[idx].astype(np.float64)  # homogeneous weight: 0 = point at infinity
     p0 = (r.x.ravel()[idx] * z0, r.y.ravel()[idx] * z0, z0)
+    if carry is not None:  # surface points that move with their objects
+        P = np.stack(p0, axis=1)
+        on = w > 0
+        P[on] = carry(P[on], idx[on])
+        p0 = (P[:, 0], P[:, 1], P[:, 2])
     T = np.asarray(T_c1_c0, np.float64)
     # P1 = R P0 + w t, written out per axis (a BLAS product of an (N, 3) array is slow
     # when the BLAS threads compete for the CPUs)
@@ -210,6 +223,8 @@ class _Open(NamedTuple):
     t1: int
     depth0: F32
     T_w_c0: F64
+    ids0: NDArray[np.integer] | None = None
+    """The object each pixel sees at ``t0`` (needed only in a scene whose objects move)."""
 
 
 class FlowTruth:
@@ -234,6 +249,7 @@ class FlowTruth:
         end_ns: int | None,
         *,
         sky_valid: bool,
+        scene: Scene | None = None,
     ) -> None:
         self.model = model
         self.rays = _rays(*rays)
@@ -242,6 +258,8 @@ class FlowTruth:
         self.interval_ns = int(interval_ns)
         self.end_ns = end_ns
         self.sky_valid = sky_valid
+        self.scene = scene
+        """The scene whose own motion the maps follow (None or static: a static world)."""
         self.open: deque[_Open] = deque()
 
     def step(
@@ -251,9 +269,11 @@ class FlowTruth:
         *,
         start: bool,
         submit: Callable[..., object],
+        ids: NDArray[np.integer] | None = None,
     ) -> None:
         """Instant ``t`` (in time order) with its depth (None: not a ground-truth or
-        interval-end instant). ``start``: a map may start at ``t`` (a ground-truth
+        interval-end instant) and the object each pixel sees (``ids``; only a scene whose
+        objects move needs them). ``start``: a map may start at ``t`` (a ground-truth
         instant after the first event). Finished maps go to ``submit(fn, *args)`` (the
         camera's file writer thread)."""
         if depth is None:
@@ -270,11 +290,34 @@ class FlowTruth:
         if start and (self.end_ns is None or t + self.interval_ns <= self.end_ns):
             T0 = self.pose(t) if T_w_c is None else T_w_c
             d0 = np.array(depth, np.float32, copy=True)
-            self.open.append(_Open(t, t + self.interval_ns, d0, T0))
+            self.open.append(_Open(t, t + self.interval_ns, d0, T0, ids))
+
+    def _carry(self, m: _Open) -> Callable[[F64, NDArray[np.intp]], F64] | None:
+        """The scene's own motion over map ``m``'s interval (:func:`displacement_flow`'s
+        ``carry``): None for a static scene."""
+        if self.scene is None or self.scene.is_static:
+            return None
+        view = self.scene.at(m.t0 * 1e-9)
+        ids = np.asarray(require_ids(view, m.ids0, "the DSEC flow maps")).ravel()
+        R, c = m.T_w_c0[:3, :3], m.T_w_c0[:3, 3]
+        t1 = m.t1 * 1e-9
+
+        def carry(P0: F64, pixels: NDArray[np.intp]) -> F64:
+            moved = view.carry(P0 @ R.T + c, ids[pixels], t1)
+            out: F64 = (moved - c) @ R
+            return out
+
+        return carry
 
     def _write(self, m: _Open, depth1: F32, T_w_c1: F64) -> None:
         T_c1_c0 = np.linalg.inv(T_w_c1) @ m.T_w_c0
         disp = displacement_flow(
-            self.model, self.rays, m.depth0, depth1, T_c1_c0, sky_valid=self.sky_valid
+            self.model,
+            self.rays,
+            m.depth0,
+            depth1,
+            T_c1_c0,
+            sky_valid=self.sky_valid,
+            carry=self._carry(m),
         )
         self.writer.write(m.t0, m.t1, disp)

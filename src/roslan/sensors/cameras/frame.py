@@ -54,7 +54,7 @@ from roslan.sensors.cameras.config import CameraIntrinsics, intrinsics_model
 from roslan.sensors.cameras.encoding import encode_image, srgb_lut
 from roslan.sensors.cameras.model import T_LINK_OPTICAL, CameraModel
 from roslan.sensors.cameras.remap import remap_view
-from roslan.sensors.cameras.row_exposure import output_rays, render_row_frame
+from roslan.sensors.cameras.row_exposure import render_row_frame
 from roslan.sensors.cameras.shutter import (
     AutoExposure,
     AutoExposureLoop,
@@ -463,30 +463,9 @@ class _ImagingCamera(CameraBase):
         if exposure <= 0.0 and c.readout_time <= 0.0:
             plan, T_wb = self.eye_poses(ctx, e, t_ns, exposure)
             return self.render_raw(renderer, e, T_wb, plan, inline=inline)
-        p = e.plan
-        assert p is not None
-        if e.rays is None:
-            e.rays = output_rays(p, e.model.width, e.model.height)
-        T_bo = self._T_body_sensor @ e.T_sensor_optical
-
-        def poses(t: NDArray[np.int64]) -> F64:
-            out: F64 = pose_matrices(ctx, t) @ T_bo
-            return out
-
         mono = c.encoding == "mono8"
-        compose = render_row_frame(
-            renderer,
-            p,
-            e.rays,
-            poses,
-            t_ns,
-            exposure,
-            c.readout_time,
-            c.exposure_samples,
-            mono,
-            c.near_clip,
-            c.supersampling,
-        )
+        shot = self._row_shot(ctx, e, t_ns, exposure, c.readout_time, c.exposure_samples)
+        compose = render_row_frame(renderer, shot, mono, c.near_clip, c.supersampling)
         shape = (e.model.height, e.model.width, *(() if mono else (3,)))
         return lambda: compose(e.buffer("rows", shape))
 

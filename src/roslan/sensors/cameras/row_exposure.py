@@ -51,8 +51,12 @@ __all__ = [
     "RENDER_SAMPLES",
     "ROW_STEP_PX",
     "RowFrame",
+    "RowShot",
+    "band_K",
+    "band_layout",
     "output_rays",
     "plan_row_frame",
+    "relative_poses",
     "render_row_frame",
 ]
 
@@ -237,7 +241,7 @@ class RowFrame:
     serve: I64
 
 
-def _relative(T_ref: F64, T: F64) -> tuple[F64, F64]:
+def relative_poses(T_ref: F64, T: F64) -> tuple[F64, F64]:
     """``(R, c)`` of poses ``T`` (N, 4, 4) in the frames ``T_ref`` (N, 4, 4)."""
     Rr = np.transpose(T_ref[:, :3, :3], (0, 2, 1))
     R = Rr @ T[:, :3, :3]
@@ -252,20 +256,37 @@ def _nearest(shutter: ShutterPlan, t_ns: F64) -> I64:
     return np.searchsorted(mids, t_ns).astype(np.int64)
 
 
-def plan_row_frame(
-    plan: RenderPlan,
-    rays: tuple[F32, F32],
-    poses: Callable[[I64], F64],
-    stamp_ns: int,
-    exposure: float,
-    readout: float,
-    samples: int,
-) -> tuple[RowFrame, F64]:
+@dataclass(frozen=True)
+class RowShot:
+    """What one frame's row formation is asked for.
+
+    Attributes:
+        plan: the eye's virtual view (:class:`~.model.RenderPlan`).
+        rays: ``(x, y)`` (H, W) of every output pixel's ray (:func:`output_rays`).
+        poses: ``t_ns -> (N, 4, 4)`` optical poses at (N,) int64 instants.
+        stamp_ns: the frame's stamp.
+        exposure: ``E`` (s; 0: every row at one instant).
+        readout: ``R`` (s; 0: a global shutter).
+        samples: renders over the rows' window middles.
+    """
+
+    plan: RenderPlan
+    rays: tuple[F32, F32]
+    poses: Callable[[I64], F64]
+    stamp_ns: int
+    exposure: float
+    readout: float
+    samples: int
+
+
+def plan_row_frame(shot: RowShot) -> tuple[RowFrame, F64]:
     """The frame's renders, and their optical poses (n, 4, 4): ``samples`` instants
     spread evenly over the middles of the rows' windows (the readout; a global shutter:
     one, at the stamp), every row served by the nearest; band ``k`` holds the rows that
     the rotation-only points of its rows' windows reach, with :data:`PARALLAX_MARGIN`
     rows more on each side."""
+    plan, rays, poses = shot.plan, shot.rays, shot.poses
+    stamp_ns, exposure, readout, samples = shot.stamp_ns, shot.exposure, shot.readout, shot.samples
     H, W = rays[0].shape
     # the renders: spread over the rows' window middles (a global shutter: one, the stamp)
     sp = shutter_plan(stamp_ns, 0.0, readout, samples, H)
@@ -295,7 +316,7 @@ def plan_row_frame(
             dk = d[use]
         lo, hi = t_r[rows_k], t_r[rows_k] + e_ns
         T = poses(np.round(np.concatenate([lo, hi])).astype(np.int64))
-        Rk, _ = _relative(np.broadcast_to(T_k[k], T.shape), T)
+        Rk, _ = relative_poses(np.broadcast_to(T_k[k], T.shape), T)
         dd = np.concatenate([dk, dk])  # (2 rows, cols, 3)
         a = np.einsum("nij,ncj->nci", Rk, dd)
         az = np.where(a[..., 2] > 1e-9, a[..., 2], np.nan)
@@ -310,42 +331,47 @@ def plan_row_frame(
     return RowFrame(sp, t_r, e_ns, bands, serve), T_k
 
 
-def render_row_frame(
-    renderer: FrameRenderer,
-    plan: RenderPlan,
-    rays: tuple[F32, F32],
-    poses: Callable[[I64], F64],
-    stamp_ns: int,
-    exposure: float,
-    readout: float,
-    samples: int,
-    mono: bool,
-    near: float,
-    supersampling: int = 1,
-) -> Callable[[F32], F32]:
-    """The frame stamped ``stamp_ns`` (``poses(t_ns)``: the optical poses, (N, 4, 4)):
-    its renders now (this thread), and a call that forms every row from them into an
-    output array ((H, W) luminance or (H, W, 3) linear RGB) on any thread."""
-    H, W = rays[0].shape
-    rf, T_k = plan_row_frame(plan, rays, poses, stamp_ns, exposure, readout, samples)
-    C = 1 if mono else 3
-    heights = [b - a for _, a, b in rf.bands]
-    total = int(sum(heights))
-    imgs = np.empty((total, plan.width, C), np.float32)
-    zs = np.empty((total, plan.width), np.float32)
+def band_layout(rf: RowFrame) -> tuple[int, I64, I64, I64]:
+    """Where the bands of ``rf`` lie when stacked in one array, in render order: the rows
+    in all, and per render ``k`` its first stacked row, its first row of the virtual view
+    and its height (0 for a render that serves no row)."""
     n = rf.shutter.instants_ns.size
     base = np.zeros(n, np.int64)
     a0 = np.zeros(n, np.int64)
     hgt = np.zeros(n, np.int64)
     row = 0
     for k, a, b in rf.bands:
-        K = plan.K.copy()
-        K[1, 2] -= a
-        h = b - a
+        base[k], a0[k], hgt[k] = row, a, b - a
+        row += b - a
+    return row, base, a0, hgt
+
+
+def band_K(plan: RenderPlan, first_row: int) -> F64:
+    """The virtual view's ``K`` for a band that starts at ``first_row``."""
+    K = plan.K.copy()
+    K[1, 2] -= first_row
+    return K
+
+
+def render_row_frame(
+    renderer: FrameRenderer, shot: RowShot, mono: bool, near: float, supersampling: int = 1
+) -> Callable[[F32], F32]:
+    """The frame ``shot``: its renders now (this thread; each of the scene at its own
+    instant), and a call that forms every row from them into an output array ((H, W)
+    luminance or (H, W, 3) linear RGB) on any thread."""
+    plan, rays, poses = shot.plan, shot.rays, shot.poses
+    H, W = rays[0].shape
+    rf, T_k = plan_row_frame(shot)
+    C = 1 if mono else 3
+    total, base, a0, hgt = band_layout(rf)
+    imgs = np.empty((total, plan.width, C), np.float32)
+    zs = np.empty((total, plan.width), np.float32)
+    for k, a, b in rf.bands:
+        row, h = int(base[k]), b - a
         dst = imgs[row : row + h]
         res = renderer.render(
             T_k[k],
-            K,
+            band_K(plan, a),
             plan.width,
             h,
             color=not mono,
@@ -357,6 +383,7 @@ def render_row_frame(
             else (dst if supersampling == 1 else None),
             near=near,
             supersampling=supersampling,
+            t=float(rf.shutter.instants_ns[k]) * 1e-9,
         )
         img = res.luminance if mono else res.color
         assert img is not None
@@ -364,13 +391,11 @@ def render_row_frame(
         if supersampling != 1:
             dst[...] = img.reshape(dst.shape)
         zs[row : row + h] = res.depth
-        base[k], a0[k], hgt[k] = row, a, h
-        row += h
     Kv = np.array([plan.K[0, 0], plan.K[0, 1], plan.K[0, 2], plan.K[1, 1], plan.K[1, 2]])
     t_r, e_ns = rf.row_start_ns, rf.exposure_ns
     # the exact poses of every row's window start, middle and end in its render's frame
     t = (t_r[:, None] + np.array([0.0, 0.5, 1.0])[None, :] * e_ns).reshape(-1)
-    R, c = _relative(T_k[np.repeat(rf.serve, 3)], poses(np.round(t).astype(np.int64)))
+    R, c = relative_poses(T_k[np.repeat(rf.serve, 3)], poses(np.round(t).astype(np.int64)))
     nmax = MAX_SUBSAMPLES if e_ns > 0.0 else 1
 
     def compose(out: F32) -> F32:
