@@ -9,6 +9,7 @@ from typing import Any
 import numpy as np
 import pytest
 
+from env_helpers import marker_landing
 from roslan.env import LandingEnv, PolicyContext, make_policy
 from roslan.env.tau_events import TauEventsPolicy
 from roslan.errors import ConfigError
@@ -17,34 +18,8 @@ pytest.importorskip("roslan.render.gl")
 
 
 def short_landing(**over: Any) -> dict[str, Any]:
-    """A ~1.5 s landing onto the warehouse's marker from 1.5 m, flapping on, with a 500 Hz
-    IMU and a 128x96 downward event camera (realistic pixel)."""
-    cfg: dict[str, Any] = {
-        "trajectory": {
-            "k": 0.5,
-            "initial": {
-                "position": [0.6, -0.3, 1.5],
-                "rpy": [0.02, 0.05, 0.3],
-                "descent_rate": 2.0,
-            },
-            "hold": 0.1,
-            "flapping": {"frequency": 4.5, "heave": 0.008, "pitch": 0.035},
-            "goal": {"position": [2.0, -1.0, 0.01], "rpy": [0.0, 0.0, 0.3]},
-        },
-        "scene": "warehouse",
-        "sensors": [
-            {"type": "imu", "name": "imu", "rate": 500.0},
-            {
-                "type": "event_camera",
-                "name": "dvs",
-                "rate": 10.0,
-                "resolution": [128, 96],
-                "max_rate": 300.0,
-                "pose": {"position": [0.0, 0.0, -0.045], "rpy": [0.0, 1.5707963, 0.0]},
-            },
-        ],
-        "output": {"ground_truth_rate": 50.0},
-    }
+    """The marker landing of tests/helpers (1.5 m up, 128x96 camera), keys replaced."""
+    cfg = marker_landing()
     cfg.update(over)
     return cfg
 
