@@ -9,6 +9,7 @@ from typing import Any
 import numpy as np
 import pytest
 
+from env_helpers import marker_landing
 from roslan.config.closed_loop import StartEstimateConfig
 from roslan.env import PERCHING_CONFIG, LandingEnv, make_policy
 from roslan.env.attitude import AttitudeFilter, expm_so3
@@ -22,34 +23,8 @@ pytest.importorskip("roslan.render.gl")
 
 
 def small_landing(**closed_loop: Any) -> dict[str, Any]:
-    """A short warehouse landing (1.5 m up) with a 128x96 downward event camera."""
-    return {
-        "trajectory": {
-            "k": 0.5,
-            "initial": {
-                "position": [0.6, -0.3, 1.5],
-                "rpy": [0.02, 0.05, 0.3],
-                "descent_rate": 2.0,
-            },
-            "hold": 0.1,
-            "flapping": {"frequency": 4.5, "heave": 0.008, "pitch": 0.035},
-            "goal": {"position": [2.0, -1.0, 0.01], "rpy": [0.0, 0.0, 0.3]},
-        },
-        "scene": "warehouse",
-        "sensors": [
-            {"type": "imu", "name": "imu", "rate": 500.0, "accelerometer_turn_on_bias_sigma": 0.05},
-            {
-                "type": "event_camera",
-                "name": "dvs",
-                "rate": 10.0,
-                "resolution": [128, 96],
-                "max_rate": 300.0,
-                "pose": {"position": [0.0, 0.0, -0.045], "rpy": [0.0, 1.5707963, 0.0]},
-            },
-        ],
-        "output": {"ground_truth_rate": 50.0},
-        "closed_loop": closed_loop,
-    }
+    """The marker landing (tests/helpers) with a 0.05 m/s^2 accelerometer bias."""
+    return marker_landing(closed_loop, accelerometer_bias_sigma=0.05)
 
 
 SPREAD = {"position": [0.2, 0.2, 0.1], "rpy": [0.03, 0.03, 0.05], "descent_rate": 0.2}
@@ -237,3 +212,48 @@ def test_vertical_estimator_recovers_the_start_errors_and_the_bias_from_divergen
     t1, p1, v1 = float(t[-1]), float(p_dr[-1]), float(v_dr[-1])
     assert est.height(t1, p1) == pytest.approx(h[-1], abs=0.1)
     assert est.velocity(t1, v1) == pytest.approx(v[-1], abs=0.05)
+
+
+def test_vertical_estimator_takes_the_markers_heights_over_a_biased_divergence() -> None:
+    """The same descent with divergences whose scale is 25 % short (the early sideways
+    flight's): the marker's heights (2 % noise) over the last second bring the height
+    and the vertical speed back; without them both stay wrong."""
+    z0, v0, b_true = 3.0, -1.5, 0.06
+    t = np.linspace(0.0, 2.5, 120)
+    a = 0.5
+    h = z0 + v0 * t + 0.5 * a * t * t
+    v = v0 + a * t
+    v_dr = (v0 + 0.15) + (a + b_true) * t
+    p_dr = (v0 + 0.15) * t + 0.5 * (a + b_true) * t * t
+    rng = np.random.default_rng(2)
+    ests = [VerticalEstimator(z0 + 0.4, 0.5, 0.2, 0.1) for _ in range(2)]
+    for i in range(t.size):
+        for est in ests:
+            est.add(-v[i] / (0.75 * h[i]), float(t[i]), float(p_dr[i]), float(v_dr[i]), 0.0)
+        if t[i] >= 1.5:
+            meas = h[i] * (1.0 + 0.02 * rng.standard_normal())
+            assert ests[1].add_height(float(meas), float(t[i]), float(p_dr[i]), 0.02 * h[i])
+    t1, p1, v1 = float(t[-1]), float(p_dr[-1]), float(v_dr[-1])
+    assert ests[1].heights == int(np.count_nonzero(t >= 1.5))
+    assert ests[1].height(t1, p1) == pytest.approx(h[-1], rel=0.05)
+    assert ests[1].velocity(t1, v1) == pytest.approx(v[-1], abs=0.08)
+    assert abs(ests[0].height(t1, p1) / h[-1] - 1.0) > 0.1  # divergence alone: scale short
+
+
+def test_the_constant_entries_keep_their_space_and_refuse_another_shape() -> None:
+    from roslan.config.closed_loop import ClosedLoopConfig
+    from roslan.env.knowledge import CONSTANT_SHAPES
+    from roslan.env.observe import ObservationBuilder
+
+    ob = ObservationBuilder([], ClosedLoopConfig())
+    for key, shape in CONSTANT_SHAPES.items():
+        ob.constant(key, np.zeros(shape))
+    space = ob.space
+    ob.constant("goal", np.arange(6.0))  # a new episode's value: the same space
+    assert ob.space is space
+    obs = ob.build({}, (0, 20_000_000))
+    np.testing.assert_array_equal(obs["goal"], np.arange(6.0, dtype=np.float32))
+    obs["goal"][0] = 99.0  # each step's array is the caller's
+    assert ob.build({}, (0, 20_000_000))["goal"][0] == 0.0
+    with pytest.raises(ValueError, match="'goal': shape"):
+        ob.constant("goal", np.zeros(5))

@@ -13,7 +13,7 @@ The information boundary (docs/guide/closed-loop.md "What a policy knows"):
   derived from them (``info["state"]`` is for evaluation and for the oracle baselines).
 
 The Gymnasium observation carries the same knowledge for a learning agent: the constant
-entries ``start_estimate`` and ``goal`` (:func:`constant_spaces`).
+entries ``start_estimate`` and ``goal`` (:data:`CONSTANT_SHAPES`, :func:`constant_observation`).
 """
 
 from __future__ import annotations
@@ -22,7 +22,6 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from gymnasium import spaces
 from numpy.typing import NDArray
 
 from roslan.frames import matrix_to_rpy
@@ -33,10 +32,10 @@ if TYPE_CHECKING:
     from roslan.env.policies import PolicyContext
 
 __all__ = [
+    "CONSTANT_SHAPES",
     "ESTIMATE_STREAM",
     "StartEstimate",
     "constant_observation",
-    "constant_spaces",
     "draw_start_estimate",
     "policy_context",
 ]
@@ -100,12 +99,9 @@ def draw_start_estimate(
     return StartEstimate(p, v, R, gaps, Rwg.T @ v)
 
 
-def constant_spaces() -> dict[str, spaces.Space[Any]]:
-    """The observation's constant entries: ``start_estimate`` (9,) and ``goal`` (6,)."""
-    return {
-        "start_estimate": spaces.Box(-np.inf, np.inf, (9,), np.float32),
-        "goal": spaces.Box(-np.inf, np.inf, (6,), np.float32),
-    }
+CONSTANT_SHAPES: dict[str, tuple[int, ...]] = {"start_estimate": (9,), "goal": (6,)}
+"""The observation's constant entries and their shapes (:func:`constant_observation`);
+:class:`~roslan.env.observe.ObservationBuilder.constant` holds them."""
 
 
 def constant_observation(estimate: StartEstimate, goal: Any) -> dict[str, NDArray[np.float32]]:

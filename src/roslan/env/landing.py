@@ -30,9 +30,9 @@ from roslan.config.sim import SimConfig
 from roslan.env.contact import ContactModel, Outcome, StepEvent, is_success, reward_terms
 from roslan.env.dynamics import MAX_PITCH, DynamicsTrajectory
 from roslan.env.knowledge import (
+    CONSTANT_SHAPES,
     StartEstimate,
     constant_observation,
-    constant_spaces,
     draw_start_estimate,
 )
 from roslan.env.observe import EventPacket, ObservationBuilder
@@ -178,14 +178,13 @@ class LandingEnv(gym.Env[dict[str, NDArray[Any]], F32]):
         self.action_space = self._box
         self._obs = ObservationBuilder(cfg.sensors, self.closed_loop)
         # the constant entries (start estimate, goal): what a policy knows (env.knowledge)
-        self.observation_space = spaces.Dict(  # type: ignore[assignment]
-            {**self._obs.space.spaces, **constant_spaces()}
-        )
+        for key, shape in CONSTANT_SHAPES.items():
+            self._obs.constant(key, np.zeros(shape))
+        self.observation_space = self._obs.space  # type: ignore[assignment]
         self.start_estimate: StartEstimate | None = None
         """The episode's start estimate (``closed_loop.start_estimate``), after ``reset``."""
         self.goal: Pose | None = None
         """The goal's pose in the world (where the contact point lands), after ``reset``."""
-        self._constant: dict[str, NDArray[np.float32]] = {}
         self._held = _Held()
         # (holds the holder, not the environment: an unclosed one is still collected)
         self._finalizer = weakref.finalize(self, self._held.release)
@@ -253,7 +252,8 @@ class LandingEnv(gym.Env[dict[str, NDArray[Any]], F32]):
         goal = cfg.trajectory.goal
         self.goal = goal if isinstance(goal, Pose) else Pose(position=tuple(traj.p_world_goal))
         self.start_estimate = draw_start_estimate(traj, self.closed_loop.start_estimate, ep_seed)
-        self._constant = constant_observation(self.start_estimate, self.goal)
+        for key, value in constant_observation(self.start_estimate, self.goal).items():
+            self._obs.constant(key, value)
         limit = self.closed_loop.time_limit
         self.time_limit_ns = round(
             1e9 * (limit if limit is not None else 4.0 * traj.reference_T + 1.0)
@@ -282,7 +282,7 @@ class LandingEnv(gym.Env[dict[str, NDArray[Any]], F32]):
             **Outcome().as_dict(),
         }
         out = self._session.advance(0)
-        obs = {**self._obs.build(out.taps, (0, 0)), **self._constant_copy()}
+        obs = self._obs.build(out.taps, (0, 0))
         self._last_events = self._obs.raw_events(out.taps)
         return obs, self._info(out, clipped=False)
 
@@ -293,10 +293,6 @@ class LandingEnv(gym.Env[dict[str, NDArray[Any]], F32]):
         if self.closed_loop.scene_seed == "per_episode":
             return int(seed)
         return int(self.base_config.seed)
-
-    def _constant_copy(self) -> dict[str, NDArray[np.float32]]:
-        """The constant entries, new arrays each step (Gymnasium's rule)."""
-        return {k: v.copy() for k, v in self._constant.items()}
 
     def _start(self, cfg: SimConfig, seed: int) -> SimConfig:
         """The episode's config: the start moved by ``closed_loop.start_spread``, drawn
@@ -432,7 +428,7 @@ class LandingEnv(gym.Env[dict[str, NDArray[Any]], F32]):
             self._close_session()
             raise
         span = (t0, out.horizon_ns)
-        obs = {**self._obs.build(out.taps, span), **self._constant_copy()}
+        obs = self._obs.build(out.taps, span)
         self._last_events = self._obs.raw_events(out.taps)
         self._return += reward
         info = self._info(out, clipped=clipped)

@@ -53,17 +53,25 @@ class VerticalEstimator:
     """Residuals beyond this many standard deviations are rejected (after ``SETTLE``)."""
     SETTLE = 15
     """Estimates accepted before the gate applies."""
+    DIVERGENCE_DEWEIGHT = 5.0
+    """The divergence estimates' error counts this many times larger once the marker gave
+    a height (:meth:`add_height`)."""
 
     def __init__(
         self, z0: float, sigma_z: float, sigma_v: float, sigma_b: float, rel_error: float = 0.15
     ) -> None:
         s = np.array([max(sigma_z, 0.02), max(sigma_v, 0.01), max(sigma_b, 0.005)])
-        self._N = np.diag(1.0 / s**2)
-        self._r = self._N @ np.array([-z0, 0.0, 0.0])
+        # normal equations: the prior, the divergence's and the marker's heights' apart
+        # (the divergence's weigh less once there are heights: :meth:`add_height`)
+        self._N0 = np.diag(1.0 / s**2)
+        self._r0 = self._N0 @ np.array([-z0, 0.0, 0.0])
+        self._Nd, self._rd = np.zeros((3, 3)), np.zeros(3)
+        self._Nh, self._rh = np.zeros((3, 3)), np.zeros(3)
         self.theta = np.array([-z0, 0.0, 0.0])
         self.rel_error = float(rel_error)
         self.accepted = 0
         self.rejected = 0
+        self.heights = 0
 
     def add(self, D: float, t: float, p: float, v: float, o: float, extra: float = 0.0) -> bool:
         """One divergence ``D`` (1/s) at time ``t`` (s since the start) with the dead
@@ -79,11 +87,33 @@ class VerticalEstimator:
             self.rejected += 1
             return False
         w = 1.0 / sigma**2
-        self._N += w * np.outer(a, a)
-        self._r += w * a * y
-        self.theta = np.linalg.solve(self._N, self._r)
+        self._Nd += w * np.outer(a, a)
+        self._rd += w * a * y
+        self._solve()
         self.accepted += 1
         return True
+
+    def add_height(self, h: float, t: float, p: float, sigma: float) -> bool:
+        """A direct measurement ``h`` (m, error ``sigma``) of the height gap at time ``t``
+        with the dead reckoning's ``p`` there (the landing marker's apparent size:
+        :mod:`roslan.env.marker_bearing`): ``p - h = c0 + dv t + b t^2 / 2``. Not gated
+        (the marker's fixes are verified by its geometry); from then on the divergence's
+        estimates, past and future, weigh as if their errors were ``DIVERGENCE_DEWEIGHT``
+        times larger (their error is a scale error of the whole descent, not independent
+        noise)."""
+        a = np.array([1.0, t, 0.5 * t * t])
+        y = p - h
+        w = 1.0 / sigma**2
+        self._Nh += w * np.outer(a, a)
+        self._rh += w * a * y
+        self.heights += 1
+        self._solve()
+        return True
+
+    def _solve(self) -> None:
+        wd = 1.0 / self.DIVERGENCE_DEWEIGHT**2 if self.heights else 1.0
+        N = self._N0 + wd * self._Nd + self._Nh
+        self.theta = np.linalg.solve(N, self._r0 + wd * self._rd + self._rh)
 
     def height(self, t: float, p: float) -> float:
         """The height gap at time ``t`` with the dead reckoning's ``p``, m."""

@@ -72,8 +72,17 @@ class ObservationBuilder:
         self._events = next((o for o in self.observers if hasattr(o, "packet")), None)
 
     def constant(self, key: str, value: Any, low: float = -np.inf, high: float = np.inf) -> None:
-        """Add an entry that holds ``value`` (float32) in every step's observation."""
+        """Add an entry that holds ``value`` (float32) in every step's observation, or
+        give an existing one a new value of the same shape (a new episode's: the space
+        does not change)."""
         v = np.asarray(value, dtype=np.float32)
+        old = self._constants.get(key)
+        if old is not None:
+            if old.shape != v.shape:
+                msg = f"constant observation {key!r}: shape {v.shape}, registered {old.shape}"
+                raise ValueError(msg)
+            self._constants[key] = v
+            return
         self._constants[key] = v
         self._boxes[key] = spaces.Box(low, high, v.shape, np.float32)
         self.space = spaces.Dict(self._boxes)

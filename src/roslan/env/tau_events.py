@@ -112,6 +112,21 @@ class TauEventsPolicy:
     FIX_AGREEMENT = 0.1
     """m per m of camera height: two consecutive marker candidates closer than this are
     a fix."""
+    ATTITUDE_MAX_ACCEL = 3.0
+    """m/s^2: the attitude filter's accelerometer correction pauses while the expected
+    horizontal acceleration is larger (:class:`~roslan.env.attitude.AttitudeFilter`'s
+    ``max_accel``)."""
+    TRACK_STEPS = 5
+    """Steps after a fix during which the marker is tracked: looked for near its
+    prediction, at the height the fixes gave (``TRACK_BAND``)."""
+    TRACK_BAND = (0.85, 1.2)
+    """The heights searched while tracking, as multiples of the height estimate."""
+    SETTLED_FIXES = 5
+    """Fixes after which the marker's position and height are known well enough to gate
+    the next fixes: the height searched within ``KNOWN_BAND`` of the estimate, a fix
+    outside 4 sigma of the horizontal filter's prediction rejected."""
+    KNOWN_BAND = (0.8, 1.25)
+    """The heights searched once settled, as multiples of the height estimate."""
     MAX_GOAL_HEIGHT = 0.5
     """m: a goal farther from the world's ground plane than this is refused (a perch)."""
 
@@ -194,7 +209,9 @@ class TauEventsPolicy:
         self._a_model = Rwg @ s0.accels[0, :3]
         self._a_cmd = self._a_model.copy()
         gravity = float(imu.gravity)  # type: ignore[attr-defined]
-        self._att = AttitudeFilter(est.R_world_body, gravity=gravity)
+        self._att = AttitudeFilter(
+            est.R_world_body, gravity=gravity, max_accel=self.ATTITUDE_MAX_ACCEL
+        )
         self._g = np.array([0.0, 0.0, -gravity])
         self._imu = _Imu(
             self._att.R, np.asarray(est.velocity, dtype=np.float64).copy(), np.zeros(3), 0
@@ -213,6 +230,7 @@ class TauEventsPolicy:
         self._hist_p: list[F64] = []
         self._hist_v: list[F64] = []
         self._candidate: F64 | None = None
+        self._last_fix_step = -(10**6)
         self._n_meas = 0
         self._steps = 0
         self._last: DivergenceEstimate | None = None
@@ -285,8 +303,9 @@ class TauEventsPolicy:
             self._n_meas += int(ok)
         self.history.append((t, e.tau, e.confidence, ok))
 
-    def _look(self, x: Any, y: Any, h: float) -> None:
-        """Find the marker in the step's events; a fix corrects the horizontal filter."""
+    def _look(self, x: Any, y: Any, t: Any, h: float) -> None:
+        """Find the marker in the step's events; a fix corrects the horizontal filter and
+        gives the vertical estimator a height (the marker's known size)."""
         R_wc = self._imu.R_wb @ self._R_body_cam
         Rwg = self._R_world_goal
         h_cam = h + self._camera_offset_z() - self._contact_z
@@ -296,29 +315,60 @@ class TauEventsPolicy:
         base = Rwg @ np.array([*hz.gaps, h])  # base_link relative to its touchdown position
         rel = self._goal_offset - base - self._imu.R_wb @ self._cam_pos  # marker - camera
         r = R_wc.T @ rel
-        if r[2] <= 0.1 * float(np.linalg.norm(r)):
-            return
         K = self._K
-        u, v = K[0, 0] * r[0] / r[2] + K[0, 2], K[1, 1] * r[1] / r[2] + K[1, 2]
-        gate = 3.0 * hz.sigma * K[0, 0] / h_cam + 40.0
-        if not self._marker.visible(u, v, h_cam, gate):
+        tracking = self._steps - self._last_fix_step <= self.TRACK_STEPS
+        if r[2] > 0.1 * float(np.linalg.norm(r)):
+            u, v = K[0, 0] * r[0] / r[2] + K[0, 2], K[1, 1] * r[1] / r[2] + K[1, 2]
+        else:
+            u = v = math.nan
+        margin = 3.0 * hz.sigma * K[0, 0] / h_cam + 40.0
+        if not self._marker.visible(u, v, h_cam, margin):
+            self._candidate = None
             return
-        fix = self._marker.find(x, y, h_cam, (u, v), gate)
+        # tracking: the height known from the last fixes, the marker near its prediction;
+        # once the marker gave heights, the height is searched near the estimate
+        if tracking:
+            band: tuple[float, float] | None = self.TRACK_BAND
+        else:
+            band = self.KNOWN_BAND if self._vert.heights >= self.SETTLED_FIXES else None
+        fix = self._marker.find(
+            x, y, h_cam,
+            predicted=(u, v) if tracking else None,
+            gate=margin if tracking else math.inf,
+            t=t,
+            band=band,
+        )  # fmt: skip
         if fix is None:
             self._candidate = None
             return
         ray = R_wc @ np.array([(fix.u - K[0, 2]) / K[0, 0], (fix.v - K[1, 2]) / K[1, 1], 1.0])
         if ray[2] > -0.1:
             return
-        marker_rel = ray * (h_cam / -ray[2])  # marker - camera, world
+        marker_rel = ray * fix.height  # marker - camera, world (fix.height: its depth)
+        h_cam_fix = -float(marker_rel[2])
         base_rel = -marker_rel + self._goal_offset - self._imu.R_wb @ self._cam_pos
         xy = (Rwg.T @ base_rel)[:2]
+        # the events' mean time is before the step's end: carry the fix forward
+        dt = max(self._imu.t_ns - fix.t_ns, 0) * 1e-9 if fix.t_ns else 0.0
+        xy = xy + hz.rates * dt
         prev, self._candidate = self._candidate, xy
         # fused only when the last step's candidate agrees (the gap moves ~v dt a step)
-        if prev is None or float(np.linalg.norm(xy - prev)) > self.FIX_AGREEMENT * h_cam:
+        if prev is None or float(np.linalg.norm(xy - prev)) > self.FIX_AGREEMENT * h_cam_fix:
             return
-        sigma = 3.0 * h_cam / K[0, 0] + 0.02 + 0.1 * float(np.linalg.norm(xy))
+        off = float(np.linalg.norm(xy))
+        sigma = 3.0 * h_cam_fix / K[0, 0] + 0.04 * off + 0.01
+        # once settled on the marker, a fix far outside the filter's uncertainty is wrong
+        # (a partial view at low height can fit the checker ring as the white one)
+        if hz.fixes >= self.SETTLED_FIXES:
+            limit = 4.0 * math.hypot(hz.sigma, sigma) + 0.1 * h_cam_fix
+            if float(np.linalg.norm(xy - hz.gaps)) > limit:
+                return
+        self._last_fix_step = self._steps
         hz.correct(xy, sigma)
+        if fix.t_ns:
+            p, _ = self._at(fix.t_ns)
+            h_gap = h_cam_fix - (self._camera_offset_z() - self._contact_z)
+            self._vert.add_height(h_gap, fix.t_ns * 1e-9, p, 0.04 * h_cam_fix + 0.01)
 
     # ------------------------------------------------------------------ control
     def act(self, observation: Mapping[str, Any], info: Mapping[str, Any]) -> F64:
@@ -351,7 +401,7 @@ class TauEventsPolicy:
         h = self._vert.height(t_now, float(self._imu.p[2]))
         vz = self._vert.velocity(t_now, float(self._imu.v[2]))
         if end_ns > 0 and len(x):
-            self._look(x, y, h)
+            self._look(x, y, ev.get("t", None), h)
         tau = h / vz if vz < -1e-3 else math.nan
         last = self._last
         self.estimate = TauEventsEstimate(
