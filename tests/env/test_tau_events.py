@@ -90,11 +90,6 @@ def test_a_landing_from_far_off_ends_slow_sideways(seed: int) -> None:
     assert ep["position_error"] <= 0.25, ep
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="regression of the 2026-12-02 marker detector on this 128x96 camera from 1.5 m: "
-    "median tau error 23.5 % (limit 20 %)",
-)
 def test_tau_estimate_tracks_the_true_tau_of_the_height_gap(
     episode: tuple[dict[str, Any], np.ndarray, Any],
 ) -> None:
