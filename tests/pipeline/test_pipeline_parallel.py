@@ -316,9 +316,9 @@ def test_failed_run_stops_the_event_cameras_file_thread(
 
     real_write = EventCamera._write_events
 
-    def slow_write(self: EventCamera, batch: Any) -> None:
+    def slow_write(self: EventCamera, batch: Any, labels: Any = None) -> None:
         time.sleep(0.05)
-        real_write(self, batch)
+        real_write(self, batch, labels)
 
     monkeypatch.setattr(EventCamera, "_write_events", slow_write)
     _patch_camera(monkeypatch, ErrorCamera)
