@@ -36,7 +36,7 @@ from roslan.sensors.base import (
     paced,
     sample_times_ns,
 )
-from roslan.sensors.cameras.model import CameraModel, RenderPlan
+from roslan.sensors.cameras.model import CameraModel, RenderPlan, pose_matrices
 from roslan.sensors.cameras.row_exposure import RowShot, output_rays
 from roslan.sensors.cameras.shutter import shutter_plan
 from roslan.sensors.clock import Grid
@@ -93,16 +93,6 @@ class Shot(NamedTuple):
     data: NDArray[Any]
     encoding: str
     png: bool
-
-
-def pose_matrices(ctx: SimContext, t_ns: NDArray[np.int64]) -> F64:
-    """(N, 4, 4) ``T_world_body`` at trajectory times ``t_ns``."""
-    st = ctx.trajectory.state(t_ns.astype(np.float64) * 1e-9)
-    T = np.zeros((len(t_ns), 4, 4))
-    T[:, :3, :3] = st.R_world_body
-    T[:, :3, 3] = st.position
-    T[:, 3, 3] = 1.0
-    return T
 
 
 class CameraBase:

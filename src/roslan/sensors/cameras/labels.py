@@ -39,6 +39,7 @@ from numpy.typing import NDArray
 from roslan.io.files import atomic_write_text
 from roslan.io.images import write_png
 from roslan.scene.instances import SceneLabels, scene_labels
+from roslan.sensors.cameras.model import pose_matrices
 from roslan.sensors.cameras.remap import remap_view
 
 if TYPE_CHECKING:
@@ -349,16 +350,6 @@ class EyeLabels:
         atomic_write_text(ctx.path(f"{self.folder}annotations.json"), json.dumps(doc) + "\n")
 
 
-def _body_poses(ctx: SimContext, t_ns: NDArray[np.int64]) -> F64:
-    """(N, 4, 4) ``T_world_body`` at ``t_ns`` (as :func:`.common.pose_matrices`)."""
-    st = ctx.trajectory.state(t_ns.astype(np.float64) * 1e-9)
-    T = np.zeros((len(t_ns), 4, 4))
-    T[:, :3, :3] = st.R_world_body
-    T[:, :3, 3] = st.position
-    T[:, 3, 3] = 1.0
-    return T
-
-
 class CameraLabels:
     """The label outputs of a camera sensor's eyes, run from its frame loop
     (:meth:`~.common.CameraBase._frames`): :meth:`render` on the GL thread, :meth:`post`
@@ -404,7 +395,7 @@ class CameraLabels:
         jobs = []
         for e, lab in self.eyes:
             instants, pick = self._plan(t_ns, e.model.height)
-            T = _body_poses(ctx, instants) @ T_bs @ e.T_sensor_optical
+            T = pose_matrices(ctx, instants) @ T_bs @ e.T_sensor_optical
             raws = lab.render(renderer, T, instants, self.near)
             mid = int(pick[e.model.height // 2])
             jobs.append((raws, pick, T[mid]))

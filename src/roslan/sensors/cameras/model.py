@@ -29,6 +29,7 @@ from roslan.frames import T_LINK_OPTICAL
 
 if TYPE_CHECKING:
     from roslan.io.messages import MessageStore
+    from roslan.sensors.base import SimContext
 
 __all__ = [
     "DEFAULT_HFOV_DEG",
@@ -39,6 +40,7 @@ __all__ = [
     "CameraModel",
     "RenderPlan",
     "auto_render_scale",
+    "pose_matrices",
 ]
 
 F32 = NDArray[np.float32]
@@ -508,3 +510,13 @@ class CameraModel:
         if T_cn_cnm1 is not None:
             out["T_cn_cnm1"] = [[float(x) for x in row] for row in T_cn_cnm1]
         return out
+
+
+def pose_matrices(ctx: SimContext, t_ns: NDArray[np.int64]) -> F64:
+    """(N, 4, 4) ``T_world_body`` at trajectory times ``t_ns``."""
+    st = ctx.trajectory.state(t_ns.astype(np.float64) * 1e-9)
+    T = np.zeros((len(t_ns), 4, 4))
+    T[:, :3, :3] = st.R_world_body
+    T[:, :3, 3] = st.position
+    T[:, 3, 3] = 1.0
+    return T
