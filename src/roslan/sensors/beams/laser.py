@@ -167,6 +167,7 @@ class Laser:
             self._frac,
             self._dirs,
             mode=c.firing_poses if bt > 0 else "exact",
+            spacing=j * bt,  # a scan of one knot (<= 32 beams) still spans j beam times
         )
         n = c.n_beams
         m = measure(

@@ -145,6 +145,7 @@ def _integrate(  # type: ignore[no-untyped-def]  # pragma: no cover - numba
     steps from its rotation-only pixel, :func:`_depth`); one point, the start, where
     ``nmax`` is 1."""
     H, W, C = out.shape
+    Wr = imgs.shape[1]  # the render's width (a lens's virtual view is not the output's)
     three = nmax > 1
     fx, s, cx, fy = Kv[0], Kv[1], Kv[2], Kv[3]
     P = np.empty((3, 12))
@@ -163,11 +164,11 @@ def _integrate(  # type: ignore[no-untyped-def]  # pragma: no cover - numba
             out[r, u] = 0.0
             x, y = np.float64(rx[r, u]), np.float64(ry[r, u])
             em = 1 if three else 0
-            z = _depth(x, y, P, em, zs, b0, h, W, fx, s, cx, fy, cy)
+            z = _depth(x, y, P, em, zs, b0, h, Wr, fx, s, cx, fy, cy)
             if z < np.inf:  # a second fixed-point step: the depth at the point's own pixel
                 nx, ny, dm = _point(x, y, P, em, z, fx, s, fy)
                 if dm > 1e-9:
-                    iu = min(max(int(nx / dm + cx + 0.5), 0), W - 1)
+                    iu = min(max(int(nx / dm + cx + 0.5), 0), Wr - 1)
                     iv = min(max(int(ny / dm + cy + 0.5), 0), h - 1)
                     z = zs[b0 + iv, iu]
             n0x, n0y, d0 = _point(x, y, P, 0, z, fx, s, fy)
@@ -199,9 +200,9 @@ def _integrate(  # type: ignore[no-untyped-def]  # pragma: no cover - numba
             acc0 = acc1 = acc2 = 0.0
             for j in range(n):
                 sj = (j + 0.5) * w if three else 0.0
-                px = min(max(q0x + sj * (bx + sj * ax), 0.0), W - 1.0)
+                px = min(max(q0x + sj * (bx + sj * ax), 0.0), Wr - 1.0)
                 py = min(max(q0y + sj * (by + sj * ay), 0.0), hmax)
-                x0 = min(int(px), W - 2)
+                x0 = min(int(px), Wr - 2)
                 y0 = min(int(py), h - 2)
                 fu = px - x0
                 fv = py - y0
