@@ -30,7 +30,7 @@ def test_row_exposure_reads_within_the_render(render_width: int, jit: bool) -> N
     cx, cy = 3.0, 2.5
     rx = np.broadcast_to(((xr - cx) / f).astype(np.float32), (H, W)).copy()
     ry = np.broadcast_to(((np.arange(H) - cy) / f).astype(np.float32)[:, None], (H, W)).copy()
-    ramp = (0.25 + 0.01 * np.arange(render_width, dtype=np.float32))
+    ramp = 0.25 + 0.01 * np.arange(render_width, dtype=np.float32)
     imgs = np.broadcast_to(ramp[None, :, None], (h, render_width, 1)).copy()
     zs = np.full((h, render_width), 2.0, np.float32)  # a fronto-parallel plane
     base, a0, hgt = np.zeros(1, np.int64), np.zeros(1, np.int64), np.full(1, h, np.int64)
