@@ -2,8 +2,10 @@
 cost, A/B(/C) between trees.
 
 Cases: ``default``, the default ``roslan/Landing-v0`` (warehouse, 1 kHz IMU, DAVIS346
-event camera); ``imu``, the same config with only its IMU; ``reset``, the default
-config's resets. For ``default`` and ``imu`` each run is a fresh interpreter that resets
+event camera); ``lite``, ``roslan/LandingLite-v0`` (the same landing with a 64x48 event
+camera, this checkout's ``src/roslan/data/landing_lite.yaml``, flown in every tree);
+``imu``, the default config with only its IMU; ``reset``, the default
+config's resets. For ``default``, ``lite`` and ``imu`` each run is a fresh interpreter that resets
 the environment (seed 0, not timed) and then flies the tau-state policy for at most
 ``--steps`` control steps (or to the episode's end), timing only the steps with
 ``time.process_time()`` (every thread of the process; there are no children). For
@@ -25,6 +27,7 @@ import os
 import statistics
 import subprocess
 import sys
+from pathlib import Path
 
 CHILD = """
 import sys, time
@@ -34,7 +37,7 @@ from roslan.env.landing import load_env_config
 from roslan.env.policies import PolicyContext
 
 case, steps = sys.argv[1], int(sys.argv[2])
-cfg, _ = load_env_config(None)
+cfg, _ = load_env_config(sys.argv[3] if case == "lite" else None)
 if case == "imu":
     cfg = cfg.model_copy(update={"sensors": [s for s in cfg.sensors if s.type == "imu"]})
 env = LandingEnv(cfg)
@@ -71,10 +74,15 @@ print(n, cpu)
 """
 
 
+LITE = Path(__file__).resolve().parent.parent / "src" / "roslan" / "data" / "landing_lite.yaml"
+"""This checkout's LandingLite-v0 config: the ``lite`` case flies it in every tree (a tree
+older than the file runs the same YAML)."""
+
+
 def _run(src: str, case: str, steps: int) -> list[str]:
     env = dict(os.environ, PYTHONPATH=src)
     return subprocess.run(
-        [sys.executable, "-c", CHILD, case, str(steps)],
+        [sys.executable, "-c", CHILD, case, str(steps), str(LITE)],
         env=env,
         check=True,
         capture_output=True,
