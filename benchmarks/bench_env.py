@@ -17,7 +17,14 @@ B, C, A, B, C...), so all see the same machine load; the figure is the median ov
 ``--repeat`` runs per tree and case.
 
     python benchmarks/bench_env.py --a /work/base/src --b src [--c OTHER/src] \
-        [--repeat 3] [--steps 150] [--cases default,imu,reset]
+        [--repeat 3] [--steps 150] [--cases default,lite,imu,reset] [--vec 1,2,4,8]
+
+``--vec 1,2,4,8``: then, in tree B only, ``gymnasium.make_vec("roslan/LandingLite-v0",
+num_envs=N)`` (the vector entry point: N envs in one process sharing the scene), reset
+with seed 0 (not timed), then ``--vec-steps`` vector steps of zero action (hold the
+velocity: the 2 m/s descent stays in the air for about 110 steps), timed in process CPU
+(threads included) and wall; env-steps per CPU-second and per wall second, the median
+over ``--repeat`` runs per N.
 """
 
 from __future__ import annotations
@@ -52,6 +59,21 @@ if case == "reset":
         cpus.append(time.process_time() - c0)
     env.close()
     print(first[0], first[1], sorted(cpus)[1])
+    raise SystemExit(0)
+if case.startswith("vec"):  # N LandingLite-v0 sharing one scene (the vector entry point)
+    import gymnasium
+    env.close()
+    num = int(case[3:])
+    envs = gymnasium.make_vec("roslan/LandingLite-v0", num_envs=num,
+                              vectorization_mode="vector_entry_point")
+    envs.reset(seed=0)
+    zero = np.zeros((num, 6), dtype=np.float32)
+    c0, w0 = time.process_time(), time.perf_counter()
+    for _ in range(steps):
+        envs.step(zero)
+    cpu, wall = time.process_time() - c0, time.perf_counter() - w0
+    envs.close()
+    print(num * steps, cpu, wall)
     raise SystemExit(0)
 obs, info = env.reset(seed=0)
 pol = make_policy("tau-state")
@@ -95,6 +117,20 @@ def _once(src: str, case: str, steps: int) -> tuple[int, float]:
     return int(out[-2]), float(out[-1])
 
 
+def _vectors(src: str, sizes: list[int], steps: int, repeat: int) -> None:
+    """The vector cases: N = each of ``sizes`` LandingLite-v0 in one process (tree B only)."""
+    got: dict[int, list[tuple[float, float]]] = {n: [] for n in sizes}
+    for _ in range(repeat):
+        for n in sizes:
+            env_steps, cpu, wall = (float(x) for x in _run(src, f"vec{n}", steps)[-3:])
+            got[n].append((env_steps / cpu, env_steps / wall))
+            print(f"  vec N={n}: {env_steps:.0f} env-steps, {cpu:.2f} CPU-s, {wall:.2f} s wall")
+    for n, rows in got.items():
+        per_cpu = statistics.median(r[0] for r in rows)
+        per_wall = statistics.median(r[1] for r in rows)
+        print(f"vec N={n}: {per_cpu:.1f} env-steps/CPU-s, {per_wall:.1f} env-steps/s wall")
+
+
 def _resets(trees: dict[str, str], repeat: int) -> None:
     """The ``reset`` case: first reset CPU and wall, a new seed's reset CPU."""
     got: dict[str, list[tuple[float, ...]]] = {name: [] for name in trees}
@@ -123,12 +159,19 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--steps", type=int, default=150)
     ap.add_argument("--cases", default="default,imu,reset")
+    ap.add_argument(
+        "--vec",
+        default="",
+        help="N values, e.g. 1,2,4,8: LandingLite-v0's vector entry point in tree B, "
+        "--vec-steps vector steps of zero action (hold velocity) each",
+    )
+    ap.add_argument("--vec-steps", type=int, default=60)
     args = ap.parse_args()
     trees = {"A": args.a, "B": args.b}
     if args.c:
         trees["C"] = args.c
     print(f"load average at start: {os.getloadavg()}")
-    for case in args.cases.split(","):
+    for case in filter(None, args.cases.split(",")):
         if case == "reset":
             _resets(trees, args.repeat)
             continue
@@ -144,6 +187,8 @@ def main() -> None:
             for name, r in rates.items()
         )
         print(f"{case}: {figures}")
+    if args.vec:
+        _vectors(args.b, [int(n) for n in args.vec.split(",")], args.vec_steps, args.repeat)
     print(f"load average at end: {os.getloadavg()}")
 
 
