@@ -6,11 +6,14 @@
 :class:`LandingVectorEnv`: N :class:`~roslan.env.landing.LandingEnv` stepped in turn in
 this process, a :class:`gymnasium.vector.SyncVectorEnv` (its batching and its autoreset
 semantics, ``autoreset_mode`` as gymnasium 1.x documents them; default ``NEXT_STEP``)
-whose sub-environments share one scene per scene seed: the scene is built once, and with
-it one OpenGL upload (one renderer: the process's OpenGL context is one already) and one
-Embree BVH, instead of N. Each sub-environment keeps its own sensors, noise, trajectory
-and contact model, so sub-environment ``i`` reset with seed ``s`` gives the observations
-of a single environment reset with ``s`` (tested).
+whose sub-environments share one scene per scene seed (:class:`SharedScenes`, released at
+``close()``): the scene is built once, and with it one OpenGL upload (one renderer: the
+process's OpenGL context is one already) and one Embree BVH. (N separate environments in
+one process end up sharing them as well, through the scene loader's per-process cache; the
+steps run one after another either way, so the CPU per env-step is a single env's.)
+Each sub-environment keeps its own sensors, noise, trajectory and contact model, so
+sub-environment ``i`` reset with seed ``s`` gives the observations of a single
+environment reset with ``s`` (tested).
 
 Sub-environment ``i`` is ``env.envs[i]``; ``reset(seed=s)`` seeds them ``s, s + 1, ...``
 (gymnasium's convention).
