@@ -88,6 +88,21 @@ def test_inside_agrees_with_the_closed_form_and_skips_open_surfaces(tmp_path: Pa
     assert inside(scene, np.array([[5.0, 5.0, -1.0]]))[0] == -1
 
 
+@pytest.mark.parametrize("depth", [0.0, 0.05])
+def test_inside_tests_all_boxes_at_once_as_it_does_object_by_object(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, depth: float
+) -> None:
+    import roslan.scene.containment as containment
+
+    scene = load_scene(str(_scene_file(tmp_path)))
+    rng = np.random.default_rng(7)
+    p = rng.uniform([-1.0, -1.0, -0.5], [4.0, 1.0, 2.5], size=(3_000, 3))
+    batched = inside(scene, p, depth)  # 3000 points x 2 objects: one array test
+    monkeypatch.setattr(containment, "_BOX_BATCH", 0)  # object by object
+    assert np.array_equal(batched, inside(scene, p, depth))
+    assert (batched >= 0).sum() > 30
+
+
 def test_a_contact_point_on_a_surface_is_not_inside_but_one_below_it_is(tmp_path: Path) -> None:
     scene = load_scene(str(_scene_file(tmp_path)))
     top = BOX["centre"][2] + BOX["size"] / 2

@@ -111,18 +111,20 @@ class ContactModel:
         self.contacts = np.asarray(feet, dtype=np.float64).reshape(-1, 3)
         self.all_contacts = vehicle_contacts(config.vehicle)  # feet and grasp: inside tests
 
-    def height(self, t: F64) -> F64:
-        """(n,) height of the contact point above the goal's plane at instants ``t`` (s)."""
-        st = self.traj.state(t)
+    def height(self, t: F64, st: Any = None) -> F64:
+        """(n,) height of the contact point above the goal's plane at instants ``t`` (s)
+        (``st``: the trajectory's state at ``t``, if read already)."""
+        if st is None:
+            st = self.traj.state(t)
         c = st.position + np.einsum("nij,j->ni", st.R_world_body, self.c_body)
         out: F64 = (c - self.goal) @ self.normal
         return out
 
-    def _crossing(self, t0_ns: int, t1_ns: int) -> int | None:
+    def _crossing(self, t0_ns: int, t1_ns: int, t: F64, st: Any) -> int | None:
         """First instant (ns) in [t0, t1] with the contact point on (within
-        :data:`CONTACT_TOL`) or below the goal's plane."""
-        t = np.linspace(t0_ns, t1_ns, SAMPLES) * 1e-9
-        h = self.height(t)
+        :data:`CONTACT_TOL`) or below the goal's plane; ``t``: the step's samples,
+        ``st`` the state there."""
+        h = self.height(t, st)
         below = np.flatnonzero(h <= CONTACT_TOL)
         if not below.size:
             return None
@@ -142,13 +144,13 @@ class ContactModel:
     def check_step(self, t0_ns: int, t1_ns: int) -> StepEvent | None:
         """The first touchdown or collision in the step ``(t0, t1]`` (ns), or None."""
         events: list[StepEvent] = []
-        td = self._crossing(t0_ns, t1_ns)
+        t = np.linspace(t0_ns, t1_ns, SAMPLES) * 1e-9
+        st = self.traj.state(t)  # (read once: the plane crossing and the scene's tests)
+        td = self._crossing(t0_ns, t1_ns, t, st)
         if td is not None:
             events.append(StepEvent("touchdown", td, "the goal plane"))
         if self.scene is not None:
             assert self.caster is not None
-            t = np.linspace(t0_ns, t1_ns, SAMPLES) * 1e-9
-            st = self.traj.state(t)
             hit = path_hit(self.scene, self.caster, self.body, t, st.position, st.R_world_body)
             if hit is not None:
                 what = f"{self.labels[hit.point]} hit object {hit.obj!r}"

@@ -41,10 +41,13 @@ from roslan.errors import ActionError, ConfigError
 if TYPE_CHECKING:
     from roslan.env.policies import PolicyContext
 
-__all__ = ["DEFAULT_CONFIG", "PERCHING_CONFIG", "LandingEnv", "load_env_config"]
+__all__ = ["DEFAULT_CONFIG", "LITE_CONFIG", "PERCHING_CONFIG", "LandingEnv", "load_env_config"]
 
 DEFAULT_CONFIG = Path(__file__).resolve().parent.parent / "data" / "landing.yaml"
 """The configuration of ``roslan/Landing-v0`` and of ``roslan fly`` without CONFIG."""
+LITE_CONFIG = Path(__file__).resolve().parent.parent / "data" / "landing_lite.yaml"
+"""The configuration of ``roslan/LandingLite-v0``: the default landing with a 64x48 event
+camera, for training (docs/guide/closed-loop.md, "LandingLite-v0")."""
 PERCHING_CONFIG = Path(__file__).resolve().parent.parent / "data" / "perching.yaml"
 """The configuration of ``roslan/Perching-v0`` (the refinery's perching pipe)."""
 

@@ -268,7 +268,8 @@ def path_hit(
     through ``caster``, the scene's ray caster) while
     base_link goes through poses ``position`` (n, 3), ``R_world_body`` (n, 3, 3) at
     instants ``t`` (n,) (straight segments between consecutive instants); None if clear."""
-    if scene.n_triangles == 0 or t.shape[0] < 2:
+    # (any object with a triangle: the closed loop's every step need not count them all)
+    if t.shape[0] < 2 or not any(o.n_triangles for o in scene.objects):
         return None
     K = points.shape[0]
     wb = position[:, None, :] + np.einsum("nij,kj->nki", R_world_body, points)

@@ -118,17 +118,54 @@ def inside(scene: Scene, points: F64, depth: float = 0.0) -> NDArray[np.int64]:
     """
     p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
     owner = np.full(p.shape[0], -1, dtype=np.int64)
-    for obj in _candidates(scene):  # meshes built (and checked closed) only when needed
+    cands = _candidates(scene)
+    if cands and p.shape[0] * len(cands) <= _BOX_BATCH:
+        # every box at once (the same comparisons), then only the objects some point is near
+        lo, hi = _boxes(scene, cands)
+        box = np.all(p[:, None, :] >= lo - depth, axis=2) & np.all(
+            p[:, None, :] <= hi + depth, axis=2
+        )
+        for k in np.flatnonzero(box.any(axis=0)):
+            obj = cands[int(k)]
+            near = np.flatnonzero((owner < 0) & box[:, k])
+            if near.size and obj.mesh is not None:
+                _claim(obj, p, near, depth, owner)
+        return owner
+    for obj in cands:  # meshes built (and checked closed) only when needed
         near = np.flatnonzero(
             (owner < 0) & np.all(p >= obj.lo - depth, axis=1) & np.all(p <= obj.hi + depth, axis=1)
         )
         if not near.size or obj.mesh is None:
             continue
-        within = near[np.asarray(obj.mesh.contains(p[near]), dtype=bool)]
-        if depth > 0.0 and within.size:
-            within = within[_surface_distance(obj.mesh, p[within]) >= depth]
-        owner[within] = obj.index
+        _claim(obj, p, near, depth, owner)
     return owner
+
+
+_BOX_BATCH = 1 << 16
+"""Points x candidates up to which :func:`inside` tests every bounding box in one array
+operation (the closed loop's few points per step); beyond it, object by object."""
+
+_BOXES: weakref.WeakKeyDictionary[Scene, tuple[F64, F64]] = weakref.WeakKeyDictionary()
+
+
+def _boxes(scene: Scene, cands: tuple[ClosedObject, ...]) -> tuple[F64, F64]:
+    """(K, 3) lower and upper corners of the candidates' bounding boxes, cached per scene."""
+    found = _BOXES.get(scene)
+    if found is None:
+        found = (np.stack([c.lo for c in cands]), np.stack([c.hi for c in cands]))
+        _BOXES[scene] = found
+    return found
+
+
+def _claim(
+    obj: ClosedObject, p: F64, near: NDArray[np.intp], depth: float, owner: NDArray[np.int64]
+) -> None:
+    """Mark the points ``near`` (indices into ``p``) that lie inside ``obj`` (deeper than
+    ``depth``) as its own."""
+    within = near[np.asarray(obj.mesh.contains(p[near]), dtype=bool)]
+    if depth > 0.0 and within.size:
+        within = within[_surface_distance(obj.mesh, p[within]) >= depth]
+    owner[within] = obj.index
 
 
 def _surface_distance(mesh: Any, points: F64) -> F64:
