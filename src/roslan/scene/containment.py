@@ -9,12 +9,18 @@ this module finds it.
 An object has an inside only when its triangles close a volume: a **watertight** mesh
 (every edge shared by exactly two triangles once coincident vertices are merged;
 :attr:`trimesh.Trimesh.is_watertight`), such as the box, cylinder and sphere primitives
-and closed mesh files. For those, :meth:`trimesh.Trimesh.contains` decides (ray parity,
-cast with Embree through trimesh's embreex intersector, with trimesh's own handling of
-rays that graze an edge). Objects that are **not watertight** - open surfaces such as a
-ground plane or a wall quad, or meshes with holes - have no defined inside and are not
-tested: their surfaces are still hit by the path casts, but a point inside a leaky mesh
-that never crosses its surface is not reported.
+and closed mesh files. For those, the **generalized winding number** decides: the solid
+angle the object's triangles subtend at the point over 4 pi (Van Oosterom and Strackee's
+formula per triangle), 1 inside a closed surface and 0 outside, and a point counts as
+inside where it exceeds 1/2. Unlike ray parity it needs no ray that misses every edge,
+and it is exact arithmetic in a fixed order, so the same points give the same answer on
+every call (``trimesh.Trimesh.contains`` with Embree did not: 62, 60 and 56 of the same
+20,000 points on three calls, 2026-12-02). Each mesh's winding is made consistent
+(:func:`trimesh.repair.fix_winding`) and its sign taken from its volume. Objects that
+are **not watertight** - open surfaces such as a ground plane or a wall quad, or meshes
+with holes - have no defined inside and are not tested: their surfaces are still hit by
+the path casts, but a point inside a leaky mesh that never crosses its surface is not
+reported.
 
 Each point is first tested against the object's bounding box (vectorised), so only the
 few points near a closed object reach the ray test, and an object is meshed (and checked
@@ -73,7 +79,17 @@ class ClosedObject:
         mesh = trimesh.Trimesh(
             np.asarray(obj.vertices, dtype=np.float64), np.asarray(obj.faces), process=True
         )
-        return mesh if mesh.is_watertight else None
+        if not mesh.is_watertight:
+            return None
+        if not mesh.is_winding_consistent:
+            trimesh.repair.fix_winding(mesh)
+        return mesh
+
+    @cached_property
+    def triangles(self) -> F64:
+        """(T, 3, 3) the closed mesh's triangles, wound so that its volume is positive."""
+        tri = np.asarray(self.mesh.triangles, dtype=np.float64)
+        return tri if float(self.mesh.volume) >= 0.0 else tri[:, ::-1]
 
 
 class Inside(NamedTuple):
@@ -162,10 +178,37 @@ def _claim(
 ) -> None:
     """Mark the points ``near`` (indices into ``p``) that lie inside ``obj`` (deeper than
     ``depth``) as its own."""
-    within = near[np.asarray(obj.mesh.contains(p[near]), dtype=bool)]
+    within = near[winding_number(obj.triangles, p[near]) > 0.5]
     if depth > 0.0 and within.size:
         within = within[_surface_distance(obj.mesh, p[within]) >= depth]
     owner[within] = obj.index
+
+
+_WINDING_BATCH = 1 << 21
+"""Points x triangles per array operation of :func:`winding_number` (memory bound)."""
+
+
+def winding_number(triangles: F64, points: F64) -> F64:
+    """(M,) generalized winding number of each of ``points`` (M, 3) with respect to the
+    surface ``triangles`` (T, 3, 3): the signed solid angle it subtends over 4 pi (1 inside
+    a closed, outward-wound surface, 0 outside, 1/2 on it); summed in a fixed order."""
+    pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    out = np.empty(pts.shape[0])
+    step = max(1, _WINDING_BATCH // max(1, triangles.shape[0]))
+    for s in range(0, pts.shape[0], step):  # chunks of points, every triangle at once
+        q = pts[s : s + step, None, None, :]
+        d = triangles[None, :, :, :] - q  # (m, T, 3 corners, 3)
+        a, b, c = d[:, :, 0], d[:, :, 1], d[:, :, 2]
+        la, lb, lc = (np.sqrt((x * x).sum(axis=2)) for x in (a, b, c))
+        det = (a * np.cross(b, c)).sum(axis=2)
+        den = (
+            la * lb * lc
+            + (a * b).sum(axis=2) * lc
+            + (a * c).sum(axis=2) * lb
+            + (b * c).sum(axis=2) * la
+        )
+        out[s : s + step] = np.arctan2(det, den).sum(axis=1) / (2.0 * np.pi)
+    return out
 
 
 def _surface_distance(mesh: Any, points: F64) -> F64:
