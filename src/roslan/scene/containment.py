@@ -23,7 +23,7 @@ the path casts, but a point inside a leaky mesh that never crosses its surface i
 reported.
 
 Each point is first tested against the object's bounding box (vectorised), so only the
-few points near a closed object reach the ray test, and an object is meshed (and checked
+few points near a closed object reach the winding test, and an object is meshed (and checked
 watertight) only when some point lies in its box.
 """
 
