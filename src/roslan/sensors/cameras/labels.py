@@ -31,6 +31,7 @@ from __future__ import annotations
 import functools
 import json
 import weakref
+from collections.abc import Iterator
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -45,7 +46,7 @@ from roslan.sensors.cameras.remap import remap_view
 if TYPE_CHECKING:
     from roslan.render.base import FrameRenderer
     from roslan.scene.model import Scene
-    from roslan.sensors.base import SimContext
+    from roslan.sensors.base import Message, SimContext
     from roslan.sensors.cameras.model import CameraModel, RenderPlan
 
 __all__ = [
@@ -54,6 +55,7 @@ __all__ = [
     "EyeLabels",
     "coco_annotations",
     "instance_boxes",
+    "label_messages",
     "label_topics",
     "surface_samples",
 ]
@@ -77,6 +79,36 @@ def label_topics(topic: str) -> list[tuple[str, str]]:
         (f"{topic}/instance", IMAGE),
         (f"{topic}/detections", DETECTION2D_ARRAY),
     ]
+
+
+def label_messages(
+    t_ns: int,
+    stamp: int,
+    seq: int,
+    topic: str,
+    frame: str,
+    sem: U16,
+    inst: U16,
+    dets: tuple[Any, Any, Any],
+) -> Iterator[Message]:
+    """The bag messages of one labelled frame of a camera (eye) publishing under
+    ``topic`` (:func:`label_topics`): its semantic and instance images (mono16) and its
+    Detection2DArray of ``dets`` = (boxes (N, 4) x, y, w, h; class ids; instance ids).
+    Used by the frame, stereo and depth cameras and by the event camera's APS frames."""
+    from roslan.io.vision import DETECTION2D_ARRAY, detection2d_array
+    from roslan.sensors.base import Message
+
+    boxes, classes, insts = dets
+
+    def image(data: U16, store: Any) -> Any:
+        return store.image(frame, stamp, data, MONO16, seq)
+
+    def detections(store: Any) -> Any:
+        return detection2d_array(store, stamp, frame, boxes, classes, insts)
+
+    yield Message(t_ns, f"{topic}/semantic", IMAGE, functools.partial(image, sem))
+    yield Message(t_ns, f"{topic}/instance", IMAGE, functools.partial(image, inst))
+    yield Message(t_ns, f"{topic}/detections", DETECTION2D_ARRAY, detections)
 
 
 _SAMPLES: weakref.WeakKeyDictionary[Scene, tuple[F64, NDArray[np.int64]]] = (
@@ -413,9 +445,6 @@ class CameraLabels:
 
     def messages(self, ctx: SimContext, t_ns: int, seq: int, recs: list[dict[str, Any]]) -> Any:
         """The bag messages of frame ``seq`` (in frame order) and its COCO entries kept."""
-        from roslan.io.vision import DETECTION2D_ARRAY, detection2d_array
-        from roslan.sensors.base import Message
-
         stamp = ctx.stamp(t_ns)
         for (e, lab), rec in zip(self.eyes, recs, strict=True):
             lab.add(rec)
@@ -423,20 +452,10 @@ class CameraLabels:
             boxes = np.array([a["bbox"] for a in anns], dtype=np.float64).reshape(-1, 4)
             classes = np.array([a["category_id"] for a in anns], dtype=np.int64)
             insts = np.array([a["instance_id"] for a in anns], dtype=np.int64)
-            frame = e.frame
-
-            def image(data: U16, store: Any, frame: str = frame) -> Any:
-                return store.image(frame, stamp, data, MONO16, seq)
-
-            def dets(
-                store: Any, b: Any = boxes, c: Any = classes, k: Any = insts, f: str = frame
-            ) -> Any:
-                return detection2d_array(store, stamp, f, b, c, k)
-
-            sem, inst = rec["semantic"], rec["instance"]
-            yield Message(t_ns, f"{e.topic}/semantic", IMAGE, functools.partial(image, sem))
-            yield Message(t_ns, f"{e.topic}/instance", IMAGE, functools.partial(image, inst))
-            yield Message(t_ns, f"{e.topic}/detections", DETECTION2D_ARRAY, dets)
+            yield from label_messages(
+                t_ns, stamp, seq, e.topic, e.frame, rec["semantic"], rec["instance"],
+                (boxes, classes, insts),
+            )  # fmt: skip
 
     def close(self, ctx: SimContext) -> None:
         for _, lab in self.eyes:
