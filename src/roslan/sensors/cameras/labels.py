@@ -156,27 +156,27 @@ def surface_samples(scene: Scene) -> tuple[F64, NDArray[np.int64]]:
 
 def instance_boxes(inst: U16) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.int64]]:
     """The instances in ``inst`` (ids > 0, ascending), their pixel counts and tight boxes
-    ``(x0, y0, x1, y1)`` (inclusive pixel indices), vectorised."""
-    h, w = inst.shape
-    flat = inst.reshape(-1).astype(np.int64)
-    ids, counts = np.unique(flat, return_counts=True)
+    ``(x0, y0, x1, y1)`` (inclusive pixel indices), vectorised: one stable sort of the
+    pixels by id (row-major order kept within an id: its first pixel has the smallest row,
+    its last the largest), the columns' extremes reduced per id."""
+    w = inst.shape[1]
+    flat = inst.reshape(-1)
+    order = np.argsort(flat, kind="stable")  # (a radix sort for uint16)
+    ids_sorted = flat[order]
+    starts = np.flatnonzero(np.concatenate([[True], ids_sorted[1:] != ids_sorted[:-1]]))
+    ends = np.concatenate([starts[1:], [flat.size]])
+    ids = ids_sorted[starts].astype(np.int64)
     keep = ids > 0
-    ids, counts = ids[keep], counts[keep]
-    if ids.size == 0:
-        return ids, counts, np.zeros((0, 4), dtype=np.int64)
-    size = int(ids[-1]) + 1
-    rows = np.repeat(np.arange(h), w)
-    cols = np.tile(np.arange(w), h)
-    x0 = np.full(size, w)
-    y0 = np.full(size, h)
-    x1 = np.full(size, -1)
-    y1 = np.full(size, -1)
-    np.minimum.at(x0, flat, cols)
-    np.minimum.at(y0, flat, rows)
-    np.maximum.at(x1, flat, cols)
-    np.maximum.at(y1, flat, rows)
-    boxes = np.stack([x0[ids], y0[ids], x1[ids], y1[ids]], axis=1)
-    return ids, counts, boxes
+    if not keep.any():
+        e = np.zeros(0, dtype=np.int64)
+        return e, e.copy(), np.zeros((0, 4), dtype=np.int64)
+    cols = (order % w).astype(np.int64)
+    x0 = np.minimum.reduceat(cols, starts)
+    x1 = np.maximum.reduceat(cols, starts)
+    y0 = order[starts] // w
+    y1 = order[ends - 1] // w
+    boxes = np.stack([x0, y0, x1, y1], axis=1).astype(np.int64)[keep]
+    return ids[keep], (ends - starts).astype(np.int64)[keep], boxes
 
 
 def _runs(inst: U16) -> dict[int, list[int]]:
@@ -215,11 +215,16 @@ def coco_annotations(
     runs = _runs(inst)
     h, w = inst.shape
     out = []
-    for j, (k, n, (x0, y0, x1, y1)) in enumerate(
-        zip(ids.tolist(), counts.tolist(), boxes.tolist(), strict=True)
+    # COCO's column-major RLE of each mask, compressed by pycocotools (one call for all)
+    keys = ids.tolist()
+    rles = (
+        mask_utils.frPyObjects([{"size": [h, w], "counts": runs[k]} for k in keys], h, w)
+        if keys
+        else []
+    )
+    for j, (k, n, (x0, y0, x1, y1), rle) in enumerate(
+        zip(keys, counts.tolist(), boxes.tolist(), rles, strict=True)
     ):
-        # COCO's column-major RLE of the mask, compressed by pycocotools
-        rle = mask_utils.frPyObjects({"size": [h, w], "counts": runs[k]}, h, w)
         ann: dict[str, Any] = {
             "id": first_id + j,
             "image_id": image_id,
@@ -345,16 +350,16 @@ class EyeLabels:
         n_front = np.bincount(ids[front], minlength=size)
         n_in = np.bincount(ids[inside], minlength=size)
         n_seen = np.bincount(ids[seen], minlength=size)
+        ks = np.unique(inst).astype(np.int64)
+        ks = ks[(ks > 0) & (ks < size)]
         out = {}
-        for k in np.unique(inst).tolist():
-            if k == 0 or k >= size:
-                continue
-            vis = n_seen[k] / n_in[k] if n_in[k] else 0.0
-            trunc = 1.0 - n_in[k] / n_front[k] if n_front[k] else 0.0
-            out[int(k)] = {
-                "visible_fraction": round(float(vis), 4),
-                "truncated": round(float(trunc), 4),
-            }
+        for k, s, i, f in zip(
+            ks.tolist(), n_seen[ks].tolist(), n_in[ks].tolist(), n_front[ks].tolist(),
+            strict=True,
+        ):  # fmt: skip
+            vis = s / i if i else 0.0
+            trunc = 1.0 - i / f if f else 0.0
+            out[k] = {"visible_fraction": round(vis, 4), "truncated": round(trunc, 4)}
         return out
 
     def add(self, record: dict[str, Any]) -> None:
