@@ -266,3 +266,20 @@ def test_label_rate_must_be_positive() -> None:
                 SimConfig,
                 {"sensors": [{"type": "event_camera", "name": "d", "rate": 10, "label_rate": bad}]},
             )
+
+
+def test_dry_run_counts_the_aps_label_files(run: Path) -> None:
+    from roslan.pipeline.estimate import estimate_run
+
+    files = [
+        p
+        for p in run.rglob("*")
+        if p.is_file()
+        and (p.name in ("tracks.npy", "classes.json", "instances.json")
+             or p.parent.name in ("instance", "semantic"))
+    ]  # fmt: skip
+    duration = json.loads((run / "run.json").read_text())["trajectory_duration_s"]
+    est = estimate_run(SimConfig.model_validate(JOB), duration=duration)
+    assert abs(est.label_files - len(files)) <= 0.1 * len(files), (est.label_files, len(files))
+    actual = sum(p.stat().st_size for p in files)
+    assert 0.5 * actual <= est.parts["labels"] <= 4.0 * actual
