@@ -5,6 +5,7 @@ the APS instance images, and the noise class of the generator's noise events."""
 from __future__ import annotations
 
 import json
+import subprocess
 from pathlib import Path
 from typing import Any
 
@@ -33,7 +34,12 @@ JOB: dict[str, Any] = {
         "initial": {"position": [-1.0, 0.5, 1.5], "rpy": [0.0, 0.0, 0.2], "descent_rate": 5.0},
         "hold": 0.0,
     },
-    "output": {"labels": True, "workers": 0, "formats": ["ros2"], "ground_truth_rate": 1000.0},
+    "output": {
+        "labels": True,
+        "workers": 0,
+        "formats": ["ros1", "ros2"],
+        "ground_truth_rate": 1000.0,
+    },
     "sensors": [
         {
             "type": "event_camera",
@@ -147,6 +153,77 @@ def test_tracks_are_dsec_det_boxes_of_the_aps_instance_images(run: Path) -> None
             assert r["class_confidence"] == 1.0
 
 
+def _tight_boxes(inst: np.ndarray) -> list[tuple[float, float, float, float, int]]:
+    """Per instance id of ``inst`` (ascending): its tight box's centre and size, its id."""
+    out = []
+    for k in np.unique(inst[inst > 0]).tolist():
+        ys, xs = np.nonzero(inst == k)
+        w, h = xs.max() - xs.min() + 1, ys.max() - ys.min() + 1
+        out.append((xs.min() + w / 2, ys.min() + h / 2, float(w), float(h), k))
+    return out
+
+
+def test_aps_label_topics_decode_in_both_bags(run: Path) -> None:
+    from rosbags.highlevel import AnyReader
+
+    instances = {i["id"]: i["class_id"] for i in json.loads((run / "instances.json").read_text())}
+    n_aps = len((run / "images.txt").read_text().split()) // 2
+    for bag in (run / "landing.bag", run / "landing_ros2"):
+        with AnyReader([bag]) as reader:
+            conns = [c for c in reader.connections if c.topic.startswith("/dvs/")]
+            types = {c.topic: c.msgtype for c in conns}
+            assert types["/dvs/detections"] == "vision_msgs/msg/Detection2DArray"
+            assert types["/dvs/instance"] == types["/dvs/semantic"] == "sensor_msgs/msg/Image"
+            seen = {"/dvs/instance": 0, "/dvs/semantic": 0, "/dvs/detections": 0}
+            for conn, _, raw in reader.messages(connections=conns):
+                if conn.topic not in seen:
+                    continue
+                msg = reader.deserialize(raw, conn.msgtype)
+                k = seen[conn.topic]
+                seen[conn.topic] += 1
+                folder = "semantic" if conn.topic == "/dvs/semantic" else "instance"
+                png = cv2.imread(str(run / folder / f"{k:08d}.png"), cv2.IMREAD_UNCHANGED)
+                assert msg.header.frame_id.endswith("_optical")
+                if conn.topic != "/dvs/detections":
+                    assert msg.encoding == "mono16"
+                    img = np.frombuffer(msg.data, "<u2").reshape(msg.height, msg.width)
+                    np.testing.assert_array_equal(img, png)
+                    continue
+                hyps = [x.results[0] for x in msg.detections]
+                cls = [int(r.id if hasattr(r, "id") else r.hypothesis.class_id) for r in hyps]
+                got = [
+                    (x.bbox.center.x, x.bbox.center.y) if hasattr(x.bbox.center, "x")
+                    else (x.bbox.center.position.x, x.bbox.center.position.y)
+                    for x in msg.detections
+                ]  # fmt: skip
+                sizes = [(x.bbox.size_x, x.bbox.size_y) for x in msg.detections]
+                want = _tight_boxes(png)
+                assert got == [(b[0], b[1]) for b in want]
+                assert sizes == [(b[2], b[3]) for b in want]
+                assert cls == [instances[b[4]] for b in want]
+            assert seen == dict.fromkeys(seen, n_aps), seen
+
+
+@pytest.mark.ros1
+def test_ros1_own_reader_decodes_the_aps_detections(run: Path) -> None:
+    from tests.io.test_vision_msgs import _READ, _debian_python
+
+    py = _debian_python()
+    script = _READ.replace("read_messages()", "read_messages(topics=['/dvs/detections'])")
+    proc = subprocess.run(
+        [py, "-c", script, str(run / "landing.bag")], capture_output=True, text=True, timeout=120
+    )
+    assert proc.returncode == 0, proc.stderr
+    row = json.loads(proc.stdout)["/dvs/detections"]  # the last APS frame's
+    assert row["type"] == "vision_msgs/Detection2DArray"
+    assert row["md5"] == row["conn_md5"]
+    n_aps = len((run / "images.txt").read_text().split()) // 2
+    png = cv2.imread(str(run / "instance" / f"{n_aps - 1:08d}.png"), cv2.IMREAD_UNCHANGED)
+    instances = {i["id"]: i["class_id"] for i in json.loads((run / "instances.json").read_text())}
+    expected = [[cx, cy, 0.0, w, h, instances[k], 1.0] for cx, cy, w, h, k in _tight_boxes(png)]
+    assert row["boxes"] == expected
+
+
 def _params(**over: float) -> Any:
     from roslan.sensors.cameras.event_config import EventCameraConfig
 
@@ -189,3 +266,20 @@ def test_label_rate_must_be_positive() -> None:
                 SimConfig,
                 {"sensors": [{"type": "event_camera", "name": "d", "rate": 10, "label_rate": bad}]},
             )
+
+
+def test_dry_run_counts_the_aps_label_files(run: Path) -> None:
+    from roslan.pipeline.estimate import estimate_run
+
+    files = [
+        p
+        for p in run.rglob("*")
+        if p.is_file()
+        and (p.name in ("tracks.npy", "classes.json", "instances.json")
+             or p.parent.name in ("instance", "semantic"))
+    ]  # fmt: skip
+    duration = json.loads((run / "run.json").read_text())["trajectory_duration_s"]
+    est = estimate_run(SimConfig.model_validate(JOB), duration=duration)
+    assert abs(est.label_files - len(files)) <= 0.1 * len(files), (est.label_files, len(files))
+    actual = sum(p.stat().st_size for p in files)
+    assert 0.5 * actual <= est.parts["labels"] <= 4.0 * actual

@@ -175,8 +175,9 @@ def _flow_maps(s: Any, duration: float) -> int:
 
 
 def _camera_labels(kind: str, n: float, w: int, h: int) -> tuple[int, float, float, float]:
-    """A labelled frame/stereo/depth camera of ``n`` frames: (files, disk bytes, raw
-    mono16 bag bytes of ``<topic>/semantic`` and ``/instance``, raw detection bytes)."""
+    """A labelled frame/stereo/depth camera (or event camera's APS frames) of ``n`` frames:
+    (files, disk bytes, raw mono16 bag bytes of ``<topic>/semantic`` and ``/instance``,
+    raw detection bytes)."""
     eyes = 2 if kind == "stereo_camera" else 1
     frames = eyes * (math.floor(n + 1e-9) + 1)  # stamps from t = 0 on
     files = 2 * frames + eyes  # two PNGs a frame, annotations.json
@@ -259,6 +260,14 @@ def estimate_run(
                 if getattr(s, "aps", None) is not False:
                     bag("mono", n * w * h)
                     add("images", n * w * h * _PNG_RATIO["mono"])
+                    if getattr(s, "writes_labels", False):
+                        # the APS frames' id PNGs and bag topics, as a frame camera's
+                        # (tracks.npy in place of annotations.json)
+                        files, disk, mono, small = _camera_labels(t, n, w, h)
+                        label_files += files
+                        add("labels", disk)
+                        bag("mono", mono)
+                        bag("small", small)
                 # adaptive sampling runs near max_rate through most of a landing
                 samples = duration * (0.2 * float(s.min_rate) + 0.8 * float(s.max_rate))  # type: ignore[attr-defined]
                 spend(s, samples * mpix * _CPU_PER_MPIX_SAMPLE + events * _CPU_PER_EVENT)

@@ -177,6 +177,10 @@ class EventCamera:
         ]
         if c.has_aps:
             out.append(TopicSpec(f"{t}/image_raw", "sensor_msgs/msg/Image"))
+            if getattr(c, "writes_labels", False):
+                from roslan.sensors.cameras.labels import label_topics
+
+                out += [TopicSpec(n, m) for n, m in label_topics(t)]
         if c.event_image:
             out.append(TopicSpec(f"{t}/event_image", "sensor_msgs/msg/Image"))
         if c.optic_flow:

@@ -14,7 +14,8 @@
   ``x, y, w, h`` the tight box of the instance's pixels (top-left corner, pixels),
   ``class_id``, ``class_confidence`` 1, ``track_id`` the instance id.
 - The APS frames get ``instance/<frame>.png`` and ``semantic/<frame>.png`` (uint16) from
-  the same ray-cast image at the frame's instant.
+  the same ray-cast image at the frame's instant, and the bag topics of a frame camera's
+  labels: ``<topic>/semantic``, ``<topic>/instance`` (mono16) and ``<topic>/detections``.
 
 The id images are ray cast through every pixel's own ray (pixel centre), so they are the
 distorted view exactly; the rays, poses and per-triangle table are those of every other
@@ -33,11 +34,11 @@ from roslan.io.files import atomic_write_bytes
 from roslan.io.images import write_png
 from roslan.scene.classes import NOISE_CLASS_ID
 from roslan.scene.instances import scene_labels
-from roslan.sensors.cameras.labels import instance_boxes
+from roslan.sensors.cameras.labels import instance_boxes, label_messages
 
 if TYPE_CHECKING:
     from roslan.events.model import EventBatch
-    from roslan.sensors.base import SimContext
+    from roslan.sensors.base import Message, SimContext
 
 __all__ = ["TRACKS_DTYPE", "EventLabels"]
 
@@ -84,6 +85,12 @@ class EventLabels:
         self.write_files = ctx.files is not None
         self.t_prev: int | None = None
         self.aps_index = 0
+        self.topic, self.frame = sensor.config.topic, sensor.optical_frame
+        n = len(labels.instances)
+        self.inst_class = np.zeros(n + 1, dtype=np.uint16)  # instance id -> class id
+        for i in labels.instances:
+            self.inst_class[i.id] = i.class_id
+        self._cached: tuple[int, NDArray[np.uint16], NDArray[np.uint16]] | None = None
 
     def _cast(self, t_ns: int, pix: NDArray[np.int64]) -> U32:
         """The codes of the surfaces pixels ``pix`` (flat indices) see at ``t_ns``."""
@@ -111,27 +118,44 @@ class EventLabels:
             out[noise] = NOISE_CLASS_ID
         return out
 
-    def instant(self, t_ns: int, aps: bool) -> None:
+    def instant(self, t_ns: int, aps: bool) -> list[Message]:
         """After the render ``t_ns``: the label instants up to it (tracks rows) and, for
-        an APS frame at ``t_ns`` (``aps``), its instance and semantic PNGs."""
+        an APS frame at ``t_ns`` (``aps``), its instance and semantic PNGs and its bag
+        messages (:func:`~.labels.label_messages`, as a frame camera's)."""
         times = self.label_times
         while self.next_label < times.size and times[self.next_label] <= t_ns:
             self._track(int(times[self.next_label]))
             self.next_label += 1
+        out: list[Message] = []
         if aps:
+            inst, sem = self._images(t_ns)
             if self.write_files:
-                inst, sem = self._images(t_ns)
                 name = f"{self.aps_index:08d}.png"
                 write_png(self.ctx.path(f"{self.folder}instance/{name}"), inst)
                 write_png(self.ctx.path(f"{self.folder}semantic/{name}"), sem)
+            ids, _, b = instance_boxes(inst)
+            boxes = np.column_stack([b[:, :2], b[:, 2:] - b[:, :2] + 1]).astype(np.float64)
+            dets = (boxes, self.inst_class[ids].astype(np.int64), ids)
+            out += label_messages(
+                t_ns, self.ctx.stamp(t_ns), self.aps_index, self.topic, self.frame, sem, inst,
+                dets,
+            )  # fmt: skip
             self.aps_index += 1
         self.t_prev = t_ns
+        self._cached = None
+        return out
 
     def _images(self, t_ns: int) -> tuple[NDArray[np.uint16], NDArray[np.uint16]]:
+        """The instance and semantic images at ``t_ns`` (one full-frame cast per instant:
+        a label instant that is also an APS instant reuses it)."""
+        if self._cached is not None and self._cached[0] == t_ns:
+            return self._cached[1], self._cached[2]
         code = self._cast(t_ns, np.arange(self.width * self.height)).reshape(
             self.height, self.width
         )
-        return (code >> 16).astype(np.uint16), (code & 0xFFFF).astype(np.uint16)
+        inst, sem = (code >> 16).astype(np.uint16), (code & 0xFFFF).astype(np.uint16)
+        self._cached = (t_ns, inst, sem)
+        return inst, sem
 
     def _track(self, t_ns: int) -> None:
         inst, sem = self._images(t_ns)

@@ -177,7 +177,7 @@ class AfterRender:
                     sink.submit(s._write_image, ctx, t, aps, self.image_index)
                 self.image_index += 1
         if self.labels is not None:
-            self.labels.instant(t, aps=c.has_aps and t in self.info_set)
+            out += self.labels.instant(t, aps=c.has_aps and t in self.info_set)
         if t in self.gt_set:
             out += s._truth_msgs(ctx, t, flow, depth, self.gt_times, self.gt_rate)
         if s.flow_truth is not None:  # (a map starts after the first event)

@@ -31,6 +31,7 @@ from __future__ import annotations
 import functools
 import json
 import weakref
+from collections.abc import Iterator
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -45,7 +46,7 @@ from roslan.sensors.cameras.remap import remap_view
 if TYPE_CHECKING:
     from roslan.render.base import FrameRenderer
     from roslan.scene.model import Scene
-    from roslan.sensors.base import SimContext
+    from roslan.sensors.base import Message, SimContext
     from roslan.sensors.cameras.model import CameraModel, RenderPlan
 
 __all__ = [
@@ -54,6 +55,7 @@ __all__ = [
     "EyeLabels",
     "coco_annotations",
     "instance_boxes",
+    "label_messages",
     "label_topics",
     "surface_samples",
 ]
@@ -77,6 +79,36 @@ def label_topics(topic: str) -> list[tuple[str, str]]:
         (f"{topic}/instance", IMAGE),
         (f"{topic}/detections", DETECTION2D_ARRAY),
     ]
+
+
+def label_messages(
+    t_ns: int,
+    stamp: int,
+    seq: int,
+    topic: str,
+    frame: str,
+    sem: U16,
+    inst: U16,
+    dets: tuple[Any, Any, Any],
+) -> Iterator[Message]:
+    """The bag messages of one labelled frame of a camera (eye) publishing under
+    ``topic`` (:func:`label_topics`): its semantic and instance images (mono16) and its
+    Detection2DArray of ``dets`` = (boxes (N, 4) x, y, w, h; class ids; instance ids).
+    Used by the frame, stereo and depth cameras and by the event camera's APS frames."""
+    from roslan.io.vision import DETECTION2D_ARRAY, detection2d_array
+    from roslan.sensors.base import Message
+
+    boxes, classes, insts = dets
+
+    def image(data: U16, store: Any) -> Any:
+        return store.image(frame, stamp, data, MONO16, seq)
+
+    def detections(store: Any) -> Any:
+        return detection2d_array(store, stamp, frame, boxes, classes, insts)
+
+    yield Message(t_ns, f"{topic}/semantic", IMAGE, functools.partial(image, sem))
+    yield Message(t_ns, f"{topic}/instance", IMAGE, functools.partial(image, inst))
+    yield Message(t_ns, f"{topic}/detections", DETECTION2D_ARRAY, detections)
 
 
 _SAMPLES: weakref.WeakKeyDictionary[Scene, tuple[F64, NDArray[np.int64]]] = (
@@ -124,27 +156,27 @@ def surface_samples(scene: Scene) -> tuple[F64, NDArray[np.int64]]:
 
 def instance_boxes(inst: U16) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.int64]]:
     """The instances in ``inst`` (ids > 0, ascending), their pixel counts and tight boxes
-    ``(x0, y0, x1, y1)`` (inclusive pixel indices), vectorised."""
-    h, w = inst.shape
-    flat = inst.reshape(-1).astype(np.int64)
-    ids, counts = np.unique(flat, return_counts=True)
+    ``(x0, y0, x1, y1)`` (inclusive pixel indices), vectorised: one stable sort of the
+    pixels by id (row-major order kept within an id: its first pixel has the smallest row,
+    its last the largest), the columns' extremes reduced per id."""
+    w = inst.shape[1]
+    flat = inst.reshape(-1)
+    order = np.argsort(flat, kind="stable")  # (a radix sort for uint16)
+    ids_sorted = flat[order]
+    starts = np.flatnonzero(np.concatenate([[True], ids_sorted[1:] != ids_sorted[:-1]]))
+    ends = np.concatenate([starts[1:], [flat.size]])
+    ids = ids_sorted[starts].astype(np.int64)
     keep = ids > 0
-    ids, counts = ids[keep], counts[keep]
-    if ids.size == 0:
-        return ids, counts, np.zeros((0, 4), dtype=np.int64)
-    size = int(ids[-1]) + 1
-    rows = np.repeat(np.arange(h), w)
-    cols = np.tile(np.arange(w), h)
-    x0 = np.full(size, w)
-    y0 = np.full(size, h)
-    x1 = np.full(size, -1)
-    y1 = np.full(size, -1)
-    np.minimum.at(x0, flat, cols)
-    np.minimum.at(y0, flat, rows)
-    np.maximum.at(x1, flat, cols)
-    np.maximum.at(y1, flat, rows)
-    boxes = np.stack([x0[ids], y0[ids], x1[ids], y1[ids]], axis=1)
-    return ids, counts, boxes
+    if not keep.any():
+        e = np.zeros(0, dtype=np.int64)
+        return e, e.copy(), np.zeros((0, 4), dtype=np.int64)
+    cols = (order % w).astype(np.int64)
+    x0 = np.minimum.reduceat(cols, starts)
+    x1 = np.maximum.reduceat(cols, starts)
+    y0 = order[starts] // w
+    y1 = order[ends - 1] // w
+    boxes = np.stack([x0, y0, x1, y1], axis=1).astype(np.int64)[keep]
+    return ids[keep], (ends - starts).astype(np.int64)[keep], boxes
 
 
 def _runs(inst: U16) -> dict[int, list[int]]:
@@ -183,11 +215,16 @@ def coco_annotations(
     runs = _runs(inst)
     h, w = inst.shape
     out = []
-    for j, (k, n, (x0, y0, x1, y1)) in enumerate(
-        zip(ids.tolist(), counts.tolist(), boxes.tolist(), strict=True)
+    # COCO's column-major RLE of each mask, compressed by pycocotools (one call for all)
+    keys = ids.tolist()
+    rles = (
+        mask_utils.frPyObjects([{"size": [h, w], "counts": runs[k]} for k in keys], h, w)
+        if keys
+        else []
+    )
+    for j, (k, n, (x0, y0, x1, y1), rle) in enumerate(
+        zip(keys, counts.tolist(), boxes.tolist(), rles, strict=True)
     ):
-        # COCO's column-major RLE of the mask, compressed by pycocotools
-        rle = mask_utils.frPyObjects({"size": [h, w], "counts": runs[k]}, h, w)
         ann: dict[str, Any] = {
             "id": first_id + j,
             "image_id": image_id,
@@ -313,16 +350,16 @@ class EyeLabels:
         n_front = np.bincount(ids[front], minlength=size)
         n_in = np.bincount(ids[inside], minlength=size)
         n_seen = np.bincount(ids[seen], minlength=size)
+        ks = np.unique(inst).astype(np.int64)
+        ks = ks[(ks > 0) & (ks < size)]
         out = {}
-        for k in np.unique(inst).tolist():
-            if k == 0 or k >= size:
-                continue
-            vis = n_seen[k] / n_in[k] if n_in[k] else 0.0
-            trunc = 1.0 - n_in[k] / n_front[k] if n_front[k] else 0.0
-            out[int(k)] = {
-                "visible_fraction": round(float(vis), 4),
-                "truncated": round(float(trunc), 4),
-            }
+        for k, s, i, f in zip(
+            ks.tolist(), n_seen[ks].tolist(), n_in[ks].tolist(), n_front[ks].tolist(),
+            strict=True,
+        ):  # fmt: skip
+            vis = s / i if i else 0.0
+            trunc = 1.0 - i / f if f else 0.0
+            out[k] = {"visible_fraction": round(vis, 4), "truncated": round(trunc, 4)}
         return out
 
     def add(self, record: dict[str, Any]) -> None:
@@ -413,9 +450,6 @@ class CameraLabels:
 
     def messages(self, ctx: SimContext, t_ns: int, seq: int, recs: list[dict[str, Any]]) -> Any:
         """The bag messages of frame ``seq`` (in frame order) and its COCO entries kept."""
-        from roslan.io.vision import DETECTION2D_ARRAY, detection2d_array
-        from roslan.sensors.base import Message
-
         stamp = ctx.stamp(t_ns)
         for (e, lab), rec in zip(self.eyes, recs, strict=True):
             lab.add(rec)
@@ -423,20 +457,10 @@ class CameraLabels:
             boxes = np.array([a["bbox"] for a in anns], dtype=np.float64).reshape(-1, 4)
             classes = np.array([a["category_id"] for a in anns], dtype=np.int64)
             insts = np.array([a["instance_id"] for a in anns], dtype=np.int64)
-            frame = e.frame
-
-            def image(data: U16, store: Any, frame: str = frame) -> Any:
-                return store.image(frame, stamp, data, MONO16, seq)
-
-            def dets(
-                store: Any, b: Any = boxes, c: Any = classes, k: Any = insts, f: str = frame
-            ) -> Any:
-                return detection2d_array(store, stamp, f, b, c, k)
-
-            sem, inst = rec["semantic"], rec["instance"]
-            yield Message(t_ns, f"{e.topic}/semantic", IMAGE, functools.partial(image, sem))
-            yield Message(t_ns, f"{e.topic}/instance", IMAGE, functools.partial(image, inst))
-            yield Message(t_ns, f"{e.topic}/detections", DETECTION2D_ARRAY, dets)
+            yield from label_messages(
+                t_ns, stamp, seq, e.topic, e.frame, rec["semantic"], rec["instance"],
+                (boxes, classes, insts),
+            )  # fmt: skip
 
     def close(self, ctx: SimContext) -> None:
         for _, lab in self.eyes:
