@@ -16,7 +16,10 @@ policy that reports one (``policy.estimate``) against the true one over time, th
 attitude-estimate error, and the touchdown vertical speeds per policy.
 
 ``ablation``: ``tau-events`` on ``roslan/Landing-v0`` with every error source at zero but
-one, at 1x and 2x its default, ``--seeds`` seeds per row.
+one, at 1x and 2x its default, ``--seeds`` seeds per row; all episodes in one pool of
+``--jobs`` processes (the 1x rows first), ``--json`` rewritten after each episode (a
+stopped run keeps what it flew; run again, it flies only the missing episodes). It
+prints the markdown table; it writes no docs.
 
 ``speed``: the CPU (user + system, this process and its children) of ``roslan fly`` with
 ``tau-state`` against ``roslan simulate`` on the same config (same sensors, the
