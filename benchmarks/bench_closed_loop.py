@@ -422,8 +422,9 @@ def ablation(args: argparse.Namespace) -> None:
     """Each error source alone at 1x and 2x its default (``--seeds`` seeds each).
 
     All episodes go to one pool of ``--jobs`` processes (no core idles at a row's end),
-    the 1x rows before the 2x ones, and ``--json`` is rewritten after every episode, so
-    a stopped run leaves every finished episode (a rerun flies only the missing ones)."""
+    the 1x rows before the 2x ones (``--first``: these rows before all), and ``--json``
+    is rewritten after every episode, so a stopped run leaves every finished episode (a
+    rerun flies only the missing ones)."""
     import multiprocessing as mp
     from concurrent.futures import ProcessPoolExecutor, as_completed
 
@@ -432,6 +433,12 @@ def ablation(args: argparse.Namespace) -> None:
         out = json.loads(Path(args.json).read_text())
     rows = ablation_rows()
     order = sorted(rows, key=lambda r: r[2] > 1.0)  # none and 1x first, then 2x
+    first = [x.strip() for x in (args.first or "").split(",") if x.strip()]
+    labels = [r[0] for r in rows]
+    unknown = [x for x in first if x not in labels]
+    if unknown:
+        raise SystemExit(f"--first: {unknown}: no such row (allowed: {', '.join(labels)})")
+    order = sorted(order, key=lambda r: first.index(r[0]) if r[0] in first else len(first))
     seeds = list(range(args.first_seed, args.first_seed + args.seeds))
     jobs = [
         (label, key, m, seed)
@@ -566,6 +573,7 @@ def main() -> None:
     c.add_argument("--first-seed", type=int, default=0)
     c.add_argument("--jobs", type=int, default=1)
     c.add_argument("--json", default=str(Path(tempfile.gettempdir()) / "ablation.json"))
+    c.add_argument("--first", default=None, help="comma-separated row labels to fly first")
     c.set_defaults(func=ablation)
     b = sub.add_parser("speed")
     b.add_argument("--config", default=None)
