@@ -16,7 +16,10 @@ policy that reports one (``policy.estimate``) against the true one over time, th
 attitude-estimate error, and the touchdown vertical speeds per policy.
 
 ``ablation``: ``tau-events`` on ``roslan/Landing-v0`` with every error source at zero but
-one, at 1x and 2x its default, ``--seeds`` seeds per row.
+one, at 1x and 2x its default, ``--seeds`` seeds per row; all episodes in one pool of
+``--jobs`` processes (the 1x rows first), ``--json`` rewritten after each episode (a
+stopped run keeps what it flew; run again, it flies only the missing episodes). It
+prints the markdown table; it writes no docs.
 
 ``speed``: the CPU (user + system, this process and its children) of ``roslan fly`` with
 ``tau-state`` against ``roslan simulate`` on the same config (same sensors, the
@@ -408,21 +411,56 @@ def ablation_config(key: str | None, scale: float) -> dict[str, Any]:
 ABLATION_SOURCES_IMU = ("accelerometer_turn_on_bias_sigma", "gyroscope_turn_on_bias_sigma")
 
 
+def ablation_rows() -> list[tuple[str, str | None, float]]:
+    """(label, key, scale) of every ablation row, in table order."""
+    rows: list[tuple[str, str | None, float]] = [("none (all zero)", None, 0.0)]
+    rows += [(f"{label} {m:g}x", key, m) for label, key in ABLATION_SOURCES for m in (1.0, 2.0)]
+    return rows
+
+
 def ablation(args: argparse.Namespace) -> None:
-    """Each error source alone at 1x and 2x its default (``--seeds`` seeds each)."""
+    """Each error source alone at 1x and 2x its default (``--seeds`` seeds each).
+
+    All episodes go to one pool of ``--jobs`` processes (no core idles at a row's end),
+    the 1x rows before the 2x ones (``--first``: these rows before all), and ``--json``
+    is rewritten after every episode, so a stopped run leaves every finished episode (a
+    rerun flies only the missing ones)."""
+    import multiprocessing as mp
+    from concurrent.futures import ProcessPoolExecutor, as_completed
+
     out: dict[str, list[dict[str, Any]]] = {}
     if Path(args.json).exists():
         out = json.loads(Path(args.json).read_text())
-    rows = [("none (all zero)", None, 0.0)]
-    rows += [(f"{label} {m:g}x", key, m) for label, key in ABLATION_SOURCES for m in (1.0, 2.0)]
-    for label, key, m in rows:
-        if label in out:
-            continue
-        cfg = ablation_config(key, m)
-        seeds = range(args.first_seed, args.first_seed + args.seeds)
-        out[label] = _fly_many(cfg, "tau-events", seeds, args.jobs)
-        Path(args.json).write_text(json.dumps(out))
-    print(ablation_table(out))
+    rows = ablation_rows()
+    order = sorted(rows, key=lambda r: r[2] > 1.0)  # none and 1x first, then 2x
+    first = [x.strip() for x in (args.first or "").split(",") if x.strip()]
+    labels = [r[0] for r in rows]
+    unknown = [x for x in first if x not in labels]
+    if unknown:
+        raise SystemExit(f"--first: {unknown}: no such row (allowed: {', '.join(labels)})")
+    order = sorted(order, key=lambda r: first.index(r[0]) if r[0] in first else len(first))
+    seeds = list(range(args.first_seed, args.first_seed + args.seeds))
+    jobs = [
+        (label, key, m, seed)
+        for label, key, m in order
+        for seed in seeds
+        if seed not in {e.get("seed") for e in out.get(label, [])}
+    ]
+    with ProcessPoolExecutor(max(1, args.jobs), mp_context=mp.get_context("spawn")) as pool:
+        futures = {
+            pool.submit(fly_one, ablation_config(key, m), "tau-events", seed): (label, seed)
+            for label, key, m, seed in jobs
+        }
+        for fut in as_completed(futures):
+            label, seed = futures[fut]
+            ep = fut.result()
+            ep.setdefault("seed", seed)
+            out.setdefault(label, []).append(ep)
+            out[label].sort(key=lambda e: e["seed"])
+            _say(label, seed, ep)
+            done = {r[0]: out[r[0]] for r in rows if r[0] in out}
+            Path(args.json).write_text(json.dumps(done))
+    print(ablation_table({r[0]: out[r[0]] for r in rows if r[0] in out}))
 
 
 def ablation_table(results: dict[str, list[dict[str, Any]]]) -> str:
@@ -535,6 +573,7 @@ def main() -> None:
     c.add_argument("--first-seed", type=int, default=0)
     c.add_argument("--jobs", type=int, default=1)
     c.add_argument("--json", default=str(Path(tempfile.gettempdir()) / "ablation.json"))
+    c.add_argument("--first", default=None, help="comma-separated row labels to fly first")
     c.set_defaults(func=ablation)
     b = sub.add_parser("speed")
     b.add_argument("--config", default=None)
