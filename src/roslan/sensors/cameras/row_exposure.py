@@ -11,8 +11,8 @@ from them by the exact per-pixel motion:
 * row ``r`` is the mean of ``N_r`` sub-samples at ``t_rj = t_r + (j + 1/2) E / N_r`` (the
   midpoint rule over its own window; ``E = 0``: one, at ``t_r``), ``N_r`` chosen so that
   consecutive sub-samples of any pixel lie at most :data:`ROW_STEP_PX` apart in the image
-  (bilinear taps 1 px apart sum to a box: the blur of a piecewise-linear image, exactly),
-  at most :data:`MAX_SUBSAMPLES`;
+  (the box blur of the render's piecewise-linear bilinear image, within the midpoint
+  rule's error at the pixel lines it crosses), at most :data:`MAX_SUBSAMPLES`;
 * sub-sample ``t`` of output pixel ``p`` (its ray ``d``, through the lens, in the optical
   frame at ``t``) is read from the row's render, the one nearest in time to the middle of
   its window (pose ``T_k``; rows are banded between the renders as the readout goes): with
@@ -64,8 +64,14 @@ F32 = NDArray[np.float32]
 F64 = NDArray[np.float64]
 I64 = NDArray[np.int64]
 
-ROW_STEP_PX = 0.5
-"""Largest image distance (px) between consecutive sub-samples of a pixel's motion."""
+ROW_STEP_PX = 0.25
+"""Largest image distance (px) between consecutive sub-samples of a pixel's motion. The
+midpoint rule over a row's window sums bilinear samples of the render; the bilinear image
+is piecewise linear with a kink at every pixel line the path crosses, and each kink's
+sub-interval leaves a residual of fine detail that a finer step shrinks. Measured
+(bench_shutter_accuracy.py, untuned landing, 15 frames, band 120-179: the floor's texture
+at a grazing angle, most of its energy near the Nyquist frequency): gradient energy
+against the 64-render reference 1.096x at 1 px, 1.053x at 0.5 px, 1.036x at 0.25 px."""
 MAX_SUBSAMPLES = 64
 """Most sub-samples of one row's exposure window."""
 PARALLAX_MARGIN = 8
