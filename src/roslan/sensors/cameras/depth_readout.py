@@ -75,6 +75,7 @@ def _depth_rows(inv, flag, base, a0, hgt, Kv, rx, ry, R, c, ks, steps, out):  # 
     """``out[r, u]``: the z-depth at row ``r``'s instant along output pixel ``(r, u)``'s
     ray (``R[r], c[r]``: the camera then in its render's frame; ``inf``: nothing hit)."""
     H, W = out.shape
+    Wr = inv.shape[1]  # the render's width (the virtual view's, not the output's)
     fx, s, fy = Kv[0], Kv[1], Kv[3]
     for r in range(H):
         k = ks[r]
@@ -92,7 +93,7 @@ def _depth_rows(inv, flag, base, a0, hgt, Kv, rx, ry, R, c, ks, steps, out):  # 
             out[r, u] = np.inf
             if az <= 1e-9:
                 continue
-            iz = _inverse_at(inv, flag, b0, h, W, (fx * ax + s * ay) / az + cx, fy * ay / az + cy)
+            iz = _inverse_at(inv, flag, b0, h, Wr, (fx * ax + s * ay) / az + cx, fy * ay / az + cy)
             for _ in range(steps):  # the depth at the surface point's own pixel
                 if iz <= 0.0:
                     break
@@ -100,7 +101,7 @@ def _depth_rows(inv, flag, base, a0, hgt, Kv, rx, ry, R, c, ks, steps, out):  # 
                 if lam <= 1e-9:
                     break
                 X, Y, Z = ax * lam + c0, ay * lam + c1, az * lam + c2
-                iz = _inverse_at(inv, flag, b0, h, W, (fx * X + s * Y) / Z + cx, fy * Y / Z + cy)
+                iz = _inverse_at(inv, flag, b0, h, Wr, (fx * X + s * Y) / Z + cx, fy * Y / Z + cy)
             if iz > 0.0:
                 lam = (1.0 / iz - c2) / az
                 if lam > 1e-9:

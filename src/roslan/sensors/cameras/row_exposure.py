@@ -150,7 +150,8 @@ def _integrate(  # type: ignore[no-untyped-def]  # pragma: no cover - numba
     end (``R[3r:3r + 3]``) on the surface seen at the middle's point (two fixed-point
     steps from its rotation-only pixel, :func:`_depth`); one point, the start, where
     ``nmax`` is 1."""
-    H, W, C = out.shape
+    H, Wo, C = out.shape
+    W = imgs.shape[1]  # the render's width (the virtual view's, not the output's)
     three = nmax > 1
     fx, s, cx, fy = Kv[0], Kv[1], Kv[2], Kv[3]
     P = np.empty((3, 12))
@@ -165,7 +166,7 @@ def _integrate(  # type: ignore[no-untyped-def]  # pragma: no cover - numba
                 for j in range(3):
                     P[e, 3 * i + j] = R[m, i, j]
                 P[e, 9 + i] = c[m, i]
-        for u in range(W):
+        for u in range(Wo):
             out[r, u] = 0.0
             x, y = np.float64(rx[r, u]), np.float64(ry[r, u])
             em = 1 if three else 0
