@@ -546,3 +546,25 @@ def test_shutter_outputs_identical_across_workers_and_reruns(tmp_path: Path) -> 
     for got in outs[1:]:
         assert got.keys() == outs[0].keys()
         assert [k for k in outs[0] if got[k] != outs[0][k]] == []
+
+
+def test_row_kernel_clamps_to_the_render_width() -> None:
+    """The row kernel reads the render (the lens's virtual view, here 5 px wide) at its own
+    width, not the output's (8 px): a pixel warped past the render's right edge reads the
+    edge column, not the next row's first pixels."""
+    import roslan.sensors.cameras.row_exposure as rx
+
+    h, wr, H, wo = 4, 5, 2, 8
+    imgs = np.arange(h * wr, dtype=np.float32).reshape(h, wr, 1)
+    zs = np.ones((h, wr), np.float32)
+    one = np.zeros(1, np.int64)
+    Kv = np.array([1.0, 0.0, 0.0, 1.0, 0.0])  # fx, skew, cx, fy, cy: pixel = ray
+    rays_x = np.tile(np.arange(wo, dtype=np.float32), (H, 1))  # rays at x = 0..7
+    rays_y = np.ones((H, wo), np.float32)  # row 1 of the render
+    R = np.tile(np.eye(3), (3 * H, 1, 1))
+    c = np.zeros((3 * H, 3))
+    out = np.full((H, wo, 1), -1.0, np.float32)
+    ks = np.zeros(H, np.int64)
+    rx._integrate(imgs, zs, one, one, one + h, Kv, rays_x, rays_y, R, c, ks, 0.25, 1, out)
+    want = imgs[1, np.minimum(np.arange(wo), wr - 1), 0]
+    np.testing.assert_array_equal(out[..., 0], np.tile(want, (H, 1)))
