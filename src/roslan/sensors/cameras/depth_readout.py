@@ -75,7 +75,7 @@ def _depth_rows(inv, flag, base, a0, hgt, Kv, rx, ry, R, c, ks, steps, out):  # 
     """``out[r, u]``: the z-depth at row ``r``'s instant along output pixel ``(r, u)``'s
     ray (``R[r], c[r]``: the camera then in its render's frame; ``inf``: nothing hit)."""
     H, W = out.shape
-    Wr = inv.shape[1]  # the render's width (a lens's virtual view is not the output's)
+    Wr = inv.shape[1]  # the render's width (the virtual view's, not the output's)
     fx, s, fy = Kv[0], Kv[1], Kv[3]
     for r in range(H):
         k = ks[r]
