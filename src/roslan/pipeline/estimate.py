@@ -21,7 +21,7 @@ from __future__ import annotations
 import math
 import os
 import shutil
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -185,6 +185,22 @@ def _camera_labels(kind: str, n: float, w: int, h: int) -> tuple[int, float, flo
     return files, disk, frames * w * h * 4.0, frames * _LABEL_FRAME_DETECTIONS
 
 
+def _spend_labels(
+    add: Callable[[str, float], None],
+    bag: Callable[[str, float], None],
+    files: int,
+    disk: float,
+    mono: float,
+    small: float,
+) -> int:
+    """Count a camera's label outputs (:func:`_camera_labels`): their disk and bag bytes;
+    returns the number of files."""
+    add("labels", disk)
+    bag("mono", mono)
+    bag("small", small)
+    return files
+
+
 def estimate_run(
     config: SimConfig,
     formats: tuple[str, ...] | None = None,
@@ -235,12 +251,9 @@ def estimate_run(
             w, h = _resolution(s)
             mpix = w * h / 1e6 * int(getattr(s, "supersampling", 1)) ** 2  # rendered pixels
             bag("small", n * 400.0)  # camera_info
-            if getattr(s, "writes_labels", False) and t != "event_camera":
-                files, disk, mono, small = _camera_labels(t, n, w, h)
-                label_files += files
-                add("labels", disk)
-                bag("mono", mono)
-                bag("small", small)
+            aps = t != "event_camera" or getattr(s, "aps", None) is not False
+            if getattr(s, "writes_labels", False) and aps:  # an event camera's APS frames too
+                label_files += _spend_labels(add, bag, *_camera_labels(t, n, w, h))
             if t == "event_camera":
                 events = ev_rate * w * h * duration
                 for f in fmts:
@@ -260,14 +273,6 @@ def estimate_run(
                 if getattr(s, "aps", None) is not False:
                     bag("mono", n * w * h)
                     add("images", n * w * h * _PNG_RATIO["mono"])
-                    if getattr(s, "writes_labels", False):
-                        # the APS frames' id PNGs and bag topics, as a frame camera's
-                        # (tracks.npy in place of annotations.json)
-                        files, disk, mono, small = _camera_labels(t, n, w, h)
-                        label_files += files
-                        add("labels", disk)
-                        bag("mono", mono)
-                        bag("small", small)
                 # adaptive sampling runs near max_rate through most of a landing
                 samples = duration * (0.2 * float(s.min_rate) + 0.8 * float(s.max_rate))  # type: ignore[attr-defined]
                 spend(s, samples * mpix * _CPU_PER_MPIX_SAMPLE + events * _CPU_PER_EVENT)
