@@ -82,7 +82,7 @@ class ClosedObject:
         if not mesh.is_watertight:
             return None
         if not mesh.is_winding_consistent:
-            trimesh.repair.fix_winding(mesh)
+            trimesh.repair.fix_winding(mesh)  # type: ignore[no-untyped-call]
         return mesh
 
     @cached_property
