@@ -169,6 +169,19 @@ print(json.dumps(out))
 """
 
 
+def ros1_detections(bag: Path, topic: str) -> dict[str, Any]:
+    """The last Detection2DArray/3DArray of ``topic`` in ``bag`` as ROS 1's own reader
+    (Debian's python3-rosbag) decodes it: type, md5 sums and boxes (:data:`_READ`)."""
+    script = _READ.replace("read_messages()", f"read_messages(topics=[{topic!r}])")
+    proc = subprocess.run(
+        [_debian_python(), "-c", script, str(bag)], capture_output=True, text=True, timeout=120
+    )
+    assert proc.returncode == 0, proc.stderr
+    row: dict[str, Any] = json.loads(proc.stdout)[topic]
+    assert row["md5"] == row["conn_md5"]
+    return row
+
+
 @pytest.mark.ros1
 def test_ros1_own_reader_decodes_the_detections(tmp_path: Path) -> None:
     py = _debian_python()

@@ -28,7 +28,7 @@ from typing import Any
 from gymnasium.vector import AutoresetMode, SyncVectorEnv
 
 from roslan.config.sim import SimConfig
-from roslan.env.landing import LITE_CONFIG, LandingEnv
+from roslan.env.landing import LITE_CONFIG, LandingEnv, load_env_config
 
 __all__ = ["LandingVectorEnv", "SharedScenes"]
 
@@ -123,7 +123,7 @@ class LandingVectorEnv(SyncVectorEnv):
             config = LITE_CONFIG
         self.shared = SharedScenes()
         shared = self.shared
-        cfg, path = _load(config)
+        cfg, path = load_env_config(config)
 
         def make() -> LandingEnv:
             env = _SharingEnv(shared, cfg, render_mode=render_mode)
@@ -139,9 +139,3 @@ class LandingVectorEnv(SyncVectorEnv):
     def close_extras(self, **kwargs: Any) -> None:
         super().close_extras(**kwargs)
         self.shared.release()
-
-
-def _load(config: Any) -> tuple[SimConfig, Path | None]:
-    from roslan.env.landing import load_env_config
-
-    return load_env_config(config)

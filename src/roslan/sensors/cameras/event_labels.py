@@ -34,7 +34,7 @@ from roslan.io.files import atomic_write_bytes
 from roslan.io.images import write_png
 from roslan.scene.classes import NOISE_CLASS_ID
 from roslan.scene.instances import scene_labels
-from roslan.sensors.cameras.labels import instance_boxes, label_messages
+from roslan.sensors.cameras.labels import instance_boxes, instance_classes, label_messages
 
 if TYPE_CHECKING:
     from roslan.events.model import EventBatch
@@ -86,10 +86,7 @@ class EventLabels:
         self.t_prev: int | None = None
         self.aps_index = 0
         self.topic, self.frame = sensor.config.topic, sensor.optical_frame
-        n = len(labels.instances)
-        self.inst_class = np.zeros(n + 1, dtype=np.uint16)  # instance id -> class id
-        for i in labels.instances:
-            self.inst_class[i.id] = i.class_id
+        self.inst_class = instance_classes(labels)  # instance id -> class id
         self._cached: tuple[int, NDArray[np.uint16], NDArray[np.uint16]] | None = None
 
     def _cast(self, t_ns: int, pix: NDArray[np.int64]) -> U32:

@@ -55,6 +55,7 @@ __all__ = [
     "EyeLabels",
     "coco_annotations",
     "instance_boxes",
+    "instance_classes",
     "label_messages",
     "label_topics",
     "surface_samples",
@@ -62,6 +63,15 @@ __all__ = [
 
 U16 = NDArray[np.uint16]
 F64 = NDArray[np.float64]
+
+
+def instance_classes(labels: SceneLabels) -> U16:
+    """(n + 1,) class id of each instance id (0: nothing), a lookup table for id images."""
+    out = np.zeros(len(labels.instances) + 1, dtype=np.uint16)
+    ids = np.array([i.id for i in labels.instances], dtype=np.int64)
+    out[ids] = [i.class_id for i in labels.instances]
+    return out
+
 
 SAMPLES_PER_INSTANCE = 64
 """Surface samples per instance for ``visible_fraction`` and ``truncated``."""
@@ -263,10 +273,7 @@ class EyeLabels:
         self.folder, self.image_dir = folder, image_dir  # "<cam>/" (or ""), "images/"
         self.write_files = write_files
         self.tri_inst = np.concatenate([[0], labels.triangle_instance]).astype(np.uint16)
-        n = len(labels.instances)
-        self.inst_class = np.zeros(n + 1, dtype=np.uint16)
-        for i in labels.instances:
-            self.inst_class[i.id] = i.class_id
+        self.inst_class = instance_classes(labels)
         self.classes = labels.classes
         self.images: list[dict[str, Any]] = []
         self.annotations: list[dict[str, Any]] = []
