@@ -4,7 +4,7 @@ Every beam sensor (spinning and solid-state LiDAR, 2-D laser, sonar, altimeter)
 casts its rays here, against exactly the triangles the rasterizer draws
 (``Scene.triangles``), so images and beams cannot disagree.
 
-Moving objects (issue 48): the Embree scene holds the static world only; each moving
+Moving objects: the Embree scene holds the static world only; each moving
 object has its own Embree scene of its model-frame geometry (scaled), and every ray is
 cast against it in the object's frame at the ray's own time (``T(t)^-1`` applied to the
 ray: a rigid motion keeps the distance along it), the nearest of all hits winning.
