@@ -164,3 +164,91 @@ def test_rasterizer_draws_the_box_at_each_render_time(scenes: tuple[Scene, Scene
     assert a.color.tobytes() == b.color.tobytes()
     assert rs.buffers.movers == []
     rs.release()
+
+
+def _event_sensor(tmp: Path, scene: Scene):  # type: ignore[no-untyped-def]
+    """A 64x48 event camera looking straight down from 4 m (a static pose file) over the
+    sliding box, and its run context."""
+    from roslan.pipeline.context import Context
+    from roslan.sensors.cameras import EventCamera, EventCameraConfig
+    from roslan.trajectory import TrajectoryConfig
+    from roslan.trajectory.spline import FileTrajectory
+
+    lines = [f"{k * 0.01:.2f} 0 1.5 4 0 0 0 1" for k in range(41)]
+    (tmp / "still.txt").write_text("\n".join(lines) + "\n", encoding="utf-8")
+    traj = FileTrajectory(TrajectoryConfig.model_validate({"file": str(tmp / "still.txt")}))
+    cfg = EventCameraConfig.model_validate(
+        {"type": "event_camera", "name": "dvs", "rate": 25, "topic": "/dvs",
+         "resolution": (64, 48), "pose": {"rpy": (0.0, 1.5707963267948966, 0.0)},
+         "max_rate": 300, "min_rate": 50}  # fmt: skip
+    )
+    ctx = Context(traj, tmp, seed=1, sensors=[cfg], scene=scene, start_time_ns=0)
+    return EventCamera(cfg), ctx
+
+
+def _project(T_wc: np.ndarray, K: np.ndarray, P: np.ndarray) -> np.ndarray:
+    Pc = (P - T_wc[:3, 3]) @ T_wc[:3, :3]
+    return np.stack([K[0, 0] * Pc[:, 0] / Pc[:, 2] + K[0, 2], K[1, 1] * Pc[:, 1] / Pc[:, 2] + K[1, 2]], 1)
+
+
+def _box_pixels(sensor, ctx, t_ns: int):  # type: ignore[no-untyped-def]
+    """Depth, object ids and camera pose at ``t_ns``, and the world points of box pixels."""
+    from roslan.events.sampling import camera_twist
+
+    _, depth, v, w = sensor.render(ctx, t_ns, need_depth=True)
+    ids = sensor.last_ids
+    assert ids is not None
+    T_wc = camera_twist(ctx.trajectory, t_ns, sensor.T_body_cam)[0]
+    x, y = sensor.camera.rays
+    on = (ids == 1) & np.isfinite(depth)
+    z = depth[on].astype(np.float64)
+    Pc = np.stack([x[on] * z, y[on] * z, z], 1)
+    return depth, ids, v, w, T_wc, on, Pc @ T_wc[:3, :3].T + T_wc[:3, 3]
+
+
+def test_event_motion_field_and_dsec_flow_follow_the_box(
+    scenes: tuple[Scene, Scene], tmp_path: Path
+) -> None:
+    from roslan.sensors.cameras.flow_truth import FlowTruth
+
+    _, moving = scenes
+    sensor, ctx = _event_sensor(tmp_path, moving)
+    K = sensor.camera.K
+    t0, t1 = 150_000_000, 200_000_000
+    d0, ids0, v, w, T_wc, on, P = _box_pixels(sensor, ctx, t0)
+    assert on.sum() > 30
+    # the motion field on the box: the surface point's image velocity (finite differences)
+    flow = sensor.camera.flow(d0, v, w)
+    h = 1e-4
+    expect = (_project(T_wc, K, P + V * h) - _project(T_wc, K, P - V * h)) / (2 * h)
+    err = np.linalg.norm(flow[on] - expect, axis=1)
+    speed = np.linalg.norm(expect, axis=1)
+    assert speed.min() > 20.0  # px/s
+    assert np.max(err / speed) < 1e-3, np.max(err / speed)
+    # the floor's pixels: no motion (static camera, static floor)
+    floor = (ids0 == 0) & np.isfinite(d0)
+    assert np.abs(flow[floor]).max() < 1e-3
+    # DSEC flow over [t0, t1]: the displacement of the box's surface points, projected
+    d1 = _box_pixels(sensor, ctx, t1)[0]
+    got: list[np.ndarray] = []
+
+    class _Writer:
+        def write(self, a: int, b: int, disp: np.ndarray) -> None:
+            got.append(disp)
+
+    def pose(t_ns: int) -> np.ndarray:
+        return T_wc  # the camera does not move
+
+    ft = FlowTruth(sensor.camera.model, sensor.camera.rays, pose, _Writer(), t1 - t0, None,
+                   sky_valid=False, scene=moving)  # fmt: skip
+    ft.step(t0, d0, start=True, submit=lambda f, *a: f(*a), ids=ids0)
+    ft.step(t1, d1, start=False, submit=lambda f, *a: f(*a), ids=None)
+    assert len(got) == 1
+    disp = got[0]
+    vv, uu = np.nonzero(on)
+    moved = _project(T_wc, K, P + V * (t1 - t0) * 1e-9) - np.stack([uu, vv], 1)
+    ok = np.isfinite(disp[on][:, 0])  # (not occluded at t1, inside the image)
+    assert ok.mean() > 0.8
+    err = np.linalg.norm(disp[on][ok] - moved[ok], axis=1)
+    assert np.median(err) <= 0.05, np.median(err)
+    assert np.median(np.linalg.norm(moved, axis=1)) > 1.0  # (the box moves pixels)
