@@ -180,9 +180,17 @@ def _event_sensor(tmp: Path, scene: Scene, **over: object):  # type: ignore[no-u
     (tmp / "still.txt").write_text("\n".join(lines) + "\n", encoding="utf-8")
     traj = FileTrajectory(TrajectoryConfig.model_validate({"file": str(tmp / "still.txt")}))
     cfg = EventCameraConfig.model_validate(
-        {"type": "event_camera", "name": "dvs", "rate": 25, "topic": "/dvs",
-         "resolution": (64, 48), "pose": {"rpy": (0.0, 1.5707963267948966, 0.0)},
-         "max_rate": 300, "min_rate": 50, **over}  # fmt: skip
+        {
+            "type": "event_camera",
+            "name": "dvs",
+            "rate": 25,
+            "topic": "/dvs",
+            "resolution": (64, 48),
+            "pose": {"rpy": (0.0, 1.5707963267948966, 0.0)},
+            "max_rate": 300,
+            "min_rate": 50,
+            **over,
+        }
     )
     ctx = Context(traj, tmp, seed=1, sensors=[cfg], scene=scene, start_time_ns=0)
     return EventCamera(cfg), ctx
@@ -190,7 +198,9 @@ def _event_sensor(tmp: Path, scene: Scene, **over: object):  # type: ignore[no-u
 
 def _project(T_wc: np.ndarray, K: np.ndarray, P: np.ndarray) -> np.ndarray:
     Pc = (P - T_wc[:3, 3]) @ T_wc[:3, :3]
-    return np.stack([K[0, 0] * Pc[:, 0] / Pc[:, 2] + K[0, 2], K[1, 1] * Pc[:, 1] / Pc[:, 2] + K[1, 2]], 1)
+    return np.stack(
+        [K[0, 0] * Pc[:, 0] / Pc[:, 2] + K[0, 2], K[1, 1] * Pc[:, 1] / Pc[:, 2] + K[1, 2]], 1
+    )
 
 
 def _box_pixels(sensor, ctx, t_ns: int):  # type: ignore[no-untyped-def]

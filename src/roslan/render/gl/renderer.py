@@ -409,7 +409,9 @@ class Renderer:
         corners = self._bounds_corners
         if self.buffers.movers:  # (the moving objects where they are now)
             lo, hi = self.buffers.mover_lo, self.buffers.mover_hi
-            box = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+            box = np.array(
+                [[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])]
+            )
             corners = np.vstack([corners, box])
         far = float(np.max(np.linalg.norm(corners - cam_pos, axis=1))) * 1.01
         far = max(far, 2.0 * z_near)

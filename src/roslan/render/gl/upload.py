@@ -249,7 +249,7 @@ class SceneBuffers:
                 continue
             T = o.pose_at(t)
             R = T[:3, :3]
-            loc_v, loc_n = o.model_geometry()
+            loc_n = o.model_geometry()[1]
             sc = np.asarray(o.scale, dtype=np.float64)
             n = (loc_n.astype(np.float64) / sc) @ R.T
             n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-30)
