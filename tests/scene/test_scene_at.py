@@ -157,7 +157,7 @@ def test_renderer_caster_and_clearance_agree_at_every_time(posed: Scene) -> None
         r.release()
 
 
-def test_moving_object_is_placed_at_its_time_and_back_ends_refuse_it(posed: Scene) -> None:
+def test_moving_object_is_placed_at_its_time(posed: Scene) -> None:
     box = posed.object("box")
     v = np.array([0.4, -0.2, 0.1])
     track = Sliding(box.pose.copy(), v, 0.5)
@@ -186,9 +186,10 @@ def test_moving_object_is_placed_at_its_time_and_back_ends_refuse_it(posed: Scen
     r = pts - (box.pose[:3, 3] + v * t)
     np.testing.assert_allclose(vel[:2], v + 0.5 * np.stack([-r[:2, 1], r[:2, 0], 0 * r[:2, 0]], 1))
     assert not vel[2:].any()
-    # back-ends that build their structures once refuse a moving scene by name
-    with pytest.raises(RenderError, match=r"'moving'.*\['box'\].*constant pose"):
-        RayCaster(scene)
+    # the caster casts the moving box where it is at the rays' time
+    o = (box.pose[:3, 3] + v * t + [0.0, 0.0, 5.0]).astype(np.float32)[None]
+    hit = RayCaster(scene).cast(o, np.array([[0.0, 0.0, -1.0]], np.float32), t=t)
+    assert hit.object[0] == 1
 
 
 def test_scene_file_round_trip_keeps_pose(posed: Scene, tmp_path: Path) -> None:

@@ -41,7 +41,6 @@ from roslan.render.gl.settings import MAX_ANISO, default_samples
 from roslan.render.gl.supersample import render_supersampled
 from roslan.render.gl.targets import Targets, out_array
 from roslan.render.gl.upload import CLUSTER_CELLS, SceneBuffers, ShadowMap, merge_runs
-from roslan.scene.model import require_static
 
 if TYPE_CHECKING:
     from roslan.scene.model import Scene
@@ -143,7 +142,6 @@ class Renderer:
     def __init__(self, scene: Scene, *, samples: int | None = None) -> None:
         # (the scene's lights only: a renderer must not keep its scene alive, so that the
         # per-process lookup of get_renderer, weak on the scene, lets both go)
-        require_static(scene, "the OpenGL renderer")
         self.lights = scene.lights
         self.ctx = ctx = create_context()
         self.max_size = int(
@@ -311,9 +309,10 @@ class Renderer:
                 the result converges to the area average of the true image as N grows;
                 depth: see :func:`~roslan.render.gl.supersample.combine_depth`.
                 ``samples`` is ignored then.
-            t: trajectory time (s) of the view (None: t = 0); the scene at ``t``
-                (:meth:`Scene.at <roslan.scene.model.Scene.at>`) is the uploaded static
-                scene at every time, the only kind this renderer draws.
+            t: trajectory time (s) of the view (None: t = 0): each moving object is
+                drawn at its pose at ``t`` (:meth:`SceneBuffers.move_to
+                <roslan.render.gl.upload.SceneBuffers.move_to>`); a static scene is the
+                uploaded one at every time.
             ids: also return :attr:`RenderResult.ids`, the scene triangle at every pixel
                 centre of the same view (:mod:`roslan.render.gl.ids`).
         Returns:
@@ -325,6 +324,8 @@ class Renderer:
             raise RenderError(msg)
         width, height = int(width), int(height)
         self.check_size(width, height)
+        if self.buffers.move_to(0.0 if t is None else float(t)):
+            self.shadow.draw(self.ctx, self.buffers, self._prog_shadow)
         if ids:
             res = self.render(
                 T_world_cam, K, width, height, color=color, depth=depth, luminance=luminance,
@@ -405,7 +406,14 @@ class Renderer:
         T_cam_world = np.linalg.inv(T)
         cam_pos = T[:3, 3]
         z_near = self.near if near is None else float(near)
-        far = float(np.max(np.linalg.norm(self._bounds_corners - cam_pos, axis=1))) * 1.01
+        corners = self._bounds_corners
+        if self.buffers.movers:  # (the moving objects where they are now)
+            lo, hi = self.buffers.mover_lo, self.buffers.mover_hi
+            box = np.array(
+                [[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])]
+            )
+            corners = np.vstack([corners, box])
+        far = float(np.max(np.linalg.norm(corners - cam_pos, axis=1))) * 1.01
         far = max(far, 2.0 * z_near)
         P = projection_from_K(np.asarray(K, dtype=np.float64), width, height, z_near, far)
         clip = P @ T_cam_world

@@ -1,7 +1,14 @@
 """Scene upload: one vertex/index buffer for the whole scene, its triangles grouped by
 texture and, inside each group, into spatial culling clusters (one object's triangles
 in one grid cell) with bounding boxes; the frustum culling over those clusters; and
-the sun's shadow map, rendered once (scene and sun are static)."""
+the sun's shadow map, rendered once for a static scene.
+
+A moving object (:attr:`SceneObject.is_static <roslan.scene.model.SceneObject.is_static>`
+False) is uploaded like the others, and :meth:`SceneBuffers.move_to` rewrites only its
+own vertex range (positions and normals at the render's time); its clusters are never
+frustum-culled and its back faces never skipped (their boxes would be stale), and the
+shadow map is drawn again for each new time. A static scene never takes this path: its
+buffers, draws and pixels are those of a static upload."""
 
 from __future__ import annotations
 
@@ -31,6 +38,10 @@ CLUSTER_CELLS = 12
 SHADOW_MAP_MAX = 2048
 """Largest shadow map (texels per side), on every OpenGL implementation (llvmpipe's
 lookups are memory bound; one size everywhere keeps the shadows' edges the same)."""
+
+_UNBOUNDED = 1e30
+"""Half size (m) of a moving object's culling boxes: never outside a frustum (finite, so
+that ``0 * half`` stays 0)."""
 
 _GL_SRGB8 = 0x8C41
 _GL_SRGB8_ALPHA8 = 0x8C43
@@ -88,6 +99,7 @@ class _Clusters:
         self.closed_names: list[str] = []
         self.source: list[NDArray[np.int64]] = []  # per uploaded face: its scene triangle
         self.offset = 0  # vertices so far
+        self.movers: list[tuple[SceneObject, int, int, int]] = []  # (obj, v0, cluster0, n)
 
     def add(self, o: SceneObject, group: int, first: int, tri0: int) -> int:
         """Add object ``o`` of texture group ``group`` whose indices start at ``first``
@@ -95,6 +107,8 @@ class _Clusters:
         index count."""
         nv = int(o.vertices.shape[0])
         nf = int(o.faces.shape[0])
+        if not o.is_static:
+            self.movers.append((o, self.offset, len(self.first), 0))
         self.parts.append(_vertex_attrs(o))
         tri = o.vertices[o.faces]  # (F, 3, 3)
         cells = np.floor(tri.mean(axis=1) / self.cell).astype(np.int64)
@@ -114,6 +128,11 @@ class _Clusters:
         self.o_lo.append(tri.min(axis=(0, 1)))
         self.o_hi.append(tri.max(axis=(0, 1)))
         self.o_closed.append(closed_solid(o.vertices, o.faces))
+        if not o.is_static:
+            m = self.movers[-1]
+            self.movers[-1] = (m[0], m[1], m[2], len(self.first) - m[2])
+            self.o_lo[-1] = np.full(3, -_UNBOUNDED, np.float32)  # never back-face culled
+            self.o_hi[-1] = np.full(3, _UNBOUNDED, np.float32)
         if self.o_closed[-1]:
             self.closed_names.append(o.name)
         self.offset += nv
@@ -157,6 +176,7 @@ class SceneBuffers:
         self.tri_source = np.concatenate(acc.source) if acc.source else np.zeros(0, dtype=np.int64)
         self.vbo: Any = None
         self.ibo: Any = None
+        self.movers: list[tuple[SceneObject, int, F32 | None]] = []
         self.vao_depth: Any = None
         self.vao_shadow: Any = None
         if acc.offset == 0:
@@ -166,6 +186,13 @@ class SceneBuffers:
         hi = np.concatenate(acc.hi).astype(np.float64)
         self.c_centre = 0.5 * (lo + hi)
         self.c_half = 0.5 * (hi - lo) + 1e-4
+        for _, _, c0, nc in acc.movers:
+            self.c_half[c0 : c0 + nc] = _UNBOUNDED
+        self.movers = [
+            (o, v0, acc.parts[acc.obj[c0]] if nc else None) for o, v0, c0, nc in acc.movers
+        ]
+        self.moved_at: float | None = None  # the time the moving objects' vertices are at
+        self.mover_lo = self.mover_hi = np.zeros(3)
         data = np.concatenate(acc.parts)
         idx = np.concatenate(acc.faces).reshape(-1)
         self.vbo = ctx.buffer(data.tobytes())
@@ -209,6 +236,34 @@ class SceneBuffers:
             self.group_tex.append(tex)
             first += count
         return acc
+
+    def move_to(self, t: float) -> bool:
+        """Place the moving objects at trajectory time ``t`` (s): rewrite their vertex
+        ranges (positions, normals) when ``t`` is not the time they are at; True when
+        they moved (the shadow map is then stale). No moving object: False, nothing done."""
+        if not self.movers or self.moved_at == t:
+            return False
+        los, his = [], []
+        for o, v0, attrs in self.movers:
+            if attrs is None:
+                continue
+            T = o.pose_at(t)
+            R = T[:3, :3]
+            loc_n = o.model_geometry()[1]
+            sc = np.asarray(o.scale, dtype=np.float64)
+            n = (loc_n.astype(np.float64) / sc) @ R.T
+            n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-30)
+            pos = o.vertices_at(t)
+            attrs[:, 0:3] = pos
+            attrs[:, 3:6] = n
+            self.vbo.write(attrs.tobytes(), offset=4 * 11 * v0)
+            los.append(pos.min(axis=0))
+            his.append(pos.max(axis=0))
+        if los:
+            self.mover_lo = np.min(los, axis=0).astype(np.float64)
+            self.mover_hi = np.max(his, axis=0).astype(np.float64)
+        self.moved_at = t
+        return True
 
     @property
     def n_clusters(self) -> int:
@@ -303,15 +358,21 @@ class ShadowMap:
         self.tex.filter = (ctx.LINEAR, ctx.LINEAR)
         self.tex.repeat_x = self.tex.repeat_y = False
         self.fbo = ctx.framebuffer(depth_attachment=self.tex)
+        self._L = gl_mat(L)
+        self.draw(ctx, buffers, prog_shadow)
+        self.light = gl_mat(to_unit @ L)
+        self.texel = 1.0 / size
+
+    def draw(self, ctx: Any, buffers: SceneBuffers, prog_shadow: Any) -> None:
+        """Draw the map of the buffers as they are now (again after moving objects move;
+        the map covers the scene's bounds at upload)."""
         self.fbo.use()
         self.fbo.clear(depth=1.0)
         if buffers.vao_shadow is not None:
             ctx.enable_only(ctx.DEPTH_TEST)
             ctx.depth_func = "<"
-            prog_shadow["u_mvp"].write(gl_mat(L))
+            prog_shadow["u_mvp"].write(self._L)
             buffers.vao_shadow.render(ctx.TRIANGLES)
-        self.light = gl_mat(to_unit @ L)
-        self.texel = 1.0 / size
 
     def release(self) -> None:
         """Free the framebuffer and the texture."""

@@ -62,7 +62,7 @@ from roslan.sensors.cameras.event_truth import DepthH5Writer, FlowPngWriter
 from roslan.sensors.cameras.flow_truth import FlowTruth, depth_on_rays, flow_end_times
 from roslan.sensors.cameras.model import T_LINK_OPTICAL, CameraModel, RenderPlan
 from roslan.sensors.cameras.remap import remap_result, remap_view
-from roslan.sensors.cameras.scene_motion import relative_velocity
+from roslan.sensors.cameras.scene_motion import object_ids, relative_velocity
 
 __all__ = ["EventCamera"]
 
@@ -154,6 +154,9 @@ class EventCamera:
         """The DSEC flow maps' maker (``optic_flow``), fed by the event stream."""
         self.stats: dict[str, float] = {}
         self._T_body_cam: F64 | None = None
+        self.last_ids: NDArray[np.int32] | None = None
+        """The object each output pixel saw in the last :meth:`render` (a scene whose
+        objects move and a render with depth only; else None)."""
         self._stage: BackgroundSink | None = None
         self._farm: ChainFarm | None = None
         self.pipelined = True
@@ -216,6 +219,8 @@ class EventCamera:
         if self._T_body_cam is None:  # (the property builds it from the config each time)
             self._T_body_cam = self.T_body_cam
         T_wc, v, w = camera_twist(ctx.trajectory, t_ns, self._T_body_cam)
+        view = ctx.scene.at(t_ns * 1e-9)
+        moving = need_depth and not view.is_static  # (the object of each pixel wanted)
         # luminance-only pass: one shaded channel, the cheapest read back (roslan.render.gl)
         res = renderer.render(
             T_wc,
@@ -228,15 +233,17 @@ class EventCamera:
             near=self.config.near_clip,
             supersampling=self.config.supersampling,
             t=t_ns * 1e-9,
+            **({"ids": True} if moving else {}),
         )
         assert res.luminance is not None
         out = res if cam.plan is None else remap_result(cam.plan, res)
         lum, depth = out.luminance, out.depth
         assert lum is not None
+        self.last_ids = None if out.ids is None else object_ids(view, out.ids)
         if depth is not None and exact_depth and not cam.model.is_pinhole:
             depth = depth_on_rays(ctx.raycaster(), T_wc, cam.rays, t=t_ns * 1e-9)
         if depth is not None:  # the scene's own motion (a static scene: v itself)
-            v = relative_velocity(ctx.scene.at(t_ns * 1e-9), T_wc, v, depth, cam.rays, out.ids)
+            v = relative_velocity(view, T_wc, v, depth, cam.rays, self.last_ids)
         return lum, depth, v, w
 
     # -------------------------------------------------------------- stream
@@ -319,9 +326,9 @@ class EventCamera:
             n_frames += 1
             n_capped += inst.capped
             if stage is None:
-                post.step(t, inst.lum, inst.depth, inst.flow)
+                post.step(t, inst.lum, inst.depth, inst.flow, inst.ids)
             else:
-                stage.submit(post.step, t, inst.lum, inst.depth, inst.flow)
+                stage.submit(post.step, t, inst.lum, inst.depth, inst.flow, inst.ids)
             yield from post.take()
         if farm is not None:
             self._farm = None

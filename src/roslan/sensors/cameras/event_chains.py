@@ -118,6 +118,9 @@ class Instant(NamedTuple):
     """Ground-truth flow (only at ground-truth instants of a camera with ``optic_flow``)."""
     capped: bool
     """The step after this instant was cut to ``1 / max_rate`` (ESIM's lambda not met)."""
+    ids: NDArray[np.int32] | None = None
+    """The object each pixel sees where ``depth`` is kept, in a scene whose objects move
+    (the DSEC flow maps carry those points with their objects); else None."""
 
 
 def chain_starts(sampler: AdaptiveSampler) -> list[int]:
@@ -145,7 +148,8 @@ def _render(
     )
     flow = sensor.camera.flow(depth, v, w) if depth is not None and c.optic_flow and gt else None
     keep = gt and (c.depthmap or c.optic_flow)
-    return Instant(t, lum, depth if keep else None, flow, False), depth, v, w
+    ids = getattr(sensor, "last_ids", None) if keep else None
+    return Instant(t, lum, depth if keep else None, flow, False, ids), depth, v, w
 
 
 def render_chain(

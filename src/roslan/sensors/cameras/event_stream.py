@@ -145,7 +145,14 @@ class AfterRender:
             self.gen.flag_noise = True
             self.labels = EventLabels(sensor, ctx, times)
 
-    def step(self, t: int, lum: F32, depth: F32 | None, flow: F32 | None) -> None:
+    def step(
+        self,
+        t: int,
+        lum: F32,
+        depth: F32 | None,
+        flow: F32 | None,
+        ids: NDArray[np.int32] | None = None,
+    ) -> None:
         s, c, ctx, sink = self.sensor, self.sensor.config, self.ctx, self.sensor._sink
         assert sink is not None
         batch = self.gen.update(lum, t)
@@ -182,7 +189,7 @@ class AfterRender:
             out += s._truth_msgs(ctx, t, flow, depth, self.gt_times, self.gt_rate)
         if s.flow_truth is not None:  # (a map starts after the first event)
             start = t in self.gt_set and self.n_events > 0
-            s.flow_truth.step(t, depth, start=start, submit=sink.submit)
+            s.flow_truth.step(t, depth, start=start, submit=sink.submit, ids=ids)
         self.buf, ready = self.packets.split(self.buf, t, final=False)
         self._push(*ready, *out)
         horizon = t if not self.buf else min(t, int(self.buf[0].t[0]))

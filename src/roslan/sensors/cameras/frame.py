@@ -295,6 +295,7 @@ class _ImagingCamera(CameraBase):
                 out=acc if i == 0 else e.buffer("sub", shape),
                 near=c.near_clip,
                 supersampling=c.supersampling,
+                t=None if shutter is None else float(shutter.instants_ns[i]) * 1e-9,
             )
             img = res.luminance if mono else res.color
             assert img is not None

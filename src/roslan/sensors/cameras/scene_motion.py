@@ -17,7 +17,7 @@ from numpy.typing import NDArray
 from roslan.errors import RenderError
 from roslan.scene.model import SceneAt
 
-__all__ = ["relative_velocity", "require_ids"]
+__all__ = ["object_ids", "relative_velocity", "require_ids"]
 
 F64 = NDArray[np.float64]
 
@@ -32,6 +32,18 @@ def require_ids(view: SceneAt, ids: NDArray[np.integer] | None, what: str) -> ND
         )
         raise RenderError(msg)
     return ids
+
+
+def object_ids(view: SceneAt, tri_ids: NDArray[np.integer]) -> NDArray[np.int32]:
+    """(H, W) int32 index into ``Scene.objects`` of the object each pixel sees (-1:
+    nothing) from a render's triangle ids (:attr:`RenderResult.ids
+    <roslan.render.base.RenderResult.ids>`: 1 + the scene triangle, 0: nothing)."""
+    owner = view.scene.triangles[2]
+    ids = np.asarray(tri_ids).astype(np.int64)
+    if owner.shape[0] == 0:
+        return np.full(ids.shape, -1, np.int32)
+    obj = owner[np.clip(ids - 1, 0, owner.shape[0] - 1)]
+    return np.where(ids > 0, obj, -1).astype(np.int32)
 
 
 def relative_velocity(
