@@ -46,7 +46,8 @@ NOT_RUN: dict[str, str] = {
     r"python3 -m pip install \.": "installs roslan (the suite runs inside an installed one)",
     r"pip install -e '\.\[rl\]'": "installs stable-baselines3 and torch (the suite does not)",
     r"python benchmarks/train_landing\.py .*": (
-        "trains for 0.3 h and needs the `rl` extra (tests/env/test_train_landing.py runs its wrapper)"
+        "trains for 0.3 h and needs the `rl` extra"
+        " (tests/env/test_train_landing.py runs its wrapper)"
     ),
     r"\.venv/bin/roslan .*": "the clone's .venv (here `roslan` on PATH runs every example)",
     r"source \.venv/bin/activate": "the clone's .venv (a shell builtin of bash, not sh)",
